@@ -1,0 +1,130 @@
+"""The ``singplan`` command.
+
+``main(argv) -> int`` returns the exit code (0 ok, 2 bad input, 3 no plan) so tests can call
+it directly; :func:`run` is the console-script entry point.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+from typing import TextIO
+
+import numpy as np
+import pinocchio as pin
+
+from singplan.configuration import singularity_distances
+from singplan.errors import InputError, SingplanError
+from singplan.ik import solve_all
+from singplan.robot import Robot, RobotEntry, bundled_robots, load_robot
+
+
+def _reach_m(robot: Robot) -> float:
+    """Largest distance of the flange from axis 1 [m] (OPW: exact; else a link-length bound)."""
+    p = robot.opw
+    if p is not None:
+        return p.a1 + p.c2 + math.hypot(p.a2, p.c3) + p.c4
+    model = robot.model
+    lengths = [np.linalg.norm(model.jointPlacements[i].translation) for i in range(2, model.njoints)]
+    return float(sum(lengths) + np.linalg.norm(model.frames[robot.tip_frame_id].placement.translation))
+
+
+def _robot_rows() -> list[dict[str, object]]:
+    rows = []
+    for name, entry in bundled_robots().items():
+        robot = load_robot(name)
+        rows.append({"name": name, "display_name": entry.display_name, "dof": robot.n_joints,
+                     "family": entry.family, "reach_m": round(_reach_m(robot), 4), "tip": entry.tip,
+                     "urdf": str(robot.urdf_path), "source": _source(entry)})
+    return rows
+
+
+def _source(entry: RobotEntry) -> str:
+    if entry.example_robot_data:
+        return f"example-robot-data:{entry.example_robot_data}"
+    chain = [s for s in entry.sources if s.startswith("chain ")]
+    return chain[0].removeprefix("chain ").split(":")[0] if chain else ""
+
+
+def cmd_robots(args: argparse.Namespace, out: TextIO) -> int:
+    rows = _robot_rows()
+    if args.json:
+        out.write(json.dumps(rows, indent=2) + "\n")
+        return 0
+    out.write(f"{'name':22s} {'DOF':>3s} {'family':7s} {'reach [m]':>9s}  source\n")
+    for r in rows:
+        out.write(f"{r['name']!s:22s} {r['dof']!s:>3s} {r['family']!s:7s} {r['reach_m']:>9.3f}  {r['source']}\n")
+    return 0
+
+
+def _pose(xyz: Sequence[float], rpy_deg: Sequence[float]) -> pin.SE3:
+    rpy = np.radians(np.asarray(rpy_deg, dtype=float))
+    return pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.asarray(xyz, dtype=float))
+
+
+def cmd_ik(args: argparse.Namespace, out: TextIO) -> int:
+    robot = load_robot(args.robot, tip=args.tip, tool=_pose(args.tool_xyz, args.tool_rpy_deg))
+    if args.seed_deg is not None and len(args.seed_deg) != robot.n_joints:
+        raise InputError(f"--seed-deg: expected {robot.n_joints} numbers, got {len(args.seed_deg)}")
+    # one solution per branch (nearest the seed, default zero) unless every 2*pi variant is asked for
+    seed = None if args.all_variants else np.radians(args.seed_deg or [0.0] * robot.n_joints)
+    target = _pose(args.xyz, args.rpy_deg)
+    sols = solve_all(robot, target, seed=seed)
+    if len(sols) == 0:
+        out.write(f"no solution inside the joint limits for xyz={list(args.xyz)} rpy_deg={list(args.rpy_deg)}\n")
+        return 3
+    names = " ".join(f"{n[:9]:>9s}" for n in robot.joint_names)
+    out.write(f"{len(sols)} solution(s) of {robot.name} (joint values in deg)\n")
+    out.write(f"{'config':7s} {names}  wrist[deg] shoulder[mm] elbow[deg] sigma_min\n")
+    for q, label in zip(sols.q, sols.labels, strict=True):
+        d = singularity_distances(robot, q)
+        joints = " ".join(f"{v:9.3f}" for v in np.degrees(q))
+        out.write(f"{label:7s} {joints}  {math.degrees(d.wrist_rad):10.3f} {d.shoulder_m * 1e3:12.2f} "
+                  f"{math.degrees(d.elbow_rad):10.3f} {d.sigma_min:9.4f}\n")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="singplan", description="Plan robot motions through singularities.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    robots = sub.add_parser("robots", help="list the bundled robots")
+    robots.add_argument("--json", action="store_true", help="machine-readable output")
+    robots.set_defaults(func=cmd_robots)
+    ik = sub.add_parser("ik", help="every IK solution of a TCP pose, with labels and singular distances")
+    ik.add_argument("robot", help="bundled robot name or path to a URDF")
+    ik.add_argument("--xyz", type=float, nargs=3, required=True, metavar=("X", "Y", "Z"), help="TCP position [m]")
+    ik.add_argument("--rpy-deg", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("R", "P", "Y"),
+                    help="TCP orientation, URDF fixed-axis roll pitch yaw [deg]")
+    ik.add_argument("--tool-xyz", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("X", "Y", "Z"))
+    ik.add_argument("--tool-rpy-deg", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("R", "P", "Y"))
+    ik.add_argument("--tip", default=None, help="frame the tool hangs on (default: the robot's)")
+    ik.add_argument("--seed-deg", type=float, nargs="+", default=None,
+                    help="joint values to stay near: the 2*pi variant nearest them (default all zero)")
+    ik.add_argument("--all-variants", action="store_true",
+                    help="list every 2*pi variant inside the limits, not one solution per branch")
+    ik.set_defaults(func=cmd_ik)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None, out: TextIO | None = None, err: TextIO | None = None) -> int:
+    """Run the CLI; returns the exit code."""
+    out = out or sys.stdout
+    err = err or sys.stderr
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse already printed the usage error
+        return int(exc.code or 0) if exc.code in (0, None) else 2
+    try:
+        return int(args.func(args, out))
+    except SingplanError as exc:
+        err.write(f"singplan: error: {exc}\n")
+        return exc.exit_code
+
+
+def run() -> None:
+    """Console-script entry point."""
+    sys.exit(main())

@@ -1,0 +1,196 @@
+"""Configuration labels (shoulder F/B, elbow U/D, wrist N/F) and signed singularity distances.
+
+The labels are defined from geometry, not from joint values, so one definition serves every
+arm whatever its joint signs and offsets. With the joint frames of Pinocchio:
+
+* ``up`` is axis 1, oriented from the base towards the shoulder; ``forward`` is the x axis of
+  link 1 (the direction the arm points at its zero pose, as in every ROS-Industrial URDF),
+  made perpendicular to ``up``; ``n = up x forward`` is the normal of the arm plane.
+* The **wrist point** ``w`` is where axes 5 and 6 meet (the wrist centre of a spherical
+  wrist; for a UR arm the origin of the wrist-3 joint).
+* **Shoulder** distance [m]: ``(w - o1) . forward``, the signed distance of the wrist point
+  from axis 1 measured in the arm plane. Where the arm has a lateral offset (OPW ``b``, the
+  UR ``d4``) this is the distance from that offset cylinder. ``F`` (front) when positive.
+* **Elbow** distance [rad]: signed angle, about ``n``, from the upper arm ``o3 - o2`` to the
+  forearm ``e - o3`` (both projected onto the arm plane); 0 when the arm is stretched. ``e``
+  is the wrist point, or for a UR arm the wrist-1 joint that the planar arm positions.
+  ``U`` (up) when positive.
+* **Wrist** distance [rad]: signed angle from axis 4 to axis 6 about axis 5. Axis 4 is
+  oriented outwards from the elbow, axis 6 outwards to the flange, and axis 5 is oriented at
+  the zero configuration along the first of (n, up, forward) it is not perpendicular to.
+  ``N`` (no flip) when positive; 0 where axes 4 and 6 are collinear.
+
+Each label is the sign of its distance, so a label flips exactly where its distance
+crosses zero, and there the Jacobian loses rank (tested).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+from singplan.errors import TaskError
+from singplan.robot import Robot
+
+SHOULDER_LABELS = ("F", "B")
+ELBOW_LABELS = ("U", "D")
+WRIST_LABELS = ("N", "F")
+
+
+@dataclass(frozen=True)
+class Configuration:
+    """A branch of the inverse kinematics, as integrators name it."""
+
+    shoulder: str  # "F" front | "B" back
+    elbow: str  # "U" up | "D" down
+    wrist: str  # "N" no flip | "F" flip
+
+    @property
+    def label(self) -> str:
+        """String form, e.g. ``"F U N"``."""
+        return f"{self.shoulder} {self.elbow} {self.wrist}"
+
+    def __str__(self) -> str:
+        return self.label
+
+
+def parse_configuration(text: str, field: str = "config") -> Configuration:
+    """Parse ``"F U N"`` (spaces optional) into a :class:`Configuration`."""
+    letters = text.replace(" ", "").upper()
+    if (len(letters) != 3 or letters[0] not in SHOULDER_LABELS or letters[1] not in ELBOW_LABELS
+            or letters[2] not in WRIST_LABELS):
+        raise TaskError(field, f"expected a configuration like 'F U N' (shoulder F|B, elbow U|D, "
+                               f"wrist N|F), got {text!r}")
+    return Configuration(letters[0], letters[1], letters[2])
+
+
+class SingularityDistances(NamedTuple):
+    """Signed distances to the three singularities; each label is the sign of its distance."""
+
+    wrist_rad: float  # angle between axes 4 and 6 [rad], signed: > 0 no flip
+    shoulder_m: float  # wrist point from axis 1 in the arm plane [m], signed: > 0 front
+    elbow_rad: float  # forearm angle from the stretched arm [rad], signed: > 0 up
+    sigma_min: float  # smallest singular value of the TCP Jacobian
+
+
+class _Reference(NamedTuple):
+    """Per-robot constants of the definitions above (computed at the zero configuration)."""
+
+    up: np.ndarray  # (3,) axis 1 in the base frame, oriented base -> shoulder
+    sign4: float
+    sign5: float
+    sign6: float
+    wrist_in_link5: np.ndarray  # (3,) wrist point in joint 5's frame
+    elbow_joint: int  # 0: elbow point is the wrist point; k: origin of joint k
+
+
+@dataclass(frozen=True)
+class _Frames:
+    """Joint origins and axes (base frame) at one configuration."""
+
+    origins: list[np.ndarray]
+    axes: list[np.ndarray]
+    wrist: np.ndarray
+    forward: np.ndarray
+
+
+def _axes_and_origins(robot: Robot, q: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    model, data = robot.model, robot.data
+    J = pin.computeJointJacobians(model, data, q)  # WORLD frame: columns carry joint axes
+    origins = [np.array(data.oMi[i].translation) for i in range(1, model.njoints)]
+    axes = [np.array(J[3:, model.joints[i].idx_v]) for i in range(1, model.njoints)]
+    return origins, axes
+
+
+def _closest_point_on_first(p1: np.ndarray, d1: np.ndarray, p2: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    """Point of line (p1, d1) closest to line (p2, d2); p1 when they are parallel."""
+    w = p1 - p2
+    b = float(d1 @ d2)
+    denom = 1.0 - b * b
+    if denom < 1e-12:
+        return p1
+    t = (b * float(d2 @ w) - float(d1 @ w)) / denom
+    return p1 + t * d1
+
+
+@lru_cache(maxsize=64)
+def _reference(robot: Robot) -> _Reference:
+    q0 = np.zeros(robot.n_joints)
+    origins, axes = _axes_and_origins(robot, q0)
+    z1 = axes[0]
+    up = z1 if float(z1 @ origins[1]) >= 0 else -z1  # origins are relative to the base origin
+    wrist = _closest_point_on_first(origins[4], axes[4], origins[5], axes[5])
+    wrist_in_link5 = np.array(robot.data.oMi[5].actInv(wrist))
+    forward = _forward(robot, up)
+    tool0 = robot.fk_tip(q0).translation
+    elbow_joint = 4 if robot.family == "ur" else 0
+    sign4 = 1.0 if float(axes[3] @ (wrist - origins[2])) >= 0 else -1.0
+    sign6 = 1.0 if float(axes[5] @ (tool0 - wrist)) >= 0 else -1.0
+    normal = np.cross(up, forward)
+    sign5 = 1.0
+    for ref in (normal, up, forward):
+        dot = float(axes[4] @ ref)
+        if abs(dot) > 0.5:
+            sign5 = 1.0 if dot > 0 else -1.0
+            break
+    return _Reference(up, sign4, sign5, sign6, wrist_in_link5, elbow_joint)
+
+
+def _forward(robot: Robot, up: np.ndarray) -> np.ndarray:
+    x1 = robot.data.oMi[1].rotation[:, 0]
+    f = x1 - float(x1 @ up) * up
+    return f / np.linalg.norm(f)
+
+
+def _frames(robot: Robot, q: np.ndarray) -> tuple[_Reference, _Frames]:
+    ref = _reference(robot)
+    origins, axes = _axes_and_origins(robot, q)
+    wrist = np.array(robot.data.oMi[5].act(ref.wrist_in_link5))
+    return ref, _Frames(origins, axes, wrist, _forward(robot, ref.up))
+
+
+def _signed_distances(ref: _Reference, fr: _Frames) -> tuple[float, float, float]:
+    o, z = fr.origins, fr.axes
+    shoulder = float((fr.wrist - o[0]) @ fr.forward)
+    n = np.cross(ref.up, fr.forward)
+    elbow_point = fr.wrist if ref.elbow_joint == 0 else o[ref.elbow_joint - 1]
+    upper, fore = o[2] - o[1], elbow_point - o[2]
+    upper = upper - float(upper @ n) * n
+    fore = fore - float(fore @ n) * n
+    elbow = float(np.arctan2(np.cross(upper, fore) @ n, upper @ fore))
+    z4, z5, z6 = ref.sign4 * z[3], ref.sign5 * z[4], ref.sign6 * z[5]
+    wrist = float(np.arctan2(np.cross(z4, z6) @ z5, z4 @ z6))
+    return wrist, shoulder, elbow
+
+
+def _label(wrist: float, shoulder: float, elbow: float) -> Configuration:
+    return Configuration("F" if shoulder >= 0 else "B", "U" if elbow >= 0 else "D", "N" if wrist >= 0 else "F")
+
+
+def classify(robot: Robot, q: np.ndarray) -> Configuration:
+    """The configuration (shoulder, elbow, wrist) of joint values ``q`` (n,) [rad]."""
+    ref, fr = _frames(robot, np.asarray(q, dtype=float))
+    return _label(*_signed_distances(ref, fr))
+
+
+def singularity_distances(robot: Robot, q: np.ndarray) -> SingularityDistances:
+    """Signed distances of ``q`` to the wrist, shoulder and elbow singularities.
+
+    Also the smallest singular value of the 6 x n TCP Jacobian, a unit-mixed but
+    method-independent measure of how close ``q`` is to any singularity.
+    """
+    q = np.asarray(q, dtype=float)
+    ref, fr = _frames(robot, q)
+    wrist, shoulder, elbow = _signed_distances(ref, fr)
+    sigma = float(np.linalg.svd(robot.jacobian(q), compute_uv=False)[-1])
+    return SingularityDistances(wrist, shoulder, elbow, sigma)
+
+
+def label_and_distances(robot: Robot, q: np.ndarray) -> tuple[Configuration, SingularityDistances]:
+    """Both at once (one forward kinematics), for sampling along paths."""
+    d = singularity_distances(robot, q)
+    return _label(d.wrist_rad, d.shoulder_m, d.elbow_rad), d

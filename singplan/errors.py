@@ -1,0 +1,91 @@
+"""The SingplanError tree.
+
+Every expected failure raises a subclass of :class:`SingplanError`. Each carries the numbers
+that explain it (which field, move, sample or joint; the value and the limit) as attributes,
+and a message a user can act on. The CLI maps :class:`InputError` to exit code 2 and
+:class:`PlanningError` to exit code 3.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+
+class SingplanError(Exception):
+    """Base class of every error singplan raises on purpose."""
+
+    exit_code: int = 1
+
+
+class InputError(SingplanError):
+    """The input is malformed or contradicts the robot (exit code 2)."""
+
+    exit_code = 2
+
+
+class UnknownNameError(InputError):
+    """A name (robot, frame, method, ...) is not one of the valid choices."""
+
+    def __init__(self, what: str, name: str, choices: Sequence[str], where: str = "") -> None:
+        self.what = what
+        self.name = name
+        self.choices = tuple(choices)
+        prefix = f"{where}: " if where else ""
+        shown = ", ".join(self.choices[:40]) + (" ..." if len(self.choices) > 40 else "")
+        super().__init__(f"{prefix}unknown {what} {name!r}; valid: {shown}")
+
+
+class RobotModelError(InputError):
+    """A URDF could not be read or does not have what singplan needs."""
+
+    def __init__(self, path: str, reason: str) -> None:
+        self.path = path
+        self.reason = reason
+        super().__init__(f"{path}: {reason}")
+
+
+class TaskError(InputError):
+    """A task field is invalid; ``field`` is its path, e.g. ``moves[2].lin.to.xyz``."""
+
+    def __init__(self, field: str, reason: str) -> None:
+        self.field = field
+        self.reason = reason
+        super().__init__(f"{field}: {reason}" if field else reason)
+
+
+class PlanningError(SingplanError):
+    """A well-formed task cannot be executed within the limits and tolerances (exit code 3)."""
+
+    exit_code = 3
+
+
+class UnreachableError(PlanningError):
+    """A pose has no inverse-kinematics solution (inside the joint limits)."""
+
+    def __init__(self, message: str, move: int | None = None, sample: int | None = None) -> None:
+        self.move = move
+        self.sample = sample
+        super().__init__(message)
+
+
+class JointLimitError(PlanningError):
+    """A joint would leave its position range."""
+
+    def __init__(self, message: str, joint: str, value_rad: float, lower_rad: float, upper_rad: float,
+                 move: int | None = None) -> None:
+        self.joint = joint
+        self.value_rad = value_rad
+        self.lower_rad = lower_rad
+        self.upper_rad = upper_rad
+        self.move = move
+        super().__init__(message)
+
+
+class SingularityError(PlanningError):
+    """A singular zone that the chosen method refuses or cannot cross within tolerance."""
+
+    def __init__(self, message: str, move: int, kind: str, s_m: float) -> None:
+        self.move = move
+        self.kind = kind
+        self.s_m = s_m
+        super().__init__(message)

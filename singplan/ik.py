@@ -1,0 +1,291 @@
+"""Inverse kinematics: all branches of a TCP pose.
+
+Two solvers share one API (:func:`solve_all`, :func:`solve_near`):
+
+* **OPW closed form** for ortho-parallel arms with a spherical wrist, after Brandstoetter,
+  Angerer and Hofbaur, "An analytical solution of the inverse kinematics problem of
+  industrial serial manipulators with an ortho-parallel basis and a spherical wrist" (2014).
+  The arm part gives four (q1, q2, q3) solutions from the wrist centre
+  ``c = p - c4 * z_flange``; for each, the wrist rotation ``R_ce = R_0c^T R`` is a ZYZ
+  rotation ``Rz(q4) Ry(q5) Rz(q6)`` whose two decompositions (q5 and -q5) give eight
+  branches. :func:`opw_batch` evaluates all eight for N poses at once, vectorised.
+* **Numeric** (Pinocchio, damped Newton on the SE(3) log error) for any other chain, seeded
+  once per branch; used for the UR5 and for URDFs given by path.
+
+At an exactly wrist-singular pose (q5 = 0) only q4 + q6 is determined. singplan keeps q4
+at the seed's value (0 without a seed) and gives the rest to q6, so no branch is lost and
+no NaN is returned. q6 is always recovered from the full wrist rotation (not from the row
+that vanishes at the singularity), which keeps the pose exact to round-off near it too.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from singplan.configuration import classify
+from singplan.ik_ur import UrParameters, ur_solutions
+from singplan.robot import OpwParameters, Robot
+
+TWO_PI = 2.0 * math.pi
+_ACOS_SLACK = 1e-12  # tolerated overshoot of |cos| at a stretched elbow before the pose is unreachable
+_AXIS_EPS = 1e-12  # wrist centre this close to axis 1: q1 undefined, keep the seed's
+
+
+def wrap_to_pi(angles: np.ndarray) -> np.ndarray:
+    """Wrap angles [rad] to the interval (-pi, pi]."""
+    return math.pi - np.mod(math.pi - angles, TWO_PI)
+
+
+@dataclass(frozen=True)
+class IkSolutions:
+    """Every solution of one pose.
+
+    Attributes:
+        q: joint values [rad], shape (M, n); each row reproduces the pose.
+        labels: configuration label of each row ("F U N"), length M.
+        branches: solver branch of each row (0..7 for OPW, seed index for numeric), shape (M,).
+    """
+
+    q: np.ndarray  # (M, n)
+    labels: tuple[str, ...]
+    branches: np.ndarray  # (M,)
+
+    def __len__(self) -> int:
+        return int(self.q.shape[0])
+
+    def nearest(self, q_ref: np.ndarray) -> np.ndarray:
+        """The solution closest to ``q_ref`` (max-norm joint distance)."""
+        k = int(np.argmin(np.max(np.abs(self.q - q_ref), axis=1)))
+        return np.array(self.q[k])
+
+
+def _arm_solutions(p: OpwParameters, c: np.ndarray, q1_seed: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The four (theta1, theta2, theta3) of the OPW arm for wrist centres ``c`` (N, 3)."""
+    cx, cy, cz = c[:, 0], c[:, 1], c[:, 2]
+    r2 = cx**2 + cy**2
+    with np.errstate(invalid="ignore"):
+        nx1 = np.sqrt(r2 - p.b**2) - p.a1
+    on_axis = r2 < _AXIS_EPS**2
+    tmp1 = np.where(on_axis, q1_seed, np.arctan2(cy, cx))
+    tmp2 = np.arctan2(p.b, nx1 + p.a1)
+    t1_i = tmp1 - tmp2
+    t1_ii = tmp1 + tmp2 - math.pi
+    tmp3 = cz - p.c1
+    s1_2 = nx1**2 + tmp3**2
+    tmp4 = nx1 + 2.0 * p.a1
+    s2_2 = tmp4**2 + tmp3**2
+    kappa_2 = p.a2**2 + p.c3**2
+    c2_2 = p.c2**2
+    s1, s2 = np.sqrt(s1_2), np.sqrt(s2_2)
+    acos_a = _safe_acos((s1_2 + c2_2 - kappa_2) / (2.0 * s1 * p.c2))
+    acos_b = _safe_acos((s2_2 + c2_2 - kappa_2) / (2.0 * s2 * p.c2))
+    t2_i = -acos_a + np.arctan2(nx1, tmp3)
+    t2_ii = acos_a + np.arctan2(nx1, tmp3)
+    t2_iii = -acos_b - np.arctan2(tmp4, tmp3)
+    t2_iv = acos_b - np.arctan2(tmp4, tmp3)
+    k = 2.0 * p.c2 * math.sqrt(kappa_2)
+    acos_c = _safe_acos((s1_2 - c2_2 - kappa_2) / k)
+    acos_d = _safe_acos((s2_2 - c2_2 - kappa_2) / k)
+    phi = math.atan2(p.a2, p.c3)
+    t3_i, t3_ii = acos_c - phi, -acos_c - phi
+    t3_iii, t3_iv = acos_d - phi, -acos_d - phi
+    return (np.stack([t1_i, t1_i, t1_ii, t1_ii], axis=1),
+            np.stack([t2_i, t2_ii, t2_iii, t2_iv], axis=1),
+            np.stack([t3_i, t3_ii, t3_iii, t3_iv], axis=1))
+
+
+def _safe_acos(x: np.ndarray) -> np.ndarray:
+    """acos that clips round-off overshoot at a stretched arm, NaN when really out of reach."""
+    x = np.where(np.abs(x) <= 1.0 + _ACOS_SLACK, np.clip(x, -1.0, 1.0), np.nan)
+    return np.arccos(x)
+
+
+def _wrist_solutions(R: np.ndarray, t1: np.ndarray, t23: np.ndarray,
+                     q4_seed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(theta4, theta5, theta6) of the non-flipped wrist for each of the 4 arm solutions.
+
+    R: flange rotations (N, 3, 3); t1, t23: (N, 4); q4_seed: (N,) OPW q4 kept at a singularity.
+    """
+    s1, c1 = np.sin(t1), np.cos(t1)
+    s23, c23 = np.sin(t23), np.cos(t23)
+    # rows of R_0c^T with R_0c = Rz(t1) Ry(t23), each (N, 4, 3)
+    row0 = np.stack([c1 * c23, s1 * c23, -s23], axis=-1)
+    row1 = np.stack([-s1, c1, np.zeros_like(c1)], axis=-1)
+    row2 = np.stack([c1 * s23, s1 * s23, c23], axis=-1)
+    Rce = np.stack([row0, row1, row2], axis=-2) @ R[:, None, :, :]  # (N, 4, 3, 3)
+    sin5 = np.hypot(Rce[..., 0, 2], Rce[..., 1, 2])
+    t4 = np.where(sin5 > 1e-12, np.arctan2(Rce[..., 1, 2], Rce[..., 0, 2]), q4_seed[:, None])
+    t5 = np.arctan2(sin5, Rce[..., 2, 2])
+    # q6 from M = Ry(-t5) Rz(-t4) R_ce = Rz(t6): well conditioned even where sin5 -> 0
+    s4, c4 = np.sin(t4), np.cos(t4)
+    s5, c5 = np.sin(t5), np.cos(t5)
+    m00 = c5 * (c4 * Rce[..., 0, 0] + s4 * Rce[..., 1, 0]) - s5 * Rce[..., 2, 0]
+    m10 = -s4 * Rce[..., 0, 0] + c4 * Rce[..., 1, 0]
+    t6 = np.arctan2(m10, m00)
+    return t4, t5, t6
+
+
+def opw_batch(params: OpwParameters, T_base_flange: np.ndarray, q4_seed_opw: np.ndarray | None = None,
+              q1_seed_opw: np.ndarray | None = None) -> np.ndarray:
+    """All eight OPW branches for N flange poses, in robot joint coordinates.
+
+    Args:
+        params: the arm's OPW parameters.
+        T_base_flange: homogeneous flange poses (N, 4, 4) [m].
+        q4_seed_opw, q1_seed_opw: (N,) OPW-coordinate angles kept where q4 (wrist singular) or
+            q1 (wrist centre on axis 1) is free; default 0.
+
+    Returns:
+        (N, 8, 6) joint values [rad] wrapped to (-pi, pi]; NaN rows for unreachable branches.
+        Branches 0-3 are the four arm solutions with the OPW wrist, 4-7 the same arms flipped.
+    """
+    T = np.asarray(T_base_flange, dtype=float).reshape(-1, 4, 4)
+    n = T.shape[0]
+    R, p = T[:, :3, :3], T[:, :3, 3]
+    q4s = np.zeros(n) if q4_seed_opw is None else np.asarray(q4_seed_opw, dtype=float)
+    q1s = np.zeros(n) if q1_seed_opw is None else np.asarray(q1_seed_opw, dtype=float)
+    c = p - params.c4 * R[:, :, 2]
+    t1, t2, t3 = _arm_solutions(params, c, q1s)
+    t4, t5, t6 = _wrist_solutions(R, t1, t2 + t3, q4s)
+    arm = np.stack([t1, t2, t3], axis=-1)  # (N, 4, 3)
+    wrist = np.stack([t4, t5, t6], axis=-1)
+    flipped = np.stack([t4 + math.pi, -t5, t6 - math.pi], axis=-1)
+    q_opw = np.concatenate([np.concatenate([arm, wrist], axis=-1),
+                            np.concatenate([arm, flipped], axis=-1)], axis=1)  # (N, 8, 6)
+    offsets = np.asarray(params.offsets_rad)
+    signs = np.asarray(params.sign_corrections)
+    q = wrap_to_pi((q_opw + offsets) * signs)
+    q[np.any(np.isnan(q), axis=-1)] = np.nan  # a branch is reachable as a whole or not at all
+    return q
+
+
+def _to_opw(params: OpwParameters, q_robot: np.ndarray) -> np.ndarray:
+    return q_robot * np.asarray(params.sign_corrections) - np.asarray(params.offsets_rad)
+
+
+def _shift_variants(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> list[np.ndarray]:
+    """Every q + 2*pi*k (per joint) inside the limits."""
+    options = []
+    for j, value in enumerate(q):
+        k_lo = math.ceil((lower[j] - value) / TWO_PI - 1e-12)
+        k_hi = math.floor((upper[j] - value) / TWO_PI + 1e-12)
+        options.append([value + TWO_PI * k for k in range(k_lo, k_hi + 1)])
+    return [np.array(v) for v in itertools.product(*options)]
+
+
+def _nearest_variant(q: np.ndarray, seed: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray | None:
+    """The 2*pi shift of each joint nearest the seed that stays inside the limits."""
+    out = np.empty_like(q)
+    for j, value in enumerate(q):
+        k0 = round((seed[j] - value) / TWO_PI)
+        candidates = [value + TWO_PI * k for k in (k0 - 1, k0, k0 + 1)
+                      if lower[j] - 1e-9 <= value + TWO_PI * k <= upper[j] + 1e-9]
+        if not candidates:
+            return None
+        out[j] = candidates[int(np.argmin(np.abs(np.array(candidates) - seed[j])))]
+    return np.clip(out, lower, upper)
+
+
+def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None) -> IkSolutions:
+    """Every IK solution of a TCP pose inside the joint limits.
+
+    Without a seed, every 2*pi-shifted variant inside the limits is listed (joints whose
+    range exceeds +-180 deg have several). With a seed, each branch gives the variant nearest
+    the seed, and at a wrist singularity the seed's q4 is kept.
+    """
+    if robot.opw is not None:
+        rows, branches = _opw_candidates(robot, T_base_tcp, seed)
+    elif robot.family == "ur" and robot.tip == "tool0":
+        rows, branches = _ur_candidates(robot, T_base_tcp, seed)
+    else:
+        rows, branches = _numeric_candidates(robot, T_base_tcp, seed)
+    q_list: list[np.ndarray] = []
+    branch_list: list[int] = []
+    for q, branch in zip(rows, branches, strict=True):
+        variants = ([_nearest_variant(q, seed, robot.lower_rad, robot.upper_rad)] if seed is not None
+                    else _shift_variants(q, robot.lower_rad, robot.upper_rad))
+        for v in variants:
+            if v is not None and not any(np.allclose(v, w, atol=1e-9) for w in q_list):
+                q_list.append(v)
+                branch_list.append(branch)
+    q_all = np.array(q_list).reshape(-1, robot.n_joints)
+    labels = tuple(classify(robot, q).label for q in q_all)
+    return IkSolutions(q=q_all, labels=labels, branches=np.array(branch_list, dtype=int))
+
+
+def _opw_candidates(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None) -> tuple[list[np.ndarray], list[int]]:
+    params = robot.opw
+    assert params is not None  # guarded by the caller
+    T_flange = (T_base_tcp * robot.T_tip_tcp.inverse()).homogeneous[None]
+    q4s = q1s = None
+    if seed is not None:
+        seed_opw = _to_opw(params, np.asarray(seed, dtype=float))
+        q4s, q1s = seed_opw[3:4], seed_opw[0:1]
+    sols = opw_batch(params, T_flange, q4s, q1s)[0]
+    keep = [k for k in range(8) if np.all(np.isfinite(sols[k]))]
+    return [sols[k] for k in keep], keep
+
+
+def _ur_candidates(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None) -> tuple[list[np.ndarray], list[int]]:
+    T_flange = (T_base_tcp * robot.T_tip_tcp.inverse()).homogeneous
+    sols = ur_solutions(UrParameters.from_robot(robot), T_flange, seed)
+    keep = [k for k in range(8) if np.all(np.isfinite(sols[k]))]
+    return [sols[k] for k in keep], keep
+
+
+def _branch_seeds(robot: Robot, T_base_tcp: pin.SE3) -> list[np.ndarray]:
+    """Seeds spread over the branches: q1 toward / away from the target, elbow and wrist +-."""
+    p = T_base_tcp.translation
+    base_yaw = math.atan2(p[1], p[0])
+    seeds = []
+    for q1 in (base_yaw, base_yaw + math.pi, base_yaw - math.pi / 2, base_yaw + math.pi / 2):
+        for q3 in (1.2, -1.2):
+            for q5 in (1.0, -1.0):
+                q = np.zeros(robot.n_joints)
+                q[0], q[2 % robot.n_joints] = q1, q3
+                if robot.n_joints >= 5:
+                    q[1], q[4] = -1.0 if q3 > 0 else 1.0, q5
+                seeds.append(np.clip(q, robot.lower_rad, robot.upper_rad))
+    return seeds
+
+
+def _numeric_candidates(robot: Robot, T_base_tcp: pin.SE3,
+                        seed: np.ndarray | None) -> tuple[list[np.ndarray], list[int]]:
+    seeds = ([np.asarray(seed, dtype=float)] if seed is not None else []) + _branch_seeds(robot, T_base_tcp)
+    rows: list[np.ndarray] = []
+    branches: list[int] = []
+    for k, s in enumerate(seeds):
+        q = solve_newton(robot, T_base_tcp, s)
+        if q is not None and not any(np.allclose(wrap_to_pi(q - r), 0.0, atol=1e-7) for r in rows):
+            rows.append(wrap_to_pi(q))
+            branches.append(k)
+    return rows, branches
+
+
+def solve_newton(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray, tol: float = 1e-12,
+                 max_iterations: int = 60) -> np.ndarray | None:
+    """Damped Newton on the pose error ``log6(T(q)^-1 T_target)`` from ``seed``.
+
+    Returns the converged joint values [rad], or None when it does not converge.
+    Steps are taken in the local TCP frame with a Levenberg-Marquardt damping that vanishes
+    as the error does, so convergence is quadratic away from singularities.
+    """
+    q = np.array(seed, dtype=float)
+    model, data, fid = robot.model, robot.data, robot.tip_frame_id
+    T_target_tip = T_base_tcp * robot.T_tip_tcp.inverse()
+    for _ in range(max_iterations):
+        pin.forwardKinematics(model, data, q)
+        T = pin.updateFramePlacement(model, data, fid)
+        err = pin.log6(T.actInv(T_target_tip)).vector
+        norm = float(np.linalg.norm(err))
+        if norm < tol:
+            return q
+        J = -pin.Jlog6(T_target_tip.actInv(T)) @ pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
+        damping = min(1e-2, norm) ** 2
+        q = q - J.T @ np.linalg.solve(J @ J.T + damping * np.eye(6), err)
+    return None

@@ -1,0 +1,248 @@
+"""Robots: the bundled registry, URDF loading through Pinocchio, FK and Jacobians.
+
+A :class:`Robot` is a Pinocchio model reduced to the serial chain from the base to the tip
+frame, plus a fixed tool transform ``T_tip_tcp``. Every pose it returns is the TCP in the
+robot base frame (``T_base_tcp``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import yaml
+
+from singplan.errors import RobotModelError, UnknownNameError
+
+logger = logging.getLogger(__name__)
+
+DEFAULT_ACCELERATION_RAD_S2 = 10.0
+_PACKAGE_DIR = Path(__file__).resolve().parent
+
+
+def robots_dir() -> Path:
+    """Folder of the bundled URDFs and robots.yaml (in the wheel or in a source checkout)."""
+    installed = _PACKAGE_DIR / "_robots"
+    return installed if installed.is_dir() else _PACKAGE_DIR.parent / "robots" / "urdf"
+
+
+@dataclass(frozen=True)
+class OpwParameters:
+    """Ortho-parallel wrist geometry (Brandstoetter, Angerer, Hofbaur 2014) [m, rad].
+
+    Joint conversion: ``q_robot = (q_opw + offsets_rad) * sign_corrections``.
+    """
+
+    a1: float
+    a2: float
+    b: float
+    c1: float
+    c2: float
+    c3: float
+    c4: float
+    offsets_rad: tuple[float, ...]
+    sign_corrections: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class RobotEntry:
+    """One robot of the registry (``singplan robots``)."""
+
+    name: str
+    display_name: str
+    family: str  # "opw" | "ur" | "generic"
+    tip: str
+    sources: tuple[str, ...]
+    urdf_file: str | None = None  # bundled URDF name, relative to robots_dir()
+    example_robot_data: str | None = None  # loader name in example-robot-data
+    opw: OpwParameters | None = None
+
+    def urdf_path(self) -> Path:
+        """Absolute path of the URDF (bundled, or resolved from example-robot-data)."""
+        if self.urdf_file is not None:
+            return robots_dir() / self.urdf_file
+        import example_robot_data.robots_loader as loaders
+
+        loader = loaders.ROBOTS[str(self.example_robot_data)]
+        root = Path(loaders.getModelPath(loader.path))
+        return (root / loader.path / loader.urdf_subpath / loader.urdf_filename).resolve()
+
+
+def _entry(name: str, spec: dict[str, Any]) -> RobotEntry:
+    opw = None
+    if spec.get("family") == "opw":
+        p = spec["opw"]
+        opw = OpwParameters(
+            a1=float(p["a1"]), a2=float(p["a2"]), b=float(p["b"]), c1=float(p["c1"]),
+            c2=float(p["c2"]), c3=float(p["c3"]), c4=float(p["c4"]),
+            offsets_rad=tuple(math.radians(v) for v in spec["opw_offsets_deg"]),
+            sign_corrections=tuple(float(v) for v in spec["opw_sign_corrections"]),
+        )
+    return RobotEntry(name=name, display_name=str(spec["display_name"]), family=str(spec["family"]),
+                      tip=str(spec["tip"]), sources=tuple(spec.get("sources", ())),
+                      urdf_file=spec.get("urdf"), example_robot_data=spec.get("example_robot_data"), opw=opw)
+
+
+@cache
+def bundled_robots() -> dict[str, RobotEntry]:
+    """The registry of robots/urdf/robots.yaml, by name."""
+    registry = yaml.safe_load((robots_dir() / "robots.yaml").read_text())
+    return {name: _entry(name, spec) for name, spec in registry["robots"].items()}
+
+
+class Robot:
+    """A serial arm: Pinocchio model and data, tip frame, tool, limits.
+
+    Attributes:
+        name: registry name, or the URDF file stem.
+        urdf_path: absolute path of the URDF that was loaded.
+        model, data: the Pinocchio model reduced to the base -> tip chain, and its data.
+        tip: name of the frame the tool hangs on.
+        T_tip_tcp: tool transform (TCP in the tip frame).
+        joint_names: the chain's joint names, base to tip.
+        lower_rad, upper_rad: joint position limits, shape (n,).
+        velocity_rad_s: joint speed limits, shape (n,).
+        acceleration_rad_s2: default joint acceleration limits, shape (n,).
+        entry: registry entry for a bundled robot, else None.
+    """
+
+    def __init__(self, name: str, urdf_path: Path, model: pin.Model, tip: str, T_tip_tcp: pin.SE3,
+                 entry: RobotEntry | None) -> None:
+        self.name = name
+        self.urdf_path = urdf_path
+        self.model = model
+        self.data = model.createData()
+        self.tip = tip
+        self.tip_frame_id = model.getFrameId(tip)
+        self.T_tip_tcp = T_tip_tcp
+        self.entry = entry
+        self.joint_names = tuple(model.names[i] for i in range(1, model.njoints))
+        self.lower_rad = np.array(model.lowerPositionLimit, dtype=float)
+        self.upper_rad = np.array(model.upperPositionLimit, dtype=float)
+        self.velocity_rad_s = np.array(model.velocityLimit, dtype=float)
+        self.acceleration_rad_s2 = np.full(model.nq, DEFAULT_ACCELERATION_RAD_S2)
+
+    @property
+    def n_joints(self) -> int:
+        return int(self.model.nq)
+
+    @property
+    def family(self) -> str:
+        return self.entry.family if self.entry is not None else "generic"
+
+    @property
+    def opw(self) -> OpwParameters | None:
+        """OPW parameters when the tip is the registry's default tip, else None."""
+        if self.entry is None or self.entry.opw is None or self.tip != self.entry.tip:
+            return None
+        return self.entry.opw
+
+    def with_tool(self, T_tip_tcp: pin.SE3) -> Robot:
+        """The same robot with another tool (a new Data, the model is shared)."""
+        return Robot(self.name, self.urdf_path, self.model, self.tip, T_tip_tcp, self.entry)
+
+    def fk(self, q: np.ndarray) -> pin.SE3:
+        """TCP pose in the base frame, ``T_base_tcp``, for joint values ``q`` (n,) [rad]."""
+        pin.forwardKinematics(self.model, self.data, q)
+        return pin.updateFramePlacement(self.model, self.data, self.tip_frame_id) * self.T_tip_tcp
+
+    def fk_tip(self, q: np.ndarray) -> pin.SE3:
+        """Tip-frame pose in the base frame (no tool)."""
+        pin.forwardKinematics(self.model, self.data, q)
+        return pin.updateFramePlacement(self.model, self.data, self.tip_frame_id).copy()
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """TCP Jacobian (6, n) in the LOCAL_WORLD_ALIGNED frame.
+
+        Rows 0-2 map qd to the TCP point's linear velocity in base coordinates [m/s], rows 3-5
+        to the tool's angular velocity in base coordinates [rad/s].
+        """
+        pin.computeJointJacobians(self.model, self.data, q)
+        pin.updateFramePlacements(self.model, self.data)
+        J = pin.getFrameJacobian(self.model, self.data, self.tip_frame_id, pin.LOCAL_WORLD_ALIGNED)
+        # shift the reference point from the tip origin to the TCP: v_tcp = v_tip + w x r
+        r = self.data.oMf[self.tip_frame_id].rotation @ self.T_tip_tcp.translation
+        J = J.copy()
+        J[:3] -= pin.skew(r) @ J[3:]
+        return J
+
+    def joint_placements(self, q: np.ndarray) -> list[pin.SE3]:
+        """Placements of the joint frames 1..n in the base frame."""
+        pin.forwardKinematics(self.model, self.data, q)
+        return [self.data.oMi[i] for i in range(1, self.model.njoints)]
+
+    def wrist_center(self, q: np.ndarray) -> np.ndarray:
+        """Wrist centre [m] in the base frame: the origin of joint 5's frame.
+
+        For a spherical wrist this point lies on axes 4, 5 and 6. For other 6R arms (UR) it is
+        the point on axis 5 where the joint frame sits.
+        """
+        pin.forwardKinematics(self.model, self.data, q)
+        return np.array(self.data.oMi[5].translation)
+
+    def within_limits(self, q: np.ndarray, tol: float = 1e-9) -> bool:
+        return bool(np.all(q >= self.lower_rad - tol) and np.all(q <= self.upper_rad + tol))
+
+
+def _chain_joint_ids(model: pin.Model, frame_id: int) -> list[int]:
+    ids = []
+    j = model.frames[frame_id].parentJoint
+    while j > 0:
+        ids.append(j)
+        j = model.parents[j]
+    return ids
+
+
+def _load_model(urdf_path: Path) -> pin.Model:
+    if not urdf_path.is_file():
+        raise RobotModelError(str(urdf_path), "no such URDF file")
+    try:
+        return pin.buildModelFromUrdf(str(urdf_path))
+    except (RuntimeError, ValueError) as exc:
+        raise RobotModelError(str(urdf_path), f"cannot be read as URDF ({exc})") from None
+
+
+def _reduce_to_chain(model: pin.Model, tip: str, urdf_path: Path) -> pin.Model:
+    """Lock every joint that is not on the base -> tip chain (e.g. gripper fingers)."""
+    frames = [f.name for f in model.frames]
+    if not model.existFrame(tip):
+        raise UnknownNameError("tip frame", tip, frames, where=str(urdf_path))
+    chain = set(_chain_joint_ids(model, model.getFrameId(tip)))
+    others = [j for j in range(1, model.njoints) if j not in chain]
+    for j in chain:
+        if model.joints[j].nq != 1:
+            raise RobotModelError(str(urdf_path), f"joint {model.names[j]!r} is not revolute or prismatic")
+    if not others:
+        return model
+    return pin.buildReducedModel(model, others, pin.neutral(model))
+
+
+def load_robot(name_or_urdf: str | Path, tip: str | None = None, tool: pin.SE3 | None = None) -> Robot:
+    """Load a bundled robot by name, or any URDF by path.
+
+    Args:
+        name_or_urdf: a registry name (``singplan robots``) or a path to a ``.urdf`` file.
+        tip: frame the tool hangs on; default the registry's tip, or the URDF's last frame.
+        tool: ``T_tip_tcp``; default identity.
+
+    Raises:
+        UnknownNameError: unknown robot name (lists the valid ones) or unknown tip frame.
+        RobotModelError: the URDF is missing or unreadable.
+    """
+    registry = bundled_robots()
+    text = str(name_or_urdf)
+    entry = registry.get(text)
+    if entry is None and not text.lower().endswith(".urdf"):
+        raise UnknownNameError("robot", text, sorted(registry))
+    urdf_path = entry.urdf_path() if entry is not None else Path(text).expanduser().resolve()
+    model = _load_model(urdf_path)
+    tip_name = tip or (entry.tip if entry is not None else model.frames[len(model.frames) - 1].name)
+    model = _reduce_to_chain(model, tip_name, urdf_path)
+    name = entry.name if entry is not None else urdf_path.stem
+    return Robot(name, urdf_path, model, tip_name, tool if tool is not None else pin.SE3.Identity(), entry)

@@ -1,0 +1,27 @@
+"""Shared fixtures: robots are loaded once per session (Pinocchio parsing is the slow part)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from singplan.robot import Robot, bundled_robots, load_robot
+
+OPW_NAMES = [name for name, entry in bundled_robots().items() if entry.family == "opw"]
+
+
+@pytest.fixture(scope="session")
+def robots() -> dict[str, Robot]:
+    return {name: load_robot(name) for name in [*OPW_NAMES, "ur5"]}
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20261122)
+
+
+def random_q(robot: Robot, rng: np.random.Generator, n: int) -> np.ndarray:
+    """n joint vectors inside the limits (finite ranges, capped at +-2*pi), shape (n, dof)."""
+    lo = np.maximum(robot.lower_rad, -2 * np.pi)
+    hi = np.minimum(robot.upper_rad, 2 * np.pi)
+    return rng.uniform(lo, hi, size=(n, robot.n_joints))

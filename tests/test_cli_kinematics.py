@@ -1,0 +1,46 @@
+"""`singplan robots` and `singplan ik` through main(argv)."""
+
+from __future__ import annotations
+
+import io
+import json
+
+from singplan.cli import main
+
+
+def run(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    code = main(argv, out=out, err=err)
+    return code, out.getvalue(), err.getvalue()
+
+
+def test_robots_table_and_json() -> None:
+    code, out, _ = run(["robots"])
+    assert code == 0
+    assert "abb_irb2400" in out and "ur5" in out and "panda" in out
+    code, out, _ = run(["robots", "--json"])
+    rows = {r["name"]: r for r in json.loads(out)}
+    assert rows["abb_irb2400"]["dof"] == 6 and rows["abb_irb2400"]["family"] == "opw"
+    assert abs(rows["abb_irb2400"]["reach_m"] - (0.1 + 0.705 + (0.135**2 + 0.755**2) ** 0.5 + 0.085)) < 1e-3
+    assert rows["panda"]["dof"] == 7
+
+
+def test_ik_prints_one_solution_per_branch_with_labels() -> None:
+    code, out, _ = run(["ik", "staubli_tx2_60", "--xyz", "0.3", "0.2", "0.5", "--rpy-deg", "180", "10", "0"])
+    assert code == 0
+    lines = out.strip().splitlines()
+    count = int(lines[0].split()[0])
+    labels = {" ".join(line.split()[:3]) for line in lines[2:]}
+    assert count == len(lines) - 2 == len(labels) == 4  # one row per branch inside the limits
+    code, out, _ = run(["ik", "staubli_tx2_60", "--xyz", "0.3", "0.2", "0.5", "--rpy-deg", "180", "10", "0",
+                        "--all-variants"])
+    assert int(out.split()[0]) > 4  # joints 4 and 6 have +-270 deg ranges: more variants
+
+
+def test_ik_errors_exit_2_and_unreachable_exit_3() -> None:
+    code, _, err = run(["ik", "no_such_robot", "--xyz", "1", "0", "1"])
+    assert code == 2 and "abb_irb2400" in err
+    code, _, err = run(["ik", "abb_irb2400", "--xyz", "1", "0"])
+    assert code == 2
+    code, out, _ = run(["ik", "abb_irb2400", "--xyz", "9", "0", "1"])
+    assert code == 3 and "no solution" in out

@@ -1,0 +1,115 @@
+"""Robot loading, the bundled URDFs against the registry, FK and the Jacobian."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import yaml
+
+from singplan.errors import RobotModelError, UnknownNameError
+from singplan.robot import bundled_robots, load_robot, robots_dir
+
+from .conftest import OPW_NAMES, random_q
+
+
+def test_registry_lists_every_bundled_arm_and_the_two_example_robots() -> None:
+    names = set(bundled_robots())
+    assert set(OPW_NAMES) <= names
+    assert len(OPW_NAMES) == 10
+    assert {"ur5", "panda"} <= names
+
+
+@pytest.mark.parametrize("name", OPW_NAMES)
+def test_bundled_urdf_has_the_registry_chain_and_limits(name: str) -> None:
+    spec = yaml.safe_load((robots_dir() / "robots.yaml").read_text())["robots"][name]
+    robot = load_robot(name)
+    assert robot.joint_names == tuple(f"joint_{i}" for i in range(1, 7))
+    assert robot.tip == "tool0"
+    for i, joint in enumerate(spec["chain"], start=1):
+        np.testing.assert_allclose(robot.model.jointPlacements[i].translation, joint["xyz"], atol=0)
+        np.testing.assert_allclose(robot.model.jointPlacements[i].rotation, np.eye(3), atol=0)
+    np.testing.assert_allclose(np.degrees(robot.lower_rad), [lo for lo, _ in spec["position_deg"]], atol=1e-9)
+    np.testing.assert_allclose(np.degrees(robot.upper_rad), [hi for _, hi in spec["position_deg"]], atol=1e-9)
+    np.testing.assert_allclose(np.degrees(robot.velocity_rad_s), spec["velocity_deg_s"], atol=1e-9)
+    assert np.all(robot.model.inertias[1].mass > 0)
+
+
+def test_generated_urdfs_are_up_to_date() -> None:
+    import importlib.util
+
+    script = robots_dir().parent / "generate_urdfs.py"
+    if not script.exists():
+        pytest.skip("generator script not shipped in an installed wheel")
+    spec = importlib.util.spec_from_file_location("generate_urdfs", script)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--check"]) == 0
+
+
+def test_example_robot_data_arms_load_as_chains() -> None:
+    ur5 = load_robot("ur5")
+    assert ur5.n_joints == 6 and ur5.tip == "tool0" and ur5.urdf_path.is_file()
+    panda = load_robot("panda")
+    assert panda.n_joints == 7  # fingers locked away: only the arm chain remains
+    assert panda.tip == "panda_hand"
+
+
+def test_unknown_robot_lists_valid_names() -> None:
+    with pytest.raises(UnknownNameError) as info:
+        load_robot("abb_irb9999")
+    assert "abb_irb2400" in str(info.value) and "ur5" in str(info.value)
+    assert info.value.exit_code == 2
+
+
+def test_missing_and_unreadable_urdf_name_the_file(tmp_path) -> None:
+    with pytest.raises(RobotModelError, match="no such URDF"):
+        load_robot(tmp_path / "missing.urdf")
+    broken = tmp_path / "broken.urdf"
+    broken.write_text("<robot name='x'><link name='a'/><joint name='j' type='revolute'>")
+    with pytest.raises(RobotModelError, match=r"broken\.urdf"):
+        load_robot(broken)
+
+
+def test_unknown_tip_frame_names_file_and_frame() -> None:
+    with pytest.raises(UnknownNameError) as info:
+        load_robot("abb_irb2400", tip="flange_x")
+    assert "flange_x" in str(info.value) and "abb_irb2400.urdf" in str(info.value) and "tool0" in str(info.value)
+
+
+def test_urdf_by_path_uses_its_last_frame(robots) -> None:
+    robot = load_robot(robots["abb_irb2400"].urdf_path)
+    assert robot.name == "abb_irb2400" and robot.tip == "tool0"
+
+
+@pytest.mark.parametrize("name", ["abb_irb2400", "kuka_kr6_r900_2", "fanuc_lrmate200id", "staubli_tx2_60", "ur5"])
+def test_jacobian_matches_finite_differences(name: str, robots, rng) -> None:
+    """Columns of the TCP Jacobian against central differences of FK (position and rotation)."""
+    tool = pin.SE3(pin.rpy.rpyToMatrix(0.3, -0.2, 0.5), np.array([0.02, -0.03, 0.15]))
+    robot = robots[name].with_tool(tool)
+    h = 1e-6
+    for q in random_q(robot, rng, 20):
+        J = robot.jacobian(q)
+        T0 = robot.fk(q)
+        for j in range(robot.n_joints):
+            dq = np.zeros(robot.n_joints)
+            dq[j] = h
+            Tp, Tm = robot.fk(q + dq), robot.fk(q - dq)
+            lin = (Tp.translation - Tm.translation) / (2 * h)
+            ang = (pin.log3(T0.rotation.T @ Tp.rotation) - pin.log3(T0.rotation.T @ Tm.rotation)) / (2 * h)
+            np.testing.assert_allclose(J[:3, j], lin, atol=1e-7)
+            np.testing.assert_allclose(J[3:, j], T0.rotation @ ang, atol=1e-7)
+
+
+def test_wrist_center_is_on_axes_4_5_6_for_opw_arms(robots, rng) -> None:
+    for name in OPW_NAMES:
+        robot = robots[name]
+        q = random_q(robot, rng, 1)[0]
+        wc = robot.wrist_center(q)
+        flange = robot.fk_tip(q)
+        # the flange sits c4 along its z axis from the wrist centre
+        c4 = robot.opw.c4 if robot.opw else math.nan
+        np.testing.assert_allclose(flange.translation - c4 * flange.rotation[:, 2], wc, atol=1e-12)

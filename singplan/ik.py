@@ -38,7 +38,8 @@ _AXIS_EPS = 1e-12  # wrist centre this close to axis 1: q1 undefined, keep the s
 
 def wrap_to_pi(angles: np.ndarray) -> np.ndarray:
     """Wrap angles [rad] to the interval (-pi, pi]."""
-    return math.pi - np.mod(math.pi - angles, TWO_PI)
+    wrapped = angles - TWO_PI * np.round(angles / TWO_PI)
+    return np.where(wrapped <= -math.pi, wrapped + TWO_PI, wrapped)
 
 
 @dataclass(frozen=True)
@@ -110,24 +111,31 @@ def _wrist_solutions(R: np.ndarray, t1: np.ndarray, t23: np.ndarray,
     """(theta4, theta5, theta6) of the non-flipped wrist for each of the 4 arm solutions.
 
     R: flange rotations (N, 3, 3); t1, t23: (N, 4); q4_seed: (N,) OPW q4 kept at a singularity.
+    Only the six entries of ``R_ce = (Rz(t1) Ry(t23))^T R`` that the angles need are formed,
+    and the sines and cosines of q4 and q5 come from those entries, not from trig calls.
     """
     s1, c1 = np.sin(t1), np.cos(t1)
     s23, c23 = np.sin(t23), np.cos(t23)
-    # rows of R_0c^T with R_0c = Rz(t1) Ry(t23), each (N, 4, 3)
-    row0 = np.stack([c1 * c23, s1 * c23, -s23], axis=-1)
-    row1 = np.stack([-s1, c1, np.zeros_like(c1)], axis=-1)
-    row2 = np.stack([c1 * s23, s1 * s23, c23], axis=-1)
-    Rce = np.stack([row0, row1, row2], axis=-2) @ R[:, None, :, :]  # (N, 4, 3, 3)
-    sin5 = np.hypot(Rce[..., 0, 2], Rce[..., 1, 2])
-    t4 = np.where(sin5 > 1e-12, np.arctan2(Rce[..., 1, 2], Rce[..., 0, 2]), q4_seed[:, None])
-    t5 = np.arctan2(sin5, Rce[..., 2, 2])
+    r = [[R[:, i, j][:, None] for j in range(3)] for i in range(3)]  # each (N, 1)
+    # rows of R_0c^T: (c1 c23, s1 c23, -s23), (-s1, c1, 0), (c1 s23, s1 s23, c23)
+    xy0 = [c1 * r[0][j] + s1 * r[1][j] for j in (0, 2)]
+    e00 = c23 * xy0[0] - s23 * r[2][0]
+    e02 = c23 * xy0[1] - s23 * r[2][2]
+    e10 = -s1 * r[0][0] + c1 * r[1][0]
+    e12 = -s1 * r[0][2] + c1 * r[1][2]
+    e20 = s23 * xy0[0] + c23 * r[2][0]
+    e22 = s23 * xy0[1] + c23 * r[2][2]
+    sin5 = np.hypot(e02, e12)
+    regular = sin5 > 1e-12
+    t4 = np.where(regular, np.arctan2(e12, e02), q4_seed[:, None])
+    t5 = np.arctan2(sin5, e22)
+    safe = np.where(regular, sin5, 1.0)
+    s4 = np.where(regular, e12 / safe, np.sin(t4))
+    c4 = np.where(regular, e02 / safe, np.cos(t4))
     # q6 from M = Ry(-t5) Rz(-t4) R_ce = Rz(t6): well conditioned even where sin5 -> 0
-    s4, c4 = np.sin(t4), np.cos(t4)
-    s5, c5 = np.sin(t5), np.cos(t5)
-    m00 = c5 * (c4 * Rce[..., 0, 0] + s4 * Rce[..., 1, 0]) - s5 * Rce[..., 2, 0]
-    m10 = -s4 * Rce[..., 0, 0] + c4 * Rce[..., 1, 0]
-    t6 = np.arctan2(m10, m00)
-    return t4, t5, t6
+    m00 = (e22 * (c4 * e00 + s4 * e10) - sin5 * e20) / np.hypot(sin5, e22)
+    m10 = -s4 * e00 + c4 * e10
+    return t4, t5, np.arctan2(m10, m00)
 
 
 def opw_batch(params: OpwParameters, T_base_flange: np.ndarray, q4_seed_opw: np.ndarray | None = None,
@@ -152,15 +160,22 @@ def opw_batch(params: OpwParameters, T_base_flange: np.ndarray, q4_seed_opw: np.
     c = p - params.c4 * R[:, :, 2]
     t1, t2, t3 = _arm_solutions(params, c, q1s)
     t4, t5, t6 = _wrist_solutions(R, t1, t2 + t3, q4s)
-    arm = np.stack([t1, t2, t3], axis=-1)  # (N, 4, 3)
-    wrist = np.stack([t4, t5, t6], axis=-1)
-    flipped = np.stack([t4 + math.pi, -t5, t6 - math.pi], axis=-1)
-    q_opw = np.concatenate([np.concatenate([arm, wrist], axis=-1),
-                            np.concatenate([arm, flipped], axis=-1)], axis=1)  # (N, 8, 6)
-    offsets = np.asarray(params.offsets_rad)
-    signs = np.asarray(params.sign_corrections)
-    q = wrap_to_pi((q_opw + offsets) * signs)
-    q[np.any(np.isnan(q), axis=-1)] = np.nan  # a branch is reachable as a whole or not at all
+    signs = params.sign_corrections
+    offsets = params.offsets_rad
+    q = np.empty((n, 8, 6))
+    # the flipped wrist (q4 + pi, -q5, q6 - pi) shares the arm joints: wrap each column once
+    for j, t in enumerate((t1, t2, t3, t4, t5, t6)):
+        plain = wrap_to_pi((t + offsets[j]) * signs[j])
+        q[:, :4, j] = plain
+        if j == 4:
+            q[:, 4:, j] = wrap_to_pi((offsets[j] - t) * signs[j])
+        elif j in (3, 5):
+            q[:, 4:, j] = wrap_to_pi(plain + math.pi)
+        else:
+            q[:, 4:, j] = plain
+    unreachable = np.isnan(t1) | np.isnan(t2) | np.isnan(t3)  # (N, 4): the whole branch goes
+    q[:, :4][unreachable] = np.nan
+    q[:, 4:][unreachable] = np.nan
     return q
 
 

@@ -21,6 +21,7 @@ from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 from py_opw_kinematics import KinematicModel
 from py_opw_kinematics import Robot as OpwRobot
 from scipy.spatial.transform import RigidTransform
@@ -72,9 +73,7 @@ def measure(robot_name: str, sizes: list[int], repeat: int) -> list[dict[str, fl
     return rows
 
 
-def _se3(T: np.ndarray):  # noqa: ANN202 - pin.SE3, imported lazily with singplan
-    import pinocchio as pin
-
+def _se3(T: np.ndarray) -> pin.SE3:
     return pin.SE3(T[:3, :3], T[:3, 3])
 
 

@@ -1,0 +1,147 @@
+"""Crossing methods: what a move does inside a singular zone.
+
+A method looks at one zone of a tracked move and either keeps the tracked (in-branch)
+solution, returns a :class:`Crossing` that replaces the zone's joint values and continues
+the move in another branch, or refuses with :class:`~singplan.errors.SingularityError`.
+Methods never time anything; the timing slows the path where joints must move fast.
+
+Available now:
+
+* ``exact``: the full pose is kept. At a near miss the branch is kept and the wrist (or axis
+  1) swings while the timing slows the path (SEEDS 002's speed scaleback). Where the path
+  passes within the exact tolerance of the singularity (0.01 deg, or the position tolerance
+  for the shoulder) it goes *through* it: the label changes at the closest point, the
+  joints stay continuous, and the pose deviates by at most the miss (see :func:`through`).
+* ``stop``: refuse every zone, naming the move and the point (like MoveIt / Pilz).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from singplan.configuration import classify
+from singplan.errors import SingularityError
+from singplan.jointmap import JointPart, JointMap, hermite
+from singplan.robot import Robot
+from singplan.singularity import Zone
+from singplan.task import SingularitySettings
+from singplan.tracking import PoseFunction, TrackedPath, BranchCandidates, nearest_candidate
+
+EXACT_ORIENTATION_TOL_RAD = math.radians(0.01)
+# a through-crossing blends where the in-branch swing has not started: |distance| above
+# this many times the miss, and at least these absolute values
+_EDGE_FACTOR = 50.0
+_EDGE_MIN = {"wrist": math.radians(0.05), "elbow": math.radians(0.05), "shoulder": 0.0005}
+_THROUGH_MAX_JUMP_RAD = math.radians(5.0)
+
+
+@dataclass(frozen=True)
+class MoveContext:
+    """What a method may look at: one LIN/CIRC move tracked in its current branch."""
+
+    robot: Robot
+    move_index: int
+    move_kind: str
+    poses: PoseFunction
+    tracked: TrackedPath
+    distances: np.ndarray  # (N, 3) signed (wrist, shoulder, elbow) at tracked.u
+    labels: list[str]
+    settings: SingularitySettings
+    length_m: float
+
+
+@dataclass(frozen=True)
+class Crossing:
+    """A crossing that replaces the tracked joints on [u_a, u_b] and changes branch.
+
+    ``blend`` covers the zone; the move continues from ``q_exit`` at ``u_b`` in the new branch.
+    """
+
+    zone: Zone
+    method: str
+    blend: JointPart
+    q_exit: np.ndarray  # (n,)
+
+
+class CrossingMethod(Protocol):
+    name: str
+
+    def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
+        """A crossing for ``zone``, or None to keep the tracked solution."""
+        ...
+
+
+def _where(ctx: MoveContext, u: float) -> str:
+    p = ctx.poses(np.array([u]))[0][:3, 3]
+    return f"s = {u * ctx.length_m * 1e3:.1f} mm along the path (xyz {p[0]:.4f} {p[1]:.4f} {p[2]:.4f} m)"
+
+
+class Stop:
+    """Refuse at every singular zone."""
+
+    name = "stop"
+
+    def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
+        raise SingularityError(
+            f"move {ctx.move_index} ({ctx.move_kind}): {zone.kind} singular zone at {_where(ctx, zone.u_entry)}, "
+            f"closest {zone.describe_distance()} at {_where(ctx, zone.u_closest)}; method 'stop' refuses to cross",
+            move=ctx.move_index, kind=zone.kind, s_m=zone.u_entry * ctx.length_m)
+
+
+class Exact:
+    """Keep the full pose; go through the singularity only where the path (almost) meets it."""
+
+    name = "exact"
+
+    def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
+        limit = ctx.settings.position_tolerance_mm / 1e3 if zone.kind == "shoulder" else EXACT_ORIENTATION_TOL_RAD
+        if zone.min_distance >= limit:
+            return None  # a near miss: stay in the branch, the timing slows the swing
+        return through(ctx, zone, self.name)
+
+
+def through(ctx: MoveContext, zone: Zone, method: str) -> Crossing | None:
+    """Pass a (nearly) met singularity with continuous joints and a label change.
+
+    Around the closest point the in-branch solution would swing by ~180 deg within a
+    distance comparable to the miss. Instead, the joints are blended (cubic Hermite, joints
+    1-3 re-solved for the exact position) from the last sample before the swing to the
+    branch of the other label just after it; the pose deviates there by about the miss.
+    Returns None when no nearby solution of the other label exists.
+    """
+    i = {"wrist": 0, "shoulder": 1, "elbow": 2}[zone.kind]
+    u, q, d = ctx.tracked.u, ctx.tracked.q, np.abs(ctx.distances[:, i])
+    edge = max(_EDGE_FACTOR * zone.min_distance, _EDGE_MIN[zone.kind])
+    before = np.nonzero((u < zone.u_closest) & (d >= edge))[0]
+    after = np.nonzero((u > zone.u_closest) & (d >= edge))[0]
+    if before.size == 0 or after.size == 0:
+        return None
+    a, b = int(before[-1]), int(after[0])
+    letter = ctx.labels[a].split()[{"shoulder": 0, "elbow": 1, "wrist": 2}[zone.kind]]
+    cands = BranchCandidates(ctx.robot, ctx.poses)
+    cands.fill(u[b:b + 1])
+    options = [c for c in cands.cache[float(u[b])] if np.all(np.isfinite(c))]
+    other = [c for c in options if _letter(ctx.robot, c, zone.kind) != letter]
+    if not other:
+        return None
+    q_exit, jump = nearest_candidate(np.array(other), q[a])
+    if jump > _THROUGH_MAX_JUMP_RAD:
+        return None
+    slope_a = (q[a] - q[a - 1]) / (u[a] - u[a - 1]) if a > 0 else np.zeros_like(q[a])
+    slope_b = (q_exit - q[a]) / (u[b] - u[a])
+    blend = JointPart("blend", np.array([u[a], u[b]]), np.array([q[a], q_exit]), np.array([slope_a, slope_b]))
+    dense_u = np.linspace(u[a], u[b], 9)
+    dense = JointMap(ctx.robot, ctx.poses, [blend]).fix_position(hermite(blend, dense_u), dense_u)
+    return Crossing(zone, method, JointPart("blend", dense_u, dense, blend.dq_du), q_exit)
+
+
+def _letter(robot: Robot, q: np.ndarray, kind: str) -> str:
+    c = classify(robot, q)
+    return {"shoulder": c.shoulder, "elbow": c.elbow, "wrist": c.wrist}[kind]
+
+
+METHODS_AVAILABLE: dict[str, CrossingMethod] = {"exact": Exact(), "stop": Stop()}

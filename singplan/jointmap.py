@@ -1,0 +1,156 @@
+"""A move's map from path parameter ``u`` in [0, 1] to joint values.
+
+The map is what the planner hands to the timing: dense reference samples for TOPP-RA, and
+:meth:`JointMap.evaluate` to compute the joint values of any ``u`` exactly, so that every
+output sample lies on the path. It is stitched from parts:
+
+* ``track``: exact IK; the branch and the 2*pi turn are those nearest the tracked reference
+  samples, interpolated at ``u``.
+* ``blend``: a crossing's joint interpolation (cubic Hermite between the entry and exit
+  joint values and slopes), with joints 1-3 re-solved so that the TCP *position* is exact.
+* ``ptp``: a straight line in joint space.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from singplan.ik import opw_batch, solve_newton
+from singplan.ik_ur import UrParameters, ur_solutions
+from singplan.robot import Robot
+from singplan.tracking import PoseFunction
+
+TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True)
+class JointPart:
+    """One part of a joint map over [u0, u1].
+
+    Attributes:
+        kind: "track" | "blend" | "ptp".
+        u: reference parameters inside [u0, u1], increasing, shape (K,).
+        q: reference joint values [rad], shape (K, n).
+        dq_du: joint slopes at u0 and u1 (blend only), shape (2, n).
+    """
+
+    kind: str
+    u: np.ndarray  # (K,)
+    q: np.ndarray  # (K, n)
+    dq_du: np.ndarray | None = None  # (2, n)
+
+    @property
+    def u0(self) -> float:
+        return float(self.u[0])
+
+    @property
+    def u1(self) -> float:
+        return float(self.u[-1])
+
+
+def hermite(part: JointPart, u: np.ndarray) -> np.ndarray:
+    """Cubic Hermite interpolation of a blend part's end values and slopes, (N, n)."""
+    assert part.dq_du is not None
+    h = part.u1 - part.u0
+    t = ((u - part.u0) / h)[:, None]
+    h00, h10 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t
+    h01, h11 = -2 * t**3 + 3 * t**2, t**3 - t**2
+    return h00 * part.q[0] + h10 * h * part.dq_du[0] + h01 * part.q[-1] + h11 * h * part.dq_du[1]
+
+
+def interpolate(part: JointPart, u: np.ndarray) -> np.ndarray:
+    """Piecewise-linear interpolation of the part's reference samples, (N, n)."""
+    return np.stack([np.interp(u, part.u, part.q[:, j]) for j in range(part.q.shape[1])], axis=1)
+
+
+class JointMap:
+    """Map u -> q of one move, built from consecutive parts that share their end samples."""
+
+    def __init__(self, robot: Robot, poses: PoseFunction | None, parts: list[JointPart]) -> None:
+        self.robot = robot
+        self.poses = poses
+        self.parts = parts
+        self.T_tool_inv = robot.T_tip_tcp.inverse().homogeneous
+
+    def reference(self) -> tuple[np.ndarray, np.ndarray]:
+        """All reference samples (u (K,), q (K, n)), without repeated part ends."""
+        us, qs = [self.parts[0].u[:1]], [self.parts[0].q[:1]]
+        for part in self.parts:
+            us.append(part.u[1:])
+            qs.append(part.q[1:])
+        return np.concatenate(us), np.concatenate(qs)
+
+    def evaluate(self, u: np.ndarray) -> np.ndarray:
+        """Joint values (N, n) at parameters u (N,), each exactly on the map's definition."""
+        u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
+        q = np.empty((len(u), self.robot.n_joints))
+        done = np.zeros(len(u), dtype=bool)
+        for part in self.parts:
+            mask = ~done & (u <= part.u1 + 1e-15)
+            if not mask.any():
+                continue
+            q[mask] = self._evaluate_part(part, u[mask])
+            done |= mask
+        return q
+
+    def _evaluate_part(self, part: JointPart, u: np.ndarray) -> np.ndarray:
+        if part.kind == "ptp":
+            return interpolate(part, u)
+        if part.kind == "blend":
+            return self.fix_position(hermite(part, u), u)
+        return self._exact_near(interpolate(part, u), u)
+
+    def _exact_near(self, q_ref: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Exact IK at each u: the branch and turn nearest the reference joint values."""
+        assert self.poses is not None
+        T_tcp = self.poses(u)
+        T_flange = T_tcp @ self.T_tool_inv
+        if self.robot.opw is not None:
+            p = self.robot.opw
+            seeds = q_ref * np.asarray(p.sign_corrections) - np.asarray(p.offsets_rad)
+            cands = opw_batch(p, T_flange, seeds[:, 3], seeds[:, 0])
+        elif self.robot.family == "ur" and self.robot.tip == "tool0":
+            params = UrParameters.from_robot(self.robot)
+            cands = np.array([ur_solutions(params, T, s) for T, s in zip(T_flange, q_ref, strict=True)])
+        else:
+            return np.array([self._newton(T, s) for T, s in zip(T_tcp, q_ref, strict=True)])
+        shifted = cands + TWO_PI * np.round((q_ref[:, None, :] - cands) / TWO_PI)
+        dist = np.max(np.abs(shifted - q_ref[:, None, :]), axis=2)
+        dist = np.where(np.isnan(dist), np.inf, dist)
+        best = np.argmin(dist, axis=1)
+        return shifted[np.arange(len(u)), best]
+
+    def _newton(self, T: np.ndarray, seed: np.ndarray) -> np.ndarray:
+        q = solve_newton(self.robot, pin.SE3(T[:3, :3], T[:3, 3]), seed)
+        return seed if q is None else q
+
+    def fix_position(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Re-solve joints 1-3 so the TCP position is exact (damped Newton, a few steps)."""
+        assert self.poses is not None
+        targets = self.poses(u)[:, :3, 3]
+        out = q.copy()
+        for k in range(len(u)):
+            out[k] = position_solve(self.robot, out[k], targets[k])
+        return out
+
+
+def position_solve(robot: Robot, q: np.ndarray, target_m: np.ndarray, joints: int = 3,
+                   tol_m: float = 1e-12, iterations: int = 30) -> np.ndarray:
+    """Move the first ``joints`` joints so the TCP reaches ``target_m`` [m]; the others stay.
+
+    Damped Newton on the TCP position with Pinocchio's Jacobian; returns the best found.
+    """
+    q = np.array(q, dtype=float)
+    for _ in range(iterations):
+        err = target_m - robot.fk(q).translation
+        norm = float(np.linalg.norm(err))
+        if norm < tol_m:
+            break
+        J = robot.jacobian(q)[:3, :joints]
+        damping = min(1e-6, norm) ** 2
+        q[:joints] += J.T @ np.linalg.solve(J @ J.T + damping * np.eye(3), err)
+    return q

@@ -1,0 +1,131 @@
+"""Cartesian path geometry: LIN and CIRC pieces, orientation slerp, arc-length sampling.
+
+A piece maps a normalised parameter ``u`` in [0, 1] to a TCP pose. The position moves at
+constant speed along the line or arc (``u`` is proportional to arc length ``s = u L``), and
+the orientation is slerped with the same parameter:
+``R(u) = R_a exp(u log(R_a^T R_b))`` (shortest rotation; exactly 180 deg is ambiguous and
+rejected as bad input).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from singplan.errors import TaskError
+
+AMBIGUOUS_ROTATION_RAD = math.pi - 1e-6
+
+
+def rpy_deg_to_rotation(rpy_deg: tuple[float, float, float] | np.ndarray) -> np.ndarray:
+    """URDF fixed-axis roll-pitch-yaw [deg] to a rotation matrix: Rz(yaw) Ry(pitch) Rx(roll)."""
+    r, p, y = np.radians(np.asarray(rpy_deg, dtype=float))
+    return np.asarray(pin.rpy.rpyToMatrix(float(r), float(p), float(y)))
+
+
+def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
+    """Angle [rad] of the rotation from R_a to R_b."""
+    return float(np.linalg.norm(pin.log3(R_a.T @ R_b)))
+
+
+def exp_so3(omega: np.ndarray) -> np.ndarray:
+    """Rodrigues' formula for rotation vectors (N, 3) -> rotation matrices (N, 3, 3)."""
+    theta = np.linalg.norm(omega, axis=1)
+    small = theta < 1e-12
+    safe = np.where(small, 1.0, theta)
+    k = omega / safe[:, None]
+    K = np.zeros((len(omega), 3, 3))
+    K[:, 0, 1], K[:, 0, 2] = -k[:, 2], k[:, 1]
+    K[:, 1, 0], K[:, 1, 2] = k[:, 2], -k[:, 0]
+    K[:, 2, 0], K[:, 2, 1] = -k[:, 1], k[:, 0]
+    s = np.where(small, 0.0, np.sin(theta))[:, None, None]
+    c = np.where(small, 0.0, 1.0 - np.cos(theta))[:, None, None]
+    return np.eye(3)[None] + s * K + c * (K @ K)
+
+
+@dataclass(frozen=True)
+class CartesianPiece:
+    """A LIN or CIRC move from ``T_start`` to ``T_end`` (TCP poses in the base frame).
+
+    For a CIRC, ``center``, ``normal`` (unit), ``radius`` and ``arc_rad`` describe the circle
+    through start, via and end, traversed from start about ``normal`` by ``arc_rad``.
+    """
+
+    kind: str  # "lin" | "circ"
+    T_start: pin.SE3
+    T_end: pin.SE3
+    length_m: float  # arc length of the position path
+    rotation_rad: float  # total orientation change
+    center: np.ndarray | None = None
+    normal: np.ndarray | None = None
+    radius: float = 0.0
+    arc_rad: float = 0.0
+
+    def positions(self, u: np.ndarray) -> np.ndarray:
+        """TCP positions (N, 3) [m] at parameters u (N,)."""
+        pa, pb = self.T_start.translation, self.T_end.translation
+        if self.kind == "lin":
+            return pa[None] + np.asarray(u)[:, None] * (pb - pa)[None]
+        assert self.center is not None and self.normal is not None
+        R = exp_so3(np.asarray(u)[:, None] * self.arc_rad * self.normal[None])
+        return self.center[None] + R @ (pa - self.center)
+
+    def rotations(self, u: np.ndarray) -> np.ndarray:
+        """TCP orientations (N, 3, 3): slerp from start to end."""
+        Ra = self.T_start.rotation
+        omega = np.asarray(pin.log3(Ra.T @ self.T_end.rotation))
+        return Ra[None] @ exp_so3(np.asarray(u)[:, None] * omega[None])
+
+    def poses(self, u: np.ndarray) -> np.ndarray:
+        """Homogeneous TCP poses (N, 4, 4)."""
+        u = np.asarray(u, dtype=float)
+        T = np.zeros((len(u), 4, 4))
+        T[:, :3, :3] = self.rotations(u)
+        T[:, :3, 3] = self.positions(u)
+        T[:, 3, 3] = 1.0
+        return T
+
+    def pose(self, u: float) -> pin.SE3:
+        T = self.poses(np.array([u]))[0]
+        return pin.SE3(T[:3, :3], T[:3, 3])
+
+    def sample_count(self, step_m: float, step_rad: float) -> int:
+        """Number of intervals so that each one moves at most ``step_m`` and turns ``step_rad``."""
+        return max(2, math.ceil(self.length_m / step_m), math.ceil(self.rotation_rad / step_rad))
+
+
+def make_lin(T_start: pin.SE3, T_end: pin.SE3, field: str) -> CartesianPiece:
+    """A LIN piece; ``field`` names the move for error messages."""
+    angle = _checked_rotation(T_start, T_end, field)
+    length = float(np.linalg.norm(T_end.translation - T_start.translation))
+    return CartesianPiece("lin", T_start, T_end, length, angle)
+
+
+def make_circ(T_start: pin.SE3, via: np.ndarray, T_end: pin.SE3, field: str) -> CartesianPiece:
+    """A CIRC piece through ``via`` [m]; degenerate circles are bad input."""
+    angle = _checked_rotation(T_start, T_end, field)
+    pa, pb = T_start.translation, T_end.translation
+    u, v = via - pa, pb - pa
+    normal = np.cross(u, v)
+    n2 = float(normal @ normal)
+    scale = max(float(u @ u), float(v @ v), 1e-30)
+    if n2 < 1e-12 * scale * scale or min(np.linalg.norm(u), np.linalg.norm(v), np.linalg.norm(pb - via)) < 1e-6:
+        raise TaskError(f"{field}.via", "start, via and end are collinear or coincide: no unique circle")
+    center = pa + (float(v @ v) * np.cross(normal, u) + float(u @ u) * np.cross(v, normal)) / (2.0 * n2)
+    normal = normal / math.sqrt(n2)
+    radius = float(np.linalg.norm(pa - center))
+    a, b = pa - center, pb - center
+    arc = math.atan2(float(np.cross(a, b) @ normal), float(a @ b))
+    arc = arc if arc >= 0 else arc + 2.0 * math.pi
+    return CartesianPiece("circ", T_start, T_end, radius * arc, angle, center, normal, radius, arc)
+
+
+def _checked_rotation(T_start: pin.SE3, T_end: pin.SE3, field: str) -> float:
+    angle = rotation_angle(T_start.rotation, T_end.rotation)
+    if angle > AMBIGUOUS_ROTATION_RAD:
+        raise TaskError(f"{field}.to.rpy_deg", f"the orientation turns {math.degrees(angle):.4f} deg: a 180 deg "
+                                               "turn is ambiguous (which way round?); split the move")
+    return angle

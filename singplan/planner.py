@@ -1,0 +1,261 @@
+"""plan(task) -> Trajectory: the whole flow of DESIGN.md for one task.
+
+For each move: the Cartesian path (LIN / CIRC) is sampled and tracked by continuous IK,
+singular zones are detected on the tracked joints, the crossing method decides what happens
+in each zone, and the resulting joint map is timed by TOPP-RA and resampled at the
+controller period. PTP moves are straight lines in joint space. The moves are stitched back
+to back, segments and events are labelled, and the metrics are computed from the samples.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from singplan.configuration import classify, parse_configuration, singularity_distances
+from singplan.crossing import METHODS_AVAILABLE, Crossing, CrossingMethod, MoveContext
+from singplan.errors import InputError, JointLimitError, PlanningError, SingularityError, UnreachableError
+from singplan.ik import solve_all
+from singplan.jointmap import JointMap, JointPart
+from singplan.path import CartesianPiece, make_circ, make_lin, rpy_deg_to_rotation
+from singplan.robot import Robot, load_robot
+from singplan.singularity import Zone, distances_along, find_zones, thresholds_si
+from singplan.task import Move, Task, check_against_robot, load_task
+from singplan.timing import MoveLimits, TimedMove, time_move
+from singplan.tracking import TrackedPath, track
+from singplan.trajectory import Trajectory
+from singplan.trajectory_build import build_trajectory
+
+STEP_M = 0.002  # initial path sampling: at most 2 mm ...
+STEP_RAD = math.radians(0.5)  # ... and 0.5 deg of tool rotation between samples
+Progress = Callable[[int, int], None]
+
+
+@dataclass(frozen=True)
+class PlannedMove:
+    """One move before timing: its joint map and what was found along it."""
+
+    index: int
+    kind: str
+    jmap: JointMap
+    limits: MoveLimits
+    piece: CartesianPiece | None = None
+    zones: tuple[Zone, ...] = ()
+    crossings: tuple[Crossing, ...] = ()
+    methods: dict[int, str] = field(default_factory=dict)  # zone index -> method used
+
+
+def resolve_method(name: str) -> CrossingMethod:
+    """The crossing method object for a task's method name."""
+    if name == "auto":
+        name = "exact"  # the only pose-keeping method available in this version
+    if name not in METHODS_AVAILABLE:
+        raise InputError(f"singularity.method: {name!r} is not available in this version; "
+                         f"available: auto, {', '.join(sorted(METHODS_AVAILABLE))}")
+    return METHODS_AVAILABLE[name]
+
+
+def load_task_robot(task: Task) -> Robot:
+    tool = pin.SE3(rpy_deg_to_rotation(task.tool_rpy_deg), np.asarray(task.tool_xyz, dtype=float))
+    robot = load_robot(task.robot, tip=task.tip, tool=tool)
+    check_against_robot(task, robot)
+    acc = np.asarray(task.limits.acceleration_rad_s2, dtype=float)
+    robot.acceleration_rad_s2 = np.broadcast_to(acc, (robot.n_joints,)).copy()
+    return robot
+
+
+def plan(task: Task | str | Path, method: str | None = None, progress: Progress | None = None) -> Trajectory:
+    """Plan a task (a :class:`Task`, or the path of a YAML file) into a timed trajectory.
+
+    Raises:
+        InputError: the task is malformed or contradicts the robot (exit code 2).
+        PlanningError: the task cannot be executed within the limits and tolerances (exit code 3).
+    """
+    started = time.perf_counter()
+    if not isinstance(task, Task):
+        task = load_task(task)
+    if method is not None:
+        task = task.with_method(method)
+    robot = load_task_robot(task)
+    crossing = resolve_method(task.singularity.method)
+    q = _start_joints(task, robot)
+    T = robot.fk(q)
+    planned: list[PlannedMove] = []
+    timed: list[TimedMove] = []
+    for i, move in enumerate(task.moves):
+        pm = _plan_move(robot, task, i, move, T, q, crossing)
+        tm = time_move(pm.jmap, pm.limits, task.period_s, i)
+        _check_config(robot, i, move, tm.q)
+        planned.append(pm)
+        timed.append(tm)
+        q = tm.q[-1]
+        T = pm.piece.T_end if pm.piece is not None else robot.fk(q)
+        if progress is not None:
+            progress(i + 1, len(task.moves))
+    return build_trajectory(robot, task, planned, timed, crossing.name, time.perf_counter() - started)
+
+
+def _start_joints(task: Task, robot: Robot) -> np.ndarray:
+    if task.start_joints_deg is not None:
+        return np.radians(np.asarray(task.start_joints_deg, dtype=float))
+    assert task.start_pose is not None
+    pose = task.start_pose
+    T = pin.SE3(rpy_deg_to_rotation(pose.rpy_deg or (0.0, 0.0, 0.0)), np.asarray(pose.xyz, dtype=float))
+    sols = solve_all(robot, T, seed=np.zeros(robot.n_joints))
+    keep = [k for k, label in enumerate(sols.labels) if task.start_config in (None, label)]
+    if not keep:
+        wanted = f" in configuration {task.start_config}" if task.start_config else ""
+        raise UnreachableError(f"start.pose: no IK solution{wanted} inside the joint limits "
+                               f"(xyz {list(pose.xyz)}); available: {sorted(set(sols.labels)) or 'none'}")
+    best = min(keep, key=lambda k: float(np.max(np.abs(sols.q[k]))))  # the solution nearest zero
+    return np.array(sols.q[best])
+
+
+def _limits(robot: Robot, task: Task, move: Move, length_m: float) -> MoveLimits:
+    scale = task.limits.velocity_scale * (move.velocity_scale if move.kind == "ptp" else 1.0)
+    return MoveLimits(robot.velocity_rad_s * scale, robot.acceleration_rad_s2, length_m,
+                      move.speed_m_s if move.kind != "ptp" else None)
+
+
+def _plan_move(robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3, q_start: np.ndarray,
+               method: CrossingMethod) -> PlannedMove:
+    field_name = f"moves[{i}].{move.kind}"
+    if move.kind == "ptp":
+        q_target = _ptp_target(robot, i, move, q_start)
+        part = JointPart("ptp", np.array([0.0, 1.0]), np.array([q_start, q_target]))
+        return PlannedMove(i, "ptp", JointMap(robot, None, [part]), _limits(robot, task, move, 0.0))
+    assert move.to is not None
+    rotation = rpy_deg_to_rotation(move.to.rpy_deg) if move.to.rpy_deg is not None else T_start.rotation
+    T_end = pin.SE3(rotation, np.asarray(move.to.xyz, dtype=float))
+    piece = (make_lin(T_start, T_end, field_name) if move.kind == "lin"
+             else make_circ(T_start, np.asarray(move.via_xyz, dtype=float), T_end, field_name))
+    return _plan_cartesian(robot, task, i, move, piece, q_start, method)
+
+
+def _ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.ndarray:
+    if move.to_joints_deg is not None:
+        return np.radians(np.asarray(move.to_joints_deg, dtype=float))
+    assert move.to is not None
+    R = rpy_deg_to_rotation(move.to.rpy_deg) if move.to.rpy_deg is not None else robot.fk(q_start).rotation
+    sols = solve_all(robot, pin.SE3(R, np.asarray(move.to.xyz, dtype=float)), seed=q_start)
+    keep = [k for k, label in enumerate(sols.labels) if move.config in ("auto", "keep", label)]
+    if move.config == "keep":
+        keep = [k for k in keep if sols.labels[k] == classify(robot, q_start).label]
+    if not keep:
+        raise UnreachableError(f"move {i} (ptp): no IK solution for xyz {list(move.to.xyz)} inside the joint "
+                               f"limits in the requested configuration ({move.config}); available: "
+                               f"{sorted(set(sols.labels)) or 'none'}", move=i)
+    best = min(keep, key=lambda k: float(np.max(np.abs(sols.q[k] - q_start))))
+    return np.array(sols.q[best])
+
+
+def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: CartesianPiece, q_start: np.ndarray,
+                    method: CrossingMethod) -> PlannedMove:
+    """Track the path, let the method handle each zone, and stitch the joint map."""
+    grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
+    thresholds = thresholds_si(task.singularity.zone)
+    parts: list[JointPart] = []
+    zones: list[Zone] = []
+    crossings: list[Crossing] = []
+    u_from, q_from = 0.0, q_start
+    while True:
+        tracked = track(robot, piece.poses, np.concatenate([[u_from], grid[grid > u_from + 1e-12]]), q_from)
+        _check_tracked(robot, i, move, piece, tracked)
+        dist, labels = distances_along(robot, tracked.q)
+        ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
+        found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref))
+        ctx = MoveContext(robot, i, move.kind, piece.poses, tracked, dist, labels, task.singularity, piece.length_m)
+        result = _first_crossing(method, ctx, found, zones, u_from)
+        if result is None:
+            parts.append(JointPart("track", tracked.u, tracked.q))
+            _check_limits(robot, i, move, piece, tracked.u, tracked.q, zones)
+            break
+        k_a = int(np.searchsorted(tracked.u, result.blend.u0))
+        parts.append(JointPart("track", tracked.u[:k_a + 1], tracked.q[:k_a + 1]))
+        _check_limits(robot, i, move, piece, tracked.u[:k_a + 1], tracked.q[:k_a + 1], zones)
+        parts.append(result.blend)
+        crossings.append(result)
+        u_from, q_from = result.blend.u1, result.q_exit
+    return PlannedMove(i, move.kind, JointMap(robot, piece.poses, parts), _limits(robot, task, move, piece.length_m),
+                       piece, tuple(zones), tuple(crossings))
+
+
+def _first_crossing(method: CrossingMethod, ctx: MoveContext, found: list[Zone], zones: list[Zone],
+                    u_from: float) -> Crossing | None:
+    """Ask the method about each new zone; record zones; return the first crossing it makes."""
+    for zone in found:
+        if zones and zone.u_entry <= u_from + 1e-12 and zones[-1].kind == zone.kind and u_from > 0:
+            zones[-1] = Zone(zone.kind, zones[-1].u_entry, zone.u_exit, zones[-1].u_closest,
+                             zones[-1].min_distance, zones[-1].threshold)  # the rest of a crossed zone
+            continue
+        zones.append(zone)
+        crossing = method.cross(ctx, zone)
+        if crossing is not None:
+            return crossing
+    return None
+
+
+def _refiner(robot: Robot, ref: JointMap) -> Callable[[float, int], float]:
+    def abs_distance(u: float, index: int) -> float:
+        q = ref.evaluate(np.array([u]))[0]
+        return abs(singularity_distances(robot, q)[index])
+
+    return abs_distance
+
+
+def _where(piece: CartesianPiece, u: float) -> str:
+    p = piece.positions(np.array([u]))[0]
+    return f"s = {u * piece.length_m * 1e3:.1f} mm (xyz {p[0]:.4f} {p[1]:.4f} {p[2]:.4f} m)"
+
+
+def _check_tracked(robot: Robot, i: int, move: Move, piece: CartesianPiece, tracked: TrackedPath) -> None:
+    if tracked.gap_index < 0:
+        return
+    k = tracked.gap_index + 1
+    u = float(tracked.u[k])
+    if not np.all(np.isfinite(tracked.q[k])):
+        raise UnreachableError(f"move {i} ({move.kind}): the path leaves the workspace at {_where(piece, u)}: "
+                               f"no inverse kinematics solution there", move=i)
+    raise PlanningError(f"move {i} ({move.kind}): no continuous joint motion follows the path at "
+                        f"{_where(piece, u)} (the inverse kinematics jumps by "
+                        f"{math.degrees(tracked.max_step_rad):.1f} deg)")
+
+
+def _check_limits(robot: Robot, i: int, move: Move, piece: CartesianPiece, u: np.ndarray, q: np.ndarray,
+                  zones: list[Zone]) -> None:
+    low = q < robot.lower_rad - 1e-9
+    high = q > robot.upper_rad + 1e-9
+    if not (low.any() or high.any()):
+        return
+    k, j = np.argwhere(low | high)[0]
+    lo, hi = robot.lower_rad[j], robot.upper_rad[j]
+    near = [z for z in zones if z.u_entry - 0.05 <= u[k] <= z.u_exit + 0.05]
+    why = (f"; the path passes {near[0].describe_distance()} from a {near[0].kind} singularity and keeping the "
+           f"pose swings the joints" if near else "")
+    raise JointLimitError(
+        f"move {i} ({move.kind}): following the path with the full pose drives {robot.joint_names[j]} to "
+        f"{math.degrees(q[k, j]):.2f} deg at {_where(piece, float(u[k]))}, outside its limits "
+        f"[{math.degrees(lo):.1f}, {math.degrees(hi):.1f}] deg{why}",
+        joint=robot.joint_names[j], value_rad=float(q[k, j]), lower_rad=float(lo), upper_rad=float(hi), move=i)
+
+
+def _check_config(robot: Robot, i: int, move: Move, q: np.ndarray) -> None:
+    if move.config == "auto":
+        return
+    first, last = classify(robot, q[0]).label, classify(robot, q[-1]).label
+    if move.config == "keep":
+        changed = [k for k in range(1, len(q)) if classify(robot, q[k]).label != first] if first != last else []
+        if first != last or changed:
+            raise SingularityError(f"move {i} ({move.kind}): config 'keep', but the motion changes the "
+                                   f"configuration from {first} to {last}", move=i, kind="config", s_m=0.0)
+        return
+    wanted = parse_configuration(move.config).label
+    if last != wanted:
+        raise PlanningError(f"move {i} ({move.kind}): ends in configuration {last}, but the move asks for "
+                            f"{wanted}; the chosen method cannot change the configuration here")

@@ -1,0 +1,128 @@
+"""Singular zones along a path.
+
+Per sample, the signed distances of :mod:`singplan.configuration` (wrist and elbow angles
+[rad], shoulder distance [m]). A zone of one kind is a maximal run of the path where its
+|distance| is under the task's threshold; its entry and exit (SEEDS 000's points 48 and 50)
+are interpolated between samples. Each zone also records where the path comes closest to
+the singularity and how close, refined between samples by a golden-section search.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from singplan.configuration import label_and_distances
+from singplan.robot import Robot
+from singplan.task import ZoneThresholds
+
+KINDS = ("wrist", "shoulder", "elbow")
+_INDEX = {"wrist": 0, "shoulder": 1, "elbow": 2}
+
+
+@dataclass(frozen=True)
+class Zone:
+    """A singular zone of one move, in the move's path parameter u in [0, 1].
+
+    Attributes:
+        kind: "wrist" | "shoulder" | "elbow".
+        u_entry, u_exit: where |distance| crosses the threshold (0 / 1 if the move starts / ends inside).
+        u_closest: where |distance| is smallest.
+        min_distance: smallest |distance| [rad for wrist/elbow, m for shoulder].
+        threshold: the detection threshold, same unit.
+    """
+
+    kind: str
+    u_entry: float
+    u_exit: float
+    u_closest: float
+    min_distance: float
+    threshold: float
+
+    @property
+    def unit(self) -> str:
+        return "m" if self.kind == "shoulder" else "rad"
+
+    def describe_distance(self, value: float | None = None) -> str:
+        v = self.min_distance if value is None else value
+        return f"{v * 1e3:.3f} mm" if self.kind == "shoulder" else f"{math.degrees(v):.4f} deg"
+
+
+def thresholds_si(zone: ZoneThresholds) -> np.ndarray:
+    """(wrist [rad], shoulder [m], elbow [rad]) thresholds."""
+    return np.array([math.radians(zone.wrist_deg), zone.shoulder_mm / 1000.0, math.radians(zone.elbow_deg)])
+
+
+def distances_along(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Signed (wrist, shoulder, elbow) distances (N, 3) and labels at joint samples q (N, n)."""
+    rows, labels = [], []
+    for qk in q:
+        label, d = label_and_distances(robot, qk)
+        rows.append((d.wrist_rad, d.shoulder_m, d.elbow_rad))
+        labels.append(label.label)
+    return np.array(rows).reshape(-1, 3), labels
+
+
+def find_zones(u: np.ndarray, dist: np.ndarray, thresholds: np.ndarray,
+               abs_distance_at: Callable[[float, int], float] | None = None) -> list[Zone]:
+    """Zones from sampled distances; ``abs_distance_at(u, index)`` refines the closest point."""
+    zones = []
+    for kind in KINDS:
+        i = _INDEX[kind]
+        d = np.abs(dist[:, i])
+        inside = d < thresholds[i]
+        k = 0
+        while k < len(u):
+            if not inside[k]:
+                k += 1
+                continue
+            start = k
+            while k < len(u) and inside[k]:
+                k += 1
+            end = k - 1
+            zones.append(_zone(kind, u, d, thresholds[i], start, end, abs_distance_at, i))
+    return sorted(zones, key=lambda z: z.u_entry)
+
+
+def _crossing_u(u: np.ndarray, d: np.ndarray, thr: float, a: int, b: int) -> float:
+    """Where |distance| reaches thr between samples a and b (linear in u)."""
+    if d[a] == d[b]:
+        return float(u[a])
+    t = (thr - d[a]) / (d[b] - d[a])
+    return float(u[a] + min(1.0, max(0.0, t)) * (u[b] - u[a]))
+
+
+def _zone(kind: str, u: np.ndarray, d: np.ndarray, thr: float, start: int, end: int,
+          refine: Callable[[float, int], float] | None, index: int) -> Zone:
+    u_entry = 0.0 if start == 0 else _crossing_u(u, d, thr, start - 1, start)
+    u_exit = 1.0 if end == len(u) - 1 else _crossing_u(u, d, thr, end, end + 1)
+    k = start + int(np.argmin(d[start:end + 1]))
+    u_best, d_best = float(u[k]), float(d[k])
+    if refine is not None:
+        lo, hi = float(u[max(k - 1, 0)]), float(u[min(k + 1, len(u) - 1)])
+        u_ref, d_ref = _golden_min(lambda x: refine(x, index), lo, hi)
+        if d_ref < d_best:
+            u_best, d_best = u_ref, d_ref
+    return Zone(kind, u_entry, u_exit, u_best, d_best, float(thr))
+
+
+def _golden_min(f: Callable[[float], float], lo: float, hi: float, iterations: int = 60) -> tuple[float, float]:
+    """Minimum of a unimodal f on [lo, hi]."""
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    a, b = lo, hi
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc, fd = f(c), f(d)
+    for _ in range(iterations):
+        if fc < fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            fc = f(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            fd = f(d)
+    x = 0.5 * (a + b)
+    return x, f(x)

@@ -1,0 +1,161 @@
+"""Time-parameterisation of one move with TOPP-RA, and resampling at the controller period.
+
+TOPP-RA (Pham and Pham, "A new approach to time-optimal path parameterization based on
+reachability analysis", IEEE T-RO 2018) finds the fastest path speed profile under joint
+velocity and acceleration limits. The path handed to it is the move's joint map sampled at
+its reference points, extended by one coordinate ``s = u * L`` (arc length [m]) whose
+velocity limit is the programmed TCP speed: that caps the TCP speed and, where joints would
+exceed their limits, slows the path instead of leaving it (SEEDS 002's speed scaleback).
+
+The output samples are uniform at the period from t = 0. The duration is rounded up to whole
+periods by slowing the profile uniformly. Each sample's joints come from the joint map's own
+``evaluate(u)`` (exact IK, or the crossing's definition), never from the spline, so every
+sample is on the path. Limits are then checked on the samples with the same finite
+differences a checker uses, and the profile is tightened where TOPP-RA's grid let them slip.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import toppra as ta
+import toppra.algorithm as ta_algo
+import toppra.constraint as ta_constraint
+
+from singplan.errors import PlanningError, TaskError
+from singplan.jointmap import JointMap
+from singplan.task import MAX_OUTPUT_SAMPLES
+
+logger = logging.getLogger(__name__)
+ta.setup_logging("WARNING")
+
+_UNLIMITED = 1e9
+_TIGHTEN_PASSES = 8
+_SPEED_MARGIN = 0.999  # ratios the samples must stay under
+_ACCEL_MARGIN = 0.995
+_TCP_MARGIN = 0.999
+
+
+@dataclass(frozen=True)
+class TimedMove:
+    """A move sampled at the controller period.
+
+    Attributes:
+        u: path parameter of each sample, shape (K + 1,), from 0 to 1.
+        q: joint values [rad], shape (K + 1, n); first and last samples at rest.
+        duration_s: K * period.
+        speed_ratio, accel_ratio: largest |qd| / limit and |qdd| / limit on the samples.
+    """
+
+    u: np.ndarray  # (K+1,)
+    q: np.ndarray  # (K+1, n)
+    duration_s: float
+    speed_ratio: float
+    accel_ratio: float
+
+
+@dataclass(frozen=True)
+class MoveLimits:
+    """Limits one move is timed under."""
+
+    velocity_rad_s: np.ndarray  # (n,) already scaled
+    acceleration_rad_s2: np.ndarray  # (n,)
+    length_m: float  # 0 for PTP or a pure reorientation: no TCP speed cap
+    tcp_speed_m_s: float | None
+
+
+def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
+    u, q = jmap.reference()
+    keep = np.concatenate([[True], np.diff(u) > 1e-12])
+    u, q = u[keep], q[keep]
+    if len(u) < 4:  # a spline needs a few points; add interior ones (straight PTP lines)
+        dense = np.linspace(0.0, 1.0, 9)
+        return dense, jmap.evaluate(dense)
+    return u, q
+
+
+def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale_v: float, scale_a: float,
+                    move_index: int) -> ta.interpolator.AbstractGeometricPath:
+    arc_scale = limits.length_m if limits.length_m > 0 else 1.0
+    waypoints = np.hstack([q, (u * arc_scale)[:, None]])
+    path = ta.SplineInterpolator(u, waypoints)
+    vmax = np.append(limits.velocity_rad_s * scale_v,
+                     limits.tcp_speed_m_s * scale_v if limits.tcp_speed_m_s and limits.length_m > 0 else _UNLIMITED)
+    amax = np.append(limits.acceleration_rad_s2 * scale_a, _UNLIMITED)
+    constraints = [ta_constraint.JointVelocityConstraint(np.stack([-vmax, vmax], axis=1)),
+                   ta_constraint.JointAccelerationConstraint(np.stack([-amax, amax], axis=1))]
+    grid = _grid(u)
+    instance = ta_algo.TOPPRA(constraints, path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
+    traj = instance.compute_trajectory(0.0, 0.0)
+    if traj is None:
+        raise PlanningError(f"move {move_index}: TOPP-RA found no feasible time-parameterisation "
+                            f"(joint limits too tight for the path)")
+    return traj
+
+
+def _grid(u: np.ndarray) -> np.ndarray:
+    """Grid points: the reference samples, with long intervals split (at least 100 points)."""
+    target = max(100, len(u))
+    step = 1.0 / target
+    extra = [np.linspace(a, b, int(math.ceil((b - a) / step)) + 1)[1:-1] for a, b in zip(u[:-1], u[1:], strict=True)
+             if b - a > step]
+    return np.unique(np.concatenate([u, *extra])) if extra else u
+
+
+def _sample(traj: ta.interpolator.AbstractGeometricPath, period_s: float, arc_scale: float,
+            move_index: int) -> tuple[np.ndarray, float]:
+    duration = float(traj.duration)
+    count = max(1, math.ceil(duration / period_s - 1e-9))
+    if count > MAX_OUTPUT_SAMPLES:
+        raise TaskError("output.period", f"move {move_index} lasts {duration:.1f} s: {count} samples at "
+                                         f"{period_s} s is over the cap of {MAX_OUTPUT_SAMPLES}")
+    stretch = count * period_s / duration if duration > 0 else 1.0
+    t = np.arange(count + 1) * period_s / stretch
+    t[-1] = duration
+    u = np.clip(np.asarray(traj(t))[:, -1] / arc_scale, 0.0, 1.0)
+    u = np.maximum.accumulate(u)
+    u[0], u[-1] = 0.0, 1.0
+    return u, count * period_s
+
+
+def sample_ratios(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.ndarray) -> tuple[float, float]:
+    """Largest |qd|/vmax and |qdd|/amax by finite differences of samples q (K+1, n)."""
+    if len(q) < 2:
+        return 0.0, 0.0
+    qd = np.diff(q, axis=0) / period_s
+    speed = float(np.max(np.abs(qd) / vmax))
+    accel = float(np.max(np.abs(np.diff(qd, axis=0)) / period_s / amax)) if len(qd) > 1 else 0.0
+    return speed, accel
+
+
+def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int) -> TimedMove:
+    """Fastest uniform sampling of the move within the limits, every sample on the path."""
+    u_ref, q_ref = _reference(jmap)
+    arc_scale = limits.length_m if limits.length_m > 0 else 1.0
+    scale_v = scale_a = 1.0
+    for _ in range(_TIGHTEN_PASSES):
+        traj = _toppra_profile(u_ref, q_ref, limits, scale_v, scale_a, move_index)
+        u, duration = _sample(traj, period_s, arc_scale, move_index)
+        q = jmap.evaluate(u)
+        speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
+        tcp = _tcp_ratio(u, limits, period_s)
+        worst_v = max(speed, tcp) / _SPEED_MARGIN
+        worst_a = accel / _ACCEL_MARGIN
+        if worst_v <= 1.0 and worst_a <= 1.0:
+            return TimedMove(u, q, duration, speed, accel)
+        logger.debug("move %d: samples at x%.4f speed, x%.4f accel; tightening", move_index, speed, accel)
+        scale_v *= min(1.0, 1.0 / worst_v) * (0.998 if worst_v > 1.0 else 1.0)
+        scale_a *= min(1.0, 1.0 / worst_a) * (0.995 if worst_a > 1.0 else 1.0)
+    raise PlanningError(f"move {move_index}: could not keep the joint limits on the output samples "
+                        f"(speed x{speed:.3f}, acceleration x{accel:.3f} after tightening)")
+
+
+def _tcp_ratio(u: np.ndarray, limits: MoveLimits, period_s: float) -> float:
+    """Largest TCP speed over its cap, from the arc-length parameter (exact for LIN / CIRC)."""
+    if not limits.tcp_speed_m_s or limits.length_m <= 0:
+        return 0.0
+    v = np.diff(u) * limits.length_m / period_s
+    return float(np.max(v) / limits.tcp_speed_m_s) * _SPEED_MARGIN / _TCP_MARGIN if len(v) else 0.0

@@ -1,0 +1,140 @@
+"""Inverse kinematics along a sampled path, following one continuous solution.
+
+At every sample all IK branches are computed (vectorised for OPW arms); each candidate is
+moved to the 2*pi variant nearest the previous sample and the nearest candidate is kept.
+Where a step still moves some joint more than ``max_joint_step_rad`` the interval is halved,
+so that the fast wrist (or axis 1) swing of a near miss is resolved sample by sample instead
+of being jumped over. A step that stays large on an interval shorter than ``min_du`` is a
+real discontinuity of the inverse kinematics and is reported.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from singplan.ik import opw_batch, solve_newton
+from singplan.ik_ur import UrParameters, ur_solutions
+from singplan.robot import Robot
+
+TWO_PI = 2.0 * math.pi
+_MAX_SAMPLES = 200_000  # refinement stops here: beyond it the IK is discontinuous, not just fast
+PoseFunction = Callable[[np.ndarray], np.ndarray]  # u (N,) -> TCP poses (N, 4, 4)
+
+
+@dataclass(frozen=True)
+class TrackedPath:
+    """Joint values along a path.
+
+    Attributes:
+        u: path parameters, increasing, shape (N,).
+        q: joint values [rad], shape (N, n), continuous from sample to sample.
+        max_step_rad: largest joint change between neighbouring samples.
+        gap_index: first interval k (u[k] -> u[k+1]) where no continuous solution was found, or -1.
+    """
+
+    u: np.ndarray  # (N,)
+    q: np.ndarray  # (N, n)
+    max_step_rad: float
+    gap_index: int
+
+
+class BranchCandidates:
+    """All IK branches of the poses at given parameters, computed once per parameter."""
+
+    def __init__(self, robot: Robot, poses: PoseFunction) -> None:
+        self.robot = robot
+        self.poses = poses
+        self.cache: dict[float, np.ndarray] = {}
+        self.T_tool_inv = robot.T_tip_tcp.inverse().homogeneous
+
+    def fill(self, u: np.ndarray) -> None:
+        todo = np.array([x for x in u if float(x) not in self.cache])
+        if todo.size == 0:
+            return
+        T_flange = self.poses(todo) @ self.T_tool_inv
+        if self.robot.opw is not None:
+            sols = opw_batch(self.robot.opw, T_flange)
+        elif self.robot.family == "ur" and self.robot.tip == "tool0":
+            params = UrParameters.from_robot(self.robot)
+            sols = np.array([ur_solutions(params, T) for T in T_flange])
+        else:
+            sols = np.full((len(todo), 0, self.robot.n_joints), np.nan)
+        for x, s in zip(todo, sols, strict=True):
+            self.cache[float(x)] = s
+
+    def exact(self, u: float, seed: np.ndarray) -> np.ndarray:
+        """Branches of one pose, solved with ``seed`` for the free joints at a singularity."""
+        T = self.poses(np.array([u]))[0]
+        T_flange = T @ self.T_tool_inv
+        if self.robot.opw is not None:
+            p = self.robot.opw
+            seed_opw = seed * np.asarray(p.sign_corrections) - np.asarray(p.offsets_rad)
+            return opw_batch(p, T_flange[None], seed_opw[3:4], seed_opw[0:1])[0]
+        if self.robot.family == "ur" and self.robot.tip == "tool0":
+            return ur_solutions(UrParameters.from_robot(self.robot), T_flange, seed)
+        q = solve_newton(self.robot, pin.SE3(T[:3, :3], T[:3, 3]), seed)
+        return np.full((1, self.robot.n_joints), np.nan) if q is None else q[None]
+
+
+def nearest_candidate(candidates: np.ndarray, q_prev: np.ndarray) -> tuple[np.ndarray, float]:
+    """The candidate (shifted by whole turns) nearest ``q_prev``, and its max-norm distance."""
+    finite = np.all(np.isfinite(candidates), axis=1)
+    if not finite.any():
+        return np.full_like(q_prev, np.nan), math.inf
+    c = candidates[finite]
+    shifted = c + TWO_PI * np.round((q_prev - c) / TWO_PI)
+    dist = np.max(np.abs(shifted - q_prev), axis=1)
+    k = int(np.argmin(dist))
+    return shifted[k], float(dist[k])
+
+
+def _select(cands: BranchCandidates, u: np.ndarray, q0: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray]:
+    """Follow the nearest candidate from q0; returns q (N, n) and the step before each sample."""
+    q = np.empty((len(u), len(q0)))
+    steps = np.zeros(len(u))
+    q_prev = q0
+    for k, x in enumerate(u):
+        best, dist = nearest_candidate(cands.cache[float(x)], q_prev)
+        if dist > max_step:  # at a singular sample the free joints may need the previous values
+            best2, dist2 = nearest_candidate(cands.exact(float(x), q_prev), q_prev)
+            if dist2 < dist:
+                best, dist = best2, dist2
+        q[k], steps[k] = best, dist
+        q_prev = best if np.all(np.isfinite(best)) else q_prev
+    return q, steps
+
+
+def track(robot: Robot, poses: PoseFunction, u0: np.ndarray, q_start: np.ndarray,
+          max_joint_step_rad: float = math.radians(1.0), min_du: float = 1e-10,
+          max_passes: int = 48) -> TrackedPath:
+    """Follow one continuous IK solution along ``poses(u)``, starting at ``q_start`` (u0[0]).
+
+    ``u0`` is the initial grid; it is refined where joints move more than
+    ``max_joint_step_rad`` between samples.
+    """
+    cands = BranchCandidates(robot, poses)
+    u = np.asarray(u0, dtype=float)
+    q, steps = _select_all(cands, u, q_start, max_joint_step_rad)
+    for _ in range(max_passes):
+        lost = np.nonzero(~np.isfinite(steps))[0]
+        if lost.size:  # the path leaves the workspace: nothing to refine past that sample
+            u, q, steps = u[:lost[0] + 1], q[:lost[0] + 1], steps[:lost[0] + 1]
+        big = np.nonzero((steps[1:] > max_joint_step_rad) & (np.diff(u) > min_du))[0]
+        if big.size == 0 or len(u) > _MAX_SAMPLES:
+            break
+        u = np.sort(np.concatenate([u, 0.5 * (u[big] + u[big + 1])]))
+        q, steps = _select_all(cands, u, q_start, max_joint_step_rad)
+    gaps = np.nonzero(~np.isfinite(steps) | (steps > max_joint_step_rad))[0]
+    gap = int(gaps[0]) - 1 if gaps.size else -1
+    return TrackedPath(u=u, q=q, max_step_rad=float(np.max(steps[1:])) if len(u) > 1 else 0.0, gap_index=gap)
+
+
+def _select_all(cands: BranchCandidates, u: np.ndarray, q_start: np.ndarray,
+                max_step: float) -> tuple[np.ndarray, np.ndarray]:
+    cands.fill(u)
+    return _select(cands, u, q_start, max_step)

@@ -1,0 +1,151 @@
+"""Stitch timed moves into a :class:`~singplan.trajectory.Trajectory`: samples, segments,
+events and metrics (DESIGN.md's contract).
+
+Moves share their boundary sample (one ends at rest where the next starts). A LIN/CIRC with
+no zone is one ``path`` segment; with zones it is ``pre``, ``crossing`` (one per zone, merged
+where zones overlap), ``post``. Deviations are measured per sample against the programmed
+pose at the sample's own path parameter, an upper bound of the distance to the path.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from singplan.configuration import classify
+from singplan.path import rotation_angle
+from singplan.robot import Robot
+from singplan.singularity import Zone
+from singplan.task import Task
+from singplan.timing import TimedMove, sample_ratios
+from singplan.trajectory import Event, Segment, Trajectory, finite_differences
+
+if TYPE_CHECKING:
+    from singplan.planner import PlannedMove
+
+
+def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed: list[TimedMove],
+                     method: str, planning_time_s: float) -> Trajectory:
+    period = task.period_s
+    q = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
+    t = np.arange(len(q)) * period
+    labels = [classify(robot, qk).label for qk in q]
+    segments: list[Segment] = []
+    events: list[Event] = []
+    crossings: list[dict[str, Any]] = []
+    worst_pos, worst_ori = 0.0, 0.0
+    k0 = 0
+    for pm, tm in zip(planned, timed, strict=True):
+        k1 = k0 + len(tm.q) - 1
+        pos_err, ori_err = _deviations(robot, pm, tm)
+        worst_pos = max(worst_pos, float(pos_err.max(initial=0.0)))
+        worst_ori = max(worst_ori, float(ori_err.max(initial=0.0)))
+        segs = _move_segments(pm, tm, k0, k1, period, labels, method, pos_err, ori_err)
+        segments.extend(segs)
+        events.extend(_move_events(pm, segs, k0, k1, period, labels))
+        crossings.extend({"move": s.move, "t0": s.t0, "t1": s.t1, "singularity": s.singularity, "method": s.method,
+                          "config_before": s.config_before, "config_after": s.config_after, **s.details}
+                         for s in segs if s.kind == "crossing")
+        k0 = k1
+    qd, qdd = finite_differences(q, period)
+    speed, accel = sample_ratios(q, period, robot.velocity_rad_s * task.limits.velocity_scale,
+                                 robot.acceleration_rad_s2)
+    metrics = {"max_position_error_mm": worst_pos * 1e3, "max_orientation_error_deg": math.degrees(worst_ori),
+               "max_joint_speed_ratio": speed, "max_joint_accel_ratio": accel, "duration_s": float(t[-1]),
+               "planning_time_s": planning_time_s, "samples": len(t), "method": method, "crossings": crossings}
+    tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
+    return Trajectory(robot.name, str(robot.urdf_path), robot.tip, tool, task.to_mapping(), robot.joint_names,
+                      period, t, q, qd, qdd, tuple(segments), tuple(events), metrics)
+
+
+def _deviations(robot: Robot, pm: PlannedMove, tm: TimedMove) -> tuple[np.ndarray, np.ndarray]:
+    """Position [m] and orientation [rad] error of each sample against the path at its u."""
+    if pm.piece is None:
+        return np.zeros(len(tm.q)), np.zeros(len(tm.q))
+    want = pm.piece.poses(tm.u)
+    pos, ori = np.empty(len(tm.q)), np.empty(len(tm.q))
+    for k, qk in enumerate(tm.q):
+        T = robot.fk(qk)
+        pos[k] = float(np.linalg.norm(T.translation - want[k, :3, 3]))
+        ori[k] = rotation_angle(T.rotation, want[k, :3, :3])
+    return pos, ori
+
+
+def _sample_at(u: np.ndarray, value: float) -> int:
+    return int(min(len(u) - 1, np.searchsorted(u, value - 1e-12)))
+
+
+def _merged_spans(pm: PlannedMove, tm: TimedMove) -> list[tuple[int, int, list[Zone]]]:
+    """Sample spans of the zones, overlapping ones merged; at least one step long."""
+    spans: list[tuple[int, int, list[Zone]]] = []
+    last = len(tm.u) - 1
+    for zone in sorted(pm.zones, key=lambda z: z.u_entry):
+        a = _sample_at(tm.u, zone.u_entry)
+        b = max(_sample_at(tm.u, zone.u_exit), a + 1)
+        a, b = min(a, last - 1), min(b, last)
+        if spans and a <= spans[-1][1]:
+            pa, pb, zs = spans[-1]
+            spans[-1] = (pa, max(pb, b), [*zs, zone])
+        else:
+            spans.append((a, b, [zone]))
+    return spans
+
+
+def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float, labels: list[str],
+                   method: str, pos_err: np.ndarray, ori_err: np.ndarray) -> list[Segment]:
+    def seg(kind: str, a: int, b: int, **extra: Any) -> Segment:
+        return Segment(pm.index, kind, (k0 + a) * period, (k0 + b) * period, labels[k0 + a], labels[k0 + b], **extra)
+
+    if pm.kind == "ptp":
+        return [seg("ptp", 0, k1 - k0)]
+    spans = _merged_spans(pm, tm)
+    if not spans:
+        return [seg("path", 0, k1 - k0)]
+    out: list[Segment] = []
+    cursor = 0
+    for n, (a, b, zones) in enumerate(spans):
+        if a > cursor:
+            out.append(seg("pre" if n == 0 else "post", cursor, a))
+        closest = min(zones, key=lambda z: z.min_distance / z.threshold)
+        out.append(seg("crossing", a, b, singularity=closest.kind, method=_zone_method(pm, closest, method),
+                       details=_crossing_figures(pm, tm, a, b, closest, pos_err, ori_err, period)))
+        cursor = b
+    if cursor < k1 - k0:
+        out.append(seg("post", cursor, k1 - k0))
+    return out
+
+
+def _zone_method(pm: PlannedMove, zone: Zone, method: str) -> str:
+    for c in pm.crossings:
+        if c.zone.u_closest == zone.u_closest:
+            return c.method
+    return method
+
+
+def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone, pos_err: np.ndarray,
+                      ori_err: np.ndarray, period: float) -> dict[str, Any]:
+    k = a + int(np.argmax(ori_err[a:b + 1]))
+    speed = pm.limits.tcp_speed_m_s or 0.0
+    nominal = (tm.u[b] - tm.u[a]) * pm.limits.length_m / speed if speed > 0 else 0.0
+    through = any(c.zone.u_closest == zone.u_closest for c in pm.crossings)
+    return {"min_distance": zone.min_distance, "min_distance_unit": zone.unit,
+            "max_position_error_mm": float(pos_err[a:b + 1].max()) * 1e3,
+            "max_orientation_error_deg": math.degrees(float(ori_err[a:b + 1].max())),
+            "max_orientation_error_at_s": float(tm.u[k] * pm.limits.length_m),
+            "time_lost_s": max(0.0, (b - a) * period - nominal),
+            "through": through, "alternatives": []}
+
+
+def _move_events(pm: PlannedMove, segs: list[Segment], k0: int, k1: int, period: float,
+                 labels: list[str]) -> list[Event]:
+    events = []
+    for s in segs:
+        if s.kind == "crossing":
+            events.append(Event(s.t0, pm.index, "zone_entry", {"singularity": s.singularity}))
+            events.append(Event(s.t1, pm.index, "zone_exit", {"singularity": s.singularity}))
+    for k in range(k0 + 1, k1 + 1):
+        if labels[k] != labels[k - 1]:
+            events.append(Event(k * period, pm.index, "config_change", {"from": labels[k - 1], "to": labels[k]}))
+    return sorted(events, key=lambda e: e.t)

@@ -10,7 +10,8 @@ import argparse
 import json
 import math
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import TextIO
 
 import numpy as np
@@ -19,7 +20,11 @@ import pinocchio as pin
 from singplan.configuration import singularity_distances
 from singplan.errors import InputError, SingplanError
 from singplan.ik import solve_all
+from singplan.planner import detect, plan
 from singplan.robot import Robot, RobotEntry, bundled_robots, load_robot
+from singplan.summary import summary
+from singplan.task import load_task
+from singplan.trajectory import save
 
 
 def _reach_m(robot: Robot) -> float:
@@ -87,6 +92,54 @@ def cmd_ik(args: argparse.Namespace, out: TextIO) -> int:
     return 0
 
 
+def _progress_printer(err: TextIO, quiet: bool) -> Callable[[int, int], None] | None:
+    """A one-line progress bar on a terminal (none when quiet or not a terminal)."""
+    if quiet or not err.isatty():
+        return None
+
+    def show(done: int, total: int) -> None:
+        width = 30
+        filled = width * done // total
+        err.write(f"\rplanning [{'#' * filled}{'.' * (width - filled)}] move {done}/{total}")
+        if done == total:
+            err.write("\n")
+        err.flush()
+
+    return show
+
+
+def cmd_plan(args: argparse.Namespace, out: TextIO) -> int:
+    task = load_task(args.task)
+    traj = plan(task, method=args.method, progress=_progress_printer(sys.stderr, args.quiet))
+    folder = save(traj, args.output)
+    if args.quiet:
+        out.write(f"planned {args.task}: {traj.duration_s:.3f} s, {len(traj.t)} samples -> {folder}\n")
+    else:
+        out.write(summary(traj, task))
+        out.write(f"wrote {folder / 'trajectory.csv'} and {folder / 'trajectory.json'}\n")
+    return 0
+
+
+def cmd_check(args: argparse.Namespace, out: TextIO) -> int:
+    task = load_task(args.task)
+    found = detect(task)
+    out.write(f"{args.task}: {sum(len(m.zones) for m in found)} singular zone(s) along the programmed path\n")
+    for m in found:
+        for z in m.zones:
+            out.write(f"  move {m.index} ({m.kind}) {z.kind:8s} s {z.u_entry * m.length_m * 1e3:8.1f} .. "
+                      f"{z.u_exit * m.length_m * 1e3:8.1f} mm, closest {z.describe_distance()} at "
+                      f"s {z.u_closest * m.length_m * 1e3:.1f} mm\n")
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace, out: TextIO) -> int:
+    task_path = Path(__file__).with_name("demo_task.yaml")
+    out.write(f"singplan demo: planning {task_path.name} (a LIN through a wrist singularity, KUKA KR 6 R900-2)\n")
+    code = cmd_plan(argparse.Namespace(task=task_path, output=args.output, method=None, quiet=False), out)
+    out.write(f"task: {task_path}\n")
+    return code
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="singplan", description="Plan robot motions through singularities.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -106,6 +159,18 @@ def build_parser() -> argparse.ArgumentParser:
     ik.add_argument("--all-variants", action="store_true",
                     help="list every 2*pi variant inside the limits, not one solution per branch")
     ik.set_defaults(func=cmd_ik)
+    plan_p = sub.add_parser("plan", help="plan a task YAML into a timed trajectory")
+    plan_p.add_argument("task", help="task file (YAML v1)")
+    plan_p.add_argument("-o", "--output", default="singplan-out", help="output folder (default: singplan-out)")
+    plan_p.add_argument("--method", default=None, help="crossing method, overriding the task's")
+    plan_p.add_argument("--quiet", action="store_true", help="one line instead of the summary")
+    plan_p.set_defaults(func=cmd_plan)
+    check = sub.add_parser("check", help="print the singular zones along a task's path, without planning")
+    check.add_argument("task", help="task file (YAML v1)")
+    check.set_defaults(func=cmd_check)
+    demo = sub.add_parser("demo", help="plan the bundled demo task into ./singplan-demo")
+    demo.add_argument("-o", "--output", default="singplan-demo", help="output folder (default: singplan-demo)")
+    demo.set_defaults(func=cmd_demo)
     return parser
 
 

@@ -25,11 +25,11 @@ import numpy as np
 
 from singplan.configuration import classify
 from singplan.errors import SingularityError
-from singplan.jointmap import JointPart, JointMap, hermite
+from singplan.jointmap import JointMap, JointPart, hermite
 from singplan.robot import Robot
 from singplan.singularity import Zone
 from singplan.task import SingularitySettings
-from singplan.tracking import PoseFunction, TrackedPath, BranchCandidates, nearest_candidate
+from singplan.tracking import BranchCandidates, PoseFunction, TrackedPath, nearest_candidate
 
 EXACT_ORIENTATION_TOL_RAD = math.radians(0.01)
 # a through-crossing blends where the in-branch swing has not started: |distance| above

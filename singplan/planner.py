@@ -125,17 +125,22 @@ def _limits(robot: Robot, task: Task, move: Move, length_m: float) -> MoveLimits
 
 def _plan_move(robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3, q_start: np.ndarray,
                method: CrossingMethod) -> PlannedMove:
-    field_name = f"moves[{i}].{move.kind}"
     if move.kind == "ptp":
         q_target = _ptp_target(robot, i, move, q_start)
         part = JointPart("ptp", np.array([0.0, 1.0]), np.array([q_start, q_target]))
         return PlannedMove(i, "ptp", JointMap(robot, None, [part]), _limits(robot, task, move, 0.0))
+    return _plan_cartesian(robot, task, i, move, _plan_move_piece(i, move, T_start), q_start, method)
+
+
+def _plan_move_piece(i: int, move: Move, T_start: pin.SE3) -> CartesianPiece:
+    """The LIN / CIRC geometry of a move starting at ``T_start``."""
     assert move.to is not None
+    field_name = f"moves[{i}].{move.kind}"
     rotation = rpy_deg_to_rotation(move.to.rpy_deg) if move.to.rpy_deg is not None else T_start.rotation
     T_end = pin.SE3(rotation, np.asarray(move.to.xyz, dtype=float))
-    piece = (make_lin(T_start, T_end, field_name) if move.kind == "lin"
-             else make_circ(T_start, np.asarray(move.via_xyz, dtype=float), T_end, field_name))
-    return _plan_cartesian(robot, task, i, move, piece, q_start, method)
+    if move.kind == "lin":
+        return make_lin(T_start, T_end, field_name)
+    return make_circ(T_start, np.asarray(move.via_xyz, dtype=float), T_end, field_name)
 
 
 def _ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.ndarray:
@@ -259,3 +264,43 @@ def _check_config(robot: Robot, i: int, move: Move, q: np.ndarray) -> None:
     if last != wanted:
         raise PlanningError(f"move {i} ({move.kind}): ends in configuration {last}, but the move asks for "
                             f"{wanted}; the chosen method cannot change the configuration here")
+
+
+@dataclass(frozen=True)
+class MoveZones:
+    """Singular zones of one move along the programmed path (``singplan check``)."""
+
+    index: int
+    kind: str
+    length_m: float
+    zones: tuple[Zone, ...]
+
+
+def detect(task: Task | str | Path) -> list[MoveZones]:
+    """Zones along every LIN/CIRC move, in the branch the start configuration leads to.
+
+    Geometry only: no crossing method, no timing, no limit checks.
+    """
+    if not isinstance(task, Task):
+        task = load_task(task)
+    robot = load_task_robot(task)
+    thresholds = thresholds_si(task.singularity.zone)
+    q = _start_joints(task, robot)
+    T = robot.fk(q)
+    out = []
+    for i, move in enumerate(task.moves):
+        if move.kind == "ptp":
+            q = _ptp_target(robot, i, move, q)
+            T = robot.fk(q)
+            out.append(MoveZones(i, "ptp", 0.0, ()))
+            continue
+        piece = _plan_move_piece(i, move, T)
+        grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
+        tracked = track(robot, piece.poses, grid, q)
+        _check_tracked(robot, i, move, piece, tracked)
+        dist, _ = distances_along(robot, tracked.q)
+        ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
+        zones = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref))
+        out.append(MoveZones(i, move.kind, piece.length_m, tuple(zones)))
+        q, T = tracked.q[-1], piece.T_end
+    return out

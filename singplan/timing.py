@@ -16,6 +16,7 @@ differences a checker uses, and the profile is tightened where TOPP-RA's grid le
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 from dataclasses import dataclass
@@ -100,7 +101,7 @@ def _grid(u: np.ndarray) -> np.ndarray:
     """Grid points: the reference samples, with long intervals split (at least 100 points)."""
     target = max(100, len(u))
     step = 1.0 / target
-    extra = [np.linspace(a, b, int(math.ceil((b - a) / step)) + 1)[1:-1] for a, b in zip(u[:-1], u[1:], strict=True)
+    extra = [np.linspace(a, b, math.ceil((b - a) / step) + 1)[1:-1] for a, b in itertools.pairwise(u)
              if b - a > step]
     return np.unique(np.concatenate([u, *extra])) if extra else u
 

@@ -74,7 +74,7 @@ def _deviations(robot: Robot, pm: PlannedMove, tm: TimedMove) -> tuple[np.ndarra
 
 
 def _sample_at(u: np.ndarray, value: float) -> int:
-    return int(min(len(u) - 1, np.searchsorted(u, value - 1e-12)))
+    return min(len(u) - 1, int(np.searchsorted(u, value - 1e-12)))
 
 
 def _merged_spans(pm: PlannedMove, tm: TimedMove) -> list[tuple[int, int, list[Zone]]]:

@@ -1,0 +1,36 @@
+"""The human-readable summary `singplan plan` prints: moves, zones and crossings, metrics."""
+
+from __future__ import annotations
+
+import math
+
+from singplan.task import Task
+from singplan.trajectory import Trajectory
+
+
+def summary(traj: Trajectory, task: Task) -> str:
+    """Multi-line text: one line per move, one per crossing, then the metrics."""
+    lines = [f"{traj.robot}: {len(task.moves)} move(s), {traj.duration_s:.3f} s, {len(traj.t)} samples "
+             f"at {traj.period * 1e3:g} ms"]
+    for i, move in enumerate(task.moves):
+        segs = [s for s in traj.segments if s.move == i]
+        t0, t1 = segs[0].t0, segs[-1].t1
+        what = f"{move.speed_m_s:g} m/s" if move.kind != "ptp" else f"velocity x{move.velocity_scale:g}"
+        lines.append(f"  move {i} {move.kind:4s} {t0:8.3f} .. {t1:8.3f} s  {what:16s} "
+                     f"{segs[0].config_before} -> {segs[-1].config_after}")
+        for s in segs:
+            if s.kind != "crossing":
+                continue
+            d = s.details
+            unit_value = (f"{d['min_distance'] * 1e3:.3f} mm" if d.get("min_distance_unit") == "m"
+                          else f"{math.degrees(d['min_distance']):.4f} deg")
+            how = "through (label change)" if d.get("through") else "in branch"
+            lines.append(f"      {s.singularity} zone {s.t0:.3f} .. {s.t1:.3f} s: closest {unit_value}, "
+                         f"method {s.method} {how}, {s.config_before} -> {s.config_after}, "
+                         f"dev {d['max_position_error_mm']:.4f} mm / {d['max_orientation_error_deg']:.4f} deg, "
+                         f"time lost {d['time_lost_s']:.3f} s")
+    m = traj.metrics
+    lines.append(f"metrics: position error {m['max_position_error_mm']:.5f} mm, orientation error "
+                 f"{m['max_orientation_error_deg']:.5f} deg, joint speed x{m['max_joint_speed_ratio']:.3f}, "
+                 f"joint accel x{m['max_joint_accel_ratio']:.3f}, planning {m['planning_time_s']:.2f} s")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,5 @@
+"""`python -m singplan ...` runs the CLI."""
+
+from singplan.cli import run
+
+run()

@@ -1,0 +1,69 @@
+"""Path geometry against closed forms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from singplan.errors import TaskError
+from singplan.path import exp_so3, make_circ, make_lin, rotation_angle, rpy_deg_to_rotation
+
+
+def se3(xyz: list[float], rpy_deg: list[float]) -> pin.SE3:
+    return pin.SE3(rpy_deg_to_rotation(rpy_deg), np.array(xyz, dtype=float))
+
+
+def test_rpy_convention_is_urdf_fixed_axes() -> None:
+    r, p, y = np.radians([10.0, 20.0, 30.0])
+    Rz = pin.AngleAxis(y, np.array([0, 0, 1.0])).matrix()
+    Ry = pin.AngleAxis(p, np.array([0, 1.0, 0])).matrix()
+    Rx = pin.AngleAxis(r, np.array([1.0, 0, 0])).matrix()
+    np.testing.assert_allclose(rpy_deg_to_rotation([10, 20, 30]), Rz @ Ry @ Rx, atol=1e-15)
+
+
+def test_exp_so3_matches_pinocchio(rng) -> None:
+    omega = rng.normal(size=(50, 3))
+    omega[0] = 0.0
+    for w, R in zip(omega, exp_so3(omega), strict=True):
+        np.testing.assert_allclose(R, pin.exp3(w), atol=1e-14)
+
+
+def test_lin_is_a_straight_line_at_constant_rotation_rate() -> None:
+    a, b = se3([0.5, 0.1, 0.8], [170, 10, 0]), se3([0.8, -0.2, 0.6], [150, 30, 40])
+    piece = make_lin(a, b, "moves[0].lin")
+    u = np.linspace(0, 1, 101)
+    p = piece.positions(u)
+    np.testing.assert_allclose(p, a.translation + u[:, None] * (b.translation - a.translation), atol=1e-15)
+    assert math.isclose(piece.length_m, float(np.linalg.norm(b.translation - a.translation)))
+    R = piece.rotations(u)
+    np.testing.assert_allclose(R[0], a.rotation, atol=1e-14)
+    np.testing.assert_allclose(R[-1], b.rotation, atol=1e-14)
+    angles = [rotation_angle(R[0], Rk) for Rk in R]
+    np.testing.assert_allclose(angles, u * piece.rotation_rad, atol=1e-12)
+
+
+def test_circ_passes_through_via_on_its_circle() -> None:
+    a, via, b = np.array([1.0, 0.0, 0.5]), np.array([0.9, 0.3, 0.55]), np.array([0.6, 0.4, 0.6])
+    piece = make_circ(se3(list(a), [180, 0, 0]), via, se3(list(b), [170, 0, 20]), "moves[0].circ")
+    u = np.linspace(0, 1, 2001)
+    p = piece.positions(u)
+    np.testing.assert_allclose(np.linalg.norm(p - piece.center, axis=1), piece.radius, atol=1e-12)
+    np.testing.assert_allclose((p - piece.center) @ piece.normal, 0.0, atol=1e-12)
+    np.testing.assert_allclose(p[0], a, atol=1e-12)
+    np.testing.assert_allclose(p[-1], b, atol=1e-12)
+    assert np.min(np.linalg.norm(p - via, axis=1)) < piece.length_m / 2000
+    steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    np.testing.assert_allclose(steps, piece.length_m / 2000, rtol=1e-6)  # constant speed in u
+
+
+def test_degenerate_circ_and_half_turn_are_bad_input() -> None:
+    a, b = se3([1, 0, 0.5], [180, 0, 0]), se3([0.6, 0.4, 0.5], [180, 0, 0])
+    with pytest.raises(TaskError, match="collinear") as info:
+        make_circ(a, np.array([0.8, 0.2, 0.5]), b, "moves[3].circ")
+    assert info.value.field == "moves[3].circ.via"
+    with pytest.raises(TaskError, match="ambiguous") as info:
+        make_lin(se3([1, 0, 0.5], [0, 0, 0]), se3([1, 0.1, 0.5], [0, 0, 180]), "moves[1].lin")
+    assert info.value.field == "moves[1].lin.to.rpy_deg"

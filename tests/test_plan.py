@@ -1,0 +1,156 @@
+"""End-to-end planning on the bundled demo task, checked with independent geometry."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import yaml
+
+from singplan.cli import main
+from singplan.planner import plan
+from singplan.robot import load_robot
+from singplan.task import parse_task
+
+DEMO = Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml"
+
+
+@pytest.fixture(scope="module")
+def demo():
+    calls: list[tuple[int, int]] = []
+    traj = plan(DEMO, progress=lambda done, total: calls.append((done, total)))
+    return traj, calls
+
+
+def _robot_for(traj):
+    return load_robot(traj.robot, tool=pin.SE3(np.eye(3), np.array(traj.tool["xyz"])))
+
+
+def test_samples_are_uniform_and_progress_is_reported(demo) -> None:
+    traj, calls = demo
+    assert traj.t[0] == 0.0
+    np.testing.assert_allclose(np.diff(traj.t), traj.period, atol=1e-12)
+    assert calls == [(1, 2), (2, 2)]
+
+
+def test_every_lin_sample_is_on_the_line_and_keeps_the_pose_outside_crossings(demo) -> None:
+    traj, _ = demo
+    robot = _robot_for(traj)
+    task = yaml.safe_load(DEMO.read_text())
+    q0 = np.radians(task["start"]["joints_deg"])
+    a = robot.fk(q0)
+    b_xyz = np.array(task["moves"][0]["lin"]["to"]["xyz"])
+    lin = [s for s in traj.segments if s.move == 0]
+    k0, k1 = round(lin[0].t0 / traj.period), round(lin[-1].t1 / traj.period)
+    crossing = [(round(s.t0 / traj.period), round(s.t1 / traj.period)) for s in lin if s.kind == "crossing"]
+    d = b_xyz - a.translation
+    for k in range(k0, k1 + 1):
+        T = robot.fk(traj.q[k])
+        u = float(np.clip((T.translation - a.translation) @ d / (d @ d), 0, 1))
+        assert np.linalg.norm(T.translation - (a.translation + u * d)) < 1e-8  # 0.01 um
+        R_path = a.rotation  # the demo LIN keeps the orientation
+        err = math.degrees(np.linalg.norm(pin.log3(R_path.T @ T.rotation)))
+        inside = any(c0 <= k <= c1 for c0, c1 in crossing)
+        assert err < (0.01 if not inside else 1.0)
+
+
+def test_limits_hold_on_the_output_samples(demo) -> None:
+    traj, _ = demo
+    robot = _robot_for(traj)
+    qd = np.diff(traj.q, axis=0) / traj.period
+    qdd = np.diff(qd, axis=0) / traj.period
+    assert np.all(np.abs(qd) <= robot.velocity_rad_s * (1 + 1e-9))
+    assert np.all(np.abs(qdd) <= 10.0 * (1 + 1e-9))
+    assert np.all(traj.q >= robot.lower_rad) and np.all(traj.q <= robot.upper_rad)
+    p = np.array([robot.fk(q).translation for q in traj.q])
+    tcp_speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / traj.period
+    lin_end = round(next(s.t1 for s in reversed(traj.segments) if s.move == 0) / traj.period)
+    assert tcp_speed[:lin_end].max() <= 0.25 * (1 + 1e-9)
+
+
+def test_moves_start_and_end_at_rest_on_samples(demo) -> None:
+    traj, _ = demo
+    for move in (0, 1):
+        segs = [s for s in traj.segments if s.move == move]
+        for t in (segs[0].t0, segs[-1].t1):
+            k = round(t / traj.period)
+            assert abs(k * traj.period - t) < 1e-12
+            for a, b in ((k - 1, k), (k, k + 1)):
+                if a >= 0 and b < len(traj.t):
+                    assert np.all(np.abs(traj.q[b] - traj.q[a]) <= 10.0 * traj.period**2 * (1 + 1e-9))
+
+
+def test_the_through_crossing_is_reported(demo) -> None:
+    traj, _ = demo
+    kinds = [(s.kind, s.singularity) for s in traj.segments]
+    assert kinds == [("pre", None), ("crossing", "wrist"), ("post", None), ("ptp", None)]
+    crossing = traj.segments[1]
+    assert (crossing.config_before, crossing.config_after) == ("F U F", "F U N")
+    assert crossing.details["through"] and crossing.details["min_distance"] < math.radians(0.01)
+    changes = [e for e in traj.events if e.type == "config_change"]
+    assert len(changes) == 1 and crossing.t0 <= changes[0].t <= crossing.t1
+    assert traj.metrics["crossings"][0]["method"] == "exact"
+
+
+def test_outputs_follow_the_contract(tmp_path: Path) -> None:
+    out = io.StringIO()
+    assert main(["plan", str(DEMO), "-o", str(tmp_path / "out")], out=out) == 0
+    doc = json.loads((tmp_path / "out" / "trajectory.json").read_text())
+    for key in ("format", "robot", "urdf", "tip", "tool", "task", "joint_names", "period", "t", "q", "qd", "qdd",
+                "segments", "events", "metrics"):
+        assert key in doc
+    assert doc["format"] == "singplan.trajectory/1" and Path(doc["urdf"]).is_absolute()
+    for key in ("max_position_error_mm", "max_orientation_error_deg", "max_joint_speed_ratio",
+                "max_joint_accel_ratio", "duration_s", "planning_time_s", "crossings"):
+        assert key in doc["metrics"]
+    assert parse_task(doc["task"]).robot == "kuka_kr6_r900_2"
+    csv = (tmp_path / "out" / "trajectory.csv").read_text().splitlines()
+    assert csv[0] == "t," + ",".join(doc["joint_names"]) and len(csv) == len(doc["t"]) + 1
+    assert "wrist zone" in out.getvalue()
+
+
+def _variant(tmp_path: Path, edit) -> Path:
+    task = yaml.safe_load(DEMO.read_text())
+    edit(task)
+    path = tmp_path / "variant.yaml"
+    path.write_text(yaml.safe_dump(task))
+    return path
+
+
+def test_failed_plan_exits_3_and_leaves_no_folder(tmp_path: Path) -> None:
+    def far(task):
+        task["moves"][0]["lin"]["to"]["xyz"] = [3.0, 0.0, 0.5]
+
+    err = io.StringIO()
+    out_dir = tmp_path / "never"
+    assert main(["plan", str(_variant(tmp_path, far)), "-o", str(out_dir)], out=io.StringIO(), err=err) == 3
+    assert "move 0 (lin)" in err.getvalue() and "leaves the workspace" in err.getvalue()
+    assert not out_dir.exists()
+    assert not list(tmp_path.glob(".never*"))
+
+
+def test_keep_refuses_the_configuration_change_and_stop_refuses_the_zone(tmp_path: Path) -> None:
+    def keep(task):
+        task["moves"][0]["lin"]["config"] = "keep"
+
+    err = io.StringIO()
+    assert main(["plan", str(_variant(tmp_path, keep)), "-o", str(tmp_path / "o")], out=io.StringIO(), err=err) == 3
+    assert "keep" in err.getvalue() and "F U F" in err.getvalue()
+    err = io.StringIO()
+    code = main(["plan", str(DEMO), "-o", str(tmp_path / "o"), "--method", "stop"], out=io.StringIO(), err=err)
+    assert code == 3 and "move 0 (lin): wrist singular zone" in err.getvalue()
+
+
+def test_check_lists_the_zone_and_demo_writes_its_folder(tmp_path: Path, monkeypatch) -> None:
+    out = io.StringIO()
+    assert main(["check", str(DEMO)], out=out) == 0
+    assert "1 singular zone" in out.getvalue() and "wrist" in out.getvalue()
+    monkeypatch.chdir(tmp_path)
+    out = io.StringIO()
+    assert main(["demo"], out=out) == 0
+    assert (tmp_path / "singplan-demo" / "trajectory.json").is_file()

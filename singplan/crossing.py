@@ -37,6 +37,7 @@ EXACT_ORIENTATION_TOL_RAD = math.radians(0.01)
 _EDGE_FACTOR = 50.0
 _EDGE_MIN = {"wrist": math.radians(0.05), "elbow": math.radians(0.05), "shoulder": 0.0005}
 _THROUGH_MAX_JUMP_RAD = math.radians(5.0)
+_BLEND_STEP_M = 0.001  # reference samples of a blend: every millimetre of path
 
 
 @dataclass(frozen=True)
@@ -121,22 +122,78 @@ def through(ctx: MoveContext, zone: Zone, method: str) -> Crossing | None:
     if before.size == 0 or after.size == 0:
         return None
     a, b = int(before[-1]), int(after[0])
-    letter = ctx.labels[a].split()[{"shoulder": 0, "elbow": 1, "wrist": 2}[zone.kind]]
-    cands = BranchCandidates(ctx.robot, ctx.poses)
-    cands.fill(u[b:b + 1])
-    options = [c for c in cands.cache[float(u[b])] if np.all(np.isfinite(c))]
-    other = [c for c in options if _letter(ctx.robot, c, zone.kind) != letter]
-    if not other:
+    letter = _letter(ctx.robot, q[a], zone.kind)
+    options = [c for c in exit_candidates(ctx, float(u[b])) if _letter(ctx.robot, c, zone.kind) != letter]
+    if not options:
         return None
-    q_exit, jump = nearest_candidate(np.array(other), q[a])
+    q_exit, jump = nearest_candidate(np.array(options), q[a])
     if jump > _THROUGH_MAX_JUMP_RAD:
         return None
-    slope_a = (q[a] - q[a - 1]) / (u[a] - u[a - 1]) if a > 0 else np.zeros_like(q[a])
-    slope_b = (q_exit - q[a]) / (u[b] - u[a])
-    blend = JointPart("blend", np.array([u[a], u[b]]), np.array([q[a], q_exit]), np.array([slope_a, slope_b]))
-    dense_u = np.linspace(u[a], u[b], 9)
-    dense = JointMap(ctx.robot, ctx.poses, [blend]).fix_position(hermite(blend, dense_u), dense_u)
-    return Crossing(zone, method, JointPart("blend", dense_u, dense, blend.dq_du), q_exit)
+    return blend_crossing(ctx, zone, method, a, float(u[b]), q_exit)
+
+
+def exit_candidates(ctx: MoveContext, u: float) -> list[np.ndarray]:
+    """Every IK branch of the path pose at ``u``."""
+    cands = BranchCandidates(ctx.robot, ctx.poses)
+    cands.fill(np.array([u]))
+    return [c for c in cands.cache[u] if np.all(np.isfinite(c))]
+
+
+def blend_crossing(ctx: MoveContext, zone: Zone, method: str, a: int, u_b: float, q_exit: np.ndarray,
+                   slope_exit: np.ndarray | None = None) -> Crossing:
+    """A Hermite blend from tracked sample ``a`` to ``q_exit`` at ``u_b``, position re-solved.
+
+    The entry slope is the tracked path's; the exit slope defaults to the chord (the planner
+    replaces it by the slope of the continuing path once that is tracked, see :func:`refit`).
+    """
+    u, q = ctx.tracked.u, ctx.tracked.q
+    slope_a = (q[a] - q[a - 1]) / (u[a] - u[a - 1]) if a > 0 else (q_exit - q[a]) / (u_b - u[a])
+    slope_b = (q_exit - q[a]) / (u_b - u[a]) if slope_exit is None else slope_exit
+    ends = JointPart("blend", np.array([u[a], u_b]), np.array([q[a], q_exit]), np.array([slope_a, slope_b]))
+    return Crossing(zone, method, refit(ctx.robot, ctx.poses, ends, ctx.length_m), q_exit)
+
+
+def refit(robot: Robot, poses: PoseFunction, part: JointPart, length_m: float,
+          slope_exit: np.ndarray | None = None) -> JointPart:
+    """Dense, position-exact samples of a blend (optionally with a new exit slope)."""
+    slopes = part.dq_du if slope_exit is None else np.array([part.dq_du[0], slope_exit])  # type: ignore[index]
+    ends = JointPart("blend", np.array([part.u0, part.u1]), np.array([part.q[0], part.q[-1]]), slopes)
+    count = max(9, math.ceil((part.u1 - part.u0) * length_m / _BLEND_STEP_M) + 1)
+    dense_u = np.linspace(part.u0, part.u1, count)
+    dense_q = JointMap(robot, poses, [ends]).fix_position(hermite(ends, dense_u), dense_u)
+    return JointPart("blend", dense_u, dense_q, slopes)
+
+
+class WristJoint:
+    """SEEDS 001: interpolate the wrist joints across a wrist zone, keep the position exact.
+
+    q4..q6 go from their entry values to the exit values of the target branch (the one
+    nearest the entry: the flipped wrist at a near miss) along a cubic Hermite blend whose
+    slopes match the neighbouring path, so joint velocities are continuous at the seams; q1..q3
+    are re-solved at every sample so the TCP position stays on the path. The orientation
+    follows the joints and deviates by about the miss angle; the planner reports it.
+    """
+
+    name = "wrist-joint"
+
+    def __init__(self, target: str | None = None) -> None:
+        self.target = target  # a configuration label the zone must end in, or None for the nearest
+
+    def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
+        if zone.kind != "wrist":
+            return None
+        u = ctx.tracked.u
+        a = max(0, int(np.searchsorted(u, zone.u_entry, side="right")) - 1)
+        b = min(len(u) - 1, int(np.searchsorted(u, zone.u_exit, side="left")))
+        if b <= a:
+            return None
+        options = exit_candidates(ctx, float(u[b]))
+        if self.target is not None:
+            options = [c for c in options if classify(ctx.robot, c).label == self.target] or options
+        if not options:
+            return None
+        q_exit, _ = nearest_candidate(np.array(options), ctx.tracked.q[a])
+        return blend_crossing(ctx, zone, self.name, a, float(u[b]), q_exit)
 
 
 def _letter(robot: Robot, q: np.ndarray, kind: str) -> str:
@@ -144,4 +201,4 @@ def _letter(robot: Robot, q: np.ndarray, kind: str) -> str:
     return {"shoulder": c.shoulder, "elbow": c.elbow, "wrist": c.wrist}[kind]
 
 
-METHODS_AVAILABLE: dict[str, CrossingMethod] = {"exact": Exact(), "stop": Stop()}
+METHODS_AVAILABLE: dict[str, CrossingMethod] = {"exact": Exact(), "stop": Stop(), "wrist-joint": WristJoint()}

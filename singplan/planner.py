@@ -12,14 +12,15 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from singplan.configuration import classify, parse_configuration, singularity_distances
-from singplan.crossing import METHODS_AVAILABLE, Crossing, CrossingMethod, MoveContext
+from singplan.crossing import METHODS_AVAILABLE, Crossing, CrossingMethod, Exact, MoveContext, WristJoint, refit
 from singplan.errors import InputError, JointLimitError, PlanningError, SingularityError, UnreachableError
 from singplan.ik import solve_all
 from singplan.jointmap import JointMap, JointPart
@@ -30,7 +31,7 @@ from singplan.task import Move, Task, check_against_robot, load_task
 from singplan.timing import MoveLimits, TimedMove, time_move
 from singplan.tracking import TrackedPath, track
 from singplan.trajectory import Trajectory
-from singplan.trajectory_build import build_trajectory
+from singplan.trajectory_build import build_trajectory, sample_deviations
 
 STEP_M = 0.002  # initial path sampling: at most 2 mm ...
 STEP_RAD = math.radians(0.5)  # ... and 0.5 deg of tool rotation between samples
@@ -48,17 +49,21 @@ class PlannedMove:
     piece: CartesianPiece | None = None
     zones: tuple[Zone, ...] = ()
     crossings: tuple[Crossing, ...] = ()
-    methods: dict[int, str] = field(default_factory=dict)  # zone index -> method used
+    method: str = "exact"
+    alternatives: tuple[dict[str, Any], ...] = ()  # what auto compared, fastest first
 
 
-def resolve_method(name: str) -> CrossingMethod:
-    """The crossing method object for a task's method name."""
+def candidate_methods(name: str, move: Move) -> list[CrossingMethod]:
+    """The methods to try on a move: one, or for ``auto`` every pose-keeping candidate."""
+    target = move.config if move.config not in ("auto", "keep") else None
     if name == "auto":
-        name = "exact"  # the only pose-keeping method available in this version
+        return [Exact(), WristJoint(target)]
+    if name == "wrist-joint":
+        return [WristJoint(target)]
     if name not in METHODS_AVAILABLE:
         raise InputError(f"singularity.method: {name!r} is not available in this version; "
                          f"available: auto, {', '.join(sorted(METHODS_AVAILABLE))}")
-    return METHODS_AVAILABLE[name]
+    return [METHODS_AVAILABLE[name]]
 
 
 def load_task_robot(task: Task) -> Robot:
@@ -83,22 +88,66 @@ def plan(task: Task | str | Path, method: str | None = None, progress: Progress 
     if method is not None:
         task = task.with_method(method)
     robot = load_task_robot(task)
-    crossing = resolve_method(task.singularity.method)
     q = _start_joints(task, robot)
     T = robot.fk(q)
     planned: list[PlannedMove] = []
     timed: list[TimedMove] = []
     for i, move in enumerate(task.moves):
-        pm = _plan_move(robot, task, i, move, T, q, crossing)
-        tm = time_move(pm.jmap, pm.limits, task.period_s, i)
-        _check_config(robot, i, move, tm.q)
+        pm, tm = _best_of(robot, task, i, move, T, q, candidate_methods(task.singularity.method, move))
         planned.append(pm)
         timed.append(tm)
         q = tm.q[-1]
         T = pm.piece.T_end if pm.piece is not None else robot.fk(q)
         if progress is not None:
             progress(i + 1, len(task.moves))
-    return build_trajectory(robot, task, planned, timed, crossing.name, time.perf_counter() - started)
+    return build_trajectory(robot, task, planned, timed, time.perf_counter() - started)
+
+
+def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
+             methods: list[CrossingMethod]) -> tuple[PlannedMove, TimedMove]:
+    """Plan and time the move with each method; keep the fastest within the tolerances."""
+    results: list[tuple[PlannedMove, TimedMove]] = []
+    failures: list[tuple[str, PlanningError]] = []
+    for method in methods:
+        try:
+            pm = _plan_move(robot, task, i, move, T, q, method)
+            tm = time_move(pm.jmap, pm.limits, task.period_s, i)
+            _check_config(robot, i, move, tm.q)
+            _check_tolerances(robot, task, pm, tm)
+        except PlanningError as exc:
+            failures.append((method.name, exc))
+            continue
+        results.append((replace(pm, method=method.name), tm))
+        if not pm.zones:
+            break  # nothing to cross: every method gives this same motion
+    if not results:
+        if len(failures) == 1:
+            raise failures[0][1]
+        raise PlanningError(f"move {i} ({move.kind}): no method could plan it: "
+                            + "; ".join(f"{name}: {exc}" for name, exc in failures))
+    results.sort(key=lambda r: r[1].duration_s)
+    alternatives = tuple([{"method": r[0].method, "duration_s": r[1].duration_s, "feasible": True} for r in results]
+                         + [{"method": name, "feasible": False, "reason": str(exc)} for name, exc in failures])
+    best_pm, best_tm = results[0]
+    return replace(best_pm, alternatives=alternatives if len(methods) > 1 else ()), best_tm
+
+
+def _check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove) -> None:
+    """A crossing may deviate up to the task's tolerances; more is no plan (exit 3)."""
+    pos, ori = sample_deviations(robot, pm.piece, tm.u, tm.q)
+    pos_tol = task.singularity.position_tolerance_mm / 1e3
+    ori_tol = math.radians(task.singularity.orientation_tolerance_deg)
+    if pos.max(initial=0.0) <= pos_tol and ori.max(initial=0.0) <= ori_tol:
+        return
+    k = int(np.argmax(np.maximum(pos / pos_tol, ori / ori_tol)))
+    zone = min(pm.zones, key=lambda z: abs(z.u_closest - tm.u[k])) if pm.zones else None
+    where = f"in the {zone.kind} zone " if zone else ""
+    assert pm.piece is not None
+    raise SingularityError(
+        f"move {pm.index} ({pm.kind}): the crossing {where}deviates {pos[k] * 1e3:.4f} mm / "
+        f"{math.degrees(ori[k]):.4f} deg at {_where(pm.piece, float(tm.u[k]))}, over the tolerance "
+        f"{task.singularity.position_tolerance_mm:g} mm / {task.singularity.orientation_tolerance_deg:g} deg",
+        move=pm.index, kind=zone.kind if zone else "path", s_m=float(tm.u[k]) * pm.piece.length_m)
 
 
 def _start_joints(task: Task, robot: Robot) -> np.ndarray:
@@ -172,6 +221,10 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
     while True:
         tracked = track(robot, piece.poses, np.concatenate([[u_from], grid[grid > u_from + 1e-12]]), q_from)
         _check_tracked(robot, i, move, piece, tracked)
+        if parts and parts[-1].kind == "blend" and len(tracked.u) > 1:  # C1 seam at the crossing's exit
+            slope = (tracked.q[1] - tracked.q[0]) / (tracked.u[1] - tracked.u[0])
+            parts[-1] = refit(robot, piece.poses, parts[-1], piece.length_m, slope)
+            _check_limits(robot, i, move, piece, parts[-1].u, parts[-1].q, zones)
         dist, labels = distances_along(robot, tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref))

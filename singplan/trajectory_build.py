@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from singplan.configuration import classify
-from singplan.path import rotation_angle
+from singplan.path import CartesianPiece, rotation_angle
 from singplan.robot import Robot
 from singplan.singularity import Zone
 from singplan.task import Task
@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
 
 def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed: list[TimedMove],
-                     method: str, planning_time_s: float) -> Trajectory:
+                     planning_time_s: float) -> Trajectory:
     period = task.period_s
     q = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
     t = np.arange(len(q)) * period
@@ -39,10 +39,10 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
     k0 = 0
     for pm, tm in zip(planned, timed, strict=True):
         k1 = k0 + len(tm.q) - 1
-        pos_err, ori_err = _deviations(robot, pm, tm)
+        pos_err, ori_err = sample_deviations(robot, pm.piece, tm.u, tm.q)
         worst_pos = max(worst_pos, float(pos_err.max(initial=0.0)))
         worst_ori = max(worst_ori, float(ori_err.max(initial=0.0)))
-        segs = _move_segments(pm, tm, k0, k1, period, labels, method, pos_err, ori_err)
+        segs = _move_segments(pm, tm, k0, k1, period, labels, pos_err, ori_err)
         segments.extend(segs)
         events.extend(_move_events(pm, segs, k0, k1, period, labels))
         crossings.extend({"move": s.move, "t0": s.t0, "t1": s.t1, "singularity": s.singularity, "method": s.method,
@@ -54,19 +54,21 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
                                  robot.acceleration_rad_s2)
     metrics = {"max_position_error_mm": worst_pos * 1e3, "max_orientation_error_deg": math.degrees(worst_ori),
                "max_joint_speed_ratio": speed, "max_joint_accel_ratio": accel, "duration_s": float(t[-1]),
-               "planning_time_s": planning_time_s, "samples": len(t), "method": method, "crossings": crossings}
+               "planning_time_s": planning_time_s, "samples": len(t), "method": task.singularity.method,
+               "crossings": crossings}
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
     return Trajectory(robot.name, str(robot.urdf_path), robot.tip, tool, task.to_mapping(), robot.joint_names,
                       period, t, q, qd, qdd, tuple(segments), tuple(events), metrics)
 
 
-def _deviations(robot: Robot, pm: PlannedMove, tm: TimedMove) -> tuple[np.ndarray, np.ndarray]:
-    """Position [m] and orientation [rad] error of each sample against the path at its u."""
-    if pm.piece is None:
-        return np.zeros(len(tm.q)), np.zeros(len(tm.q))
-    want = pm.piece.poses(tm.u)
-    pos, ori = np.empty(len(tm.q)), np.empty(len(tm.q))
-    for k, qk in enumerate(tm.q):
+def sample_deviations(robot: Robot, piece: CartesianPiece | None, u: np.ndarray,
+                      q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Position [m] and orientation [rad] error of each sample q (K, n) against the path at its u."""
+    if piece is None:
+        return np.zeros(len(q)), np.zeros(len(q))
+    want = piece.poses(u)
+    pos, ori = np.empty(len(q)), np.empty(len(q))
+    for k, qk in enumerate(q):
         T = robot.fk(qk)
         pos[k] = float(np.linalg.norm(T.translation - want[k, :3, 3]))
         ori[k] = rotation_angle(T.rotation, want[k, :3, :3])
@@ -94,7 +96,7 @@ def _merged_spans(pm: PlannedMove, tm: TimedMove) -> list[tuple[int, int, list[Z
 
 
 def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float, labels: list[str],
-                   method: str, pos_err: np.ndarray, ori_err: np.ndarray) -> list[Segment]:
+                   pos_err: np.ndarray, ori_err: np.ndarray) -> list[Segment]:
     def seg(kind: str, a: int, b: int, **extra: Any) -> Segment:
         return Segment(pm.index, kind, (k0 + a) * period, (k0 + b) * period, labels[k0 + a], labels[k0 + b], **extra)
 
@@ -109,7 +111,7 @@ def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: flo
         if a > cursor:
             out.append(seg("pre" if n == 0 else "post", cursor, a))
         closest = min(zones, key=lambda z: z.min_distance / z.threshold)
-        out.append(seg("crossing", a, b, singularity=closest.kind, method=_zone_method(pm, closest, method),
+        out.append(seg("crossing", a, b, singularity=closest.kind, method=_zone_method(pm, closest),
                        details=_crossing_figures(pm, tm, a, b, closest, pos_err, ori_err, period)))
         cursor = b
     if cursor < k1 - k0:
@@ -117,11 +119,12 @@ def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: flo
     return out
 
 
-def _zone_method(pm: PlannedMove, zone: Zone, method: str) -> str:
+def _zone_method(pm: PlannedMove, zone: Zone) -> str:
+    """The method that crossed the zone (exact kept the branch where no crossing was made)."""
     for c in pm.crossings:
         if c.zone.u_closest == zone.u_closest:
             return c.method
-    return method
+    return "exact" if pm.method != "stop" else pm.method
 
 
 def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone, pos_err: np.ndarray,
@@ -135,7 +138,7 @@ def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone
             "max_orientation_error_deg": math.degrees(float(ori_err[a:b + 1].max())),
             "max_orientation_error_at_s": float(tm.u[k] * pm.limits.length_m),
             "time_lost_s": max(0.0, (b - a) * period - nominal),
-            "through": through, "alternatives": []}
+            "through": through, "alternatives": list(pm.alternatives)}
 
 
 def _move_events(pm: PlannedMove, segs: list[Segment], k0: int, k1: int, period: float,

@@ -181,7 +181,7 @@ class WristJoint:
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
         if zone.kind != "wrist":
-            return None
+            return Exact().cross(ctx, zone)  # other kinds: as exact tracking does
         u = ctx.tracked.u
         a = max(0, int(np.searchsorted(u, zone.u_entry, side="right")) - 1)
         b = min(len(u) - 1, int(np.searchsorted(u, zone.u_exit, side="left")))

@@ -25,6 +25,7 @@ from singplan.robot import Robot
 from singplan.tracking import PoseFunction
 
 TWO_PI = 2.0 * math.pi
+_DAMPING = 1e-6  # Levenberg-Marquardt lambda^2 of the position re-solve [m^2]
 
 
 @dataclass(frozen=True)
@@ -151,6 +152,6 @@ def position_solve(robot: Robot, q: np.ndarray, target_m: np.ndarray, joints: in
         if norm < tol_m:
             break
         J = robot.jacobian(q)[:3, :joints]
-        damping = min(1e-6, norm) ** 2
-        q[:joints] += J.T @ np.linalg.solve(J @ J.T + damping * np.eye(3), err)
+        # constant damping: directions the joints barely move (a shoulder singularity) stay put
+        q[:joints] += J.T @ np.linalg.solve(J @ J.T + _DAMPING * np.eye(3), err)
     return q

@@ -121,8 +121,9 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
         if not pm.zones:
             break  # nothing to cross: every method gives this same motion
     if not results:
-        if len(failures) == 1:
-            raise failures[0][1]
+        unreachable = [exc for _, exc in failures if isinstance(exc, UnreachableError)]
+        if len(failures) == 1 or unreachable:  # the path itself fails: no method can help
+            raise (unreachable or [failures[0][1]])[0]
         raise PlanningError(f"move {i} ({move.kind}): no method could plan it: "
                             + "; ".join(f"{name}: {exc}" for name, exc in failures))
     results.sort(key=lambda r: r[1].duration_s)

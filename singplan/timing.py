@@ -31,13 +31,14 @@ from singplan.jointmap import JointMap
 from singplan.task import MAX_OUTPUT_SAMPLES
 
 logger = logging.getLogger(__name__)
-ta.setup_logging("WARNING")
+logging.getLogger("toppra").setLevel(logging.ERROR)  # its retries are not our warnings
 
 _UNLIMITED = 1e9
 _TIGHTEN_PASSES = 8
 _SPEED_MARGIN = 0.999  # ratios the samples must stay under
 _ACCEL_MARGIN = 0.995
 _TCP_MARGIN = 0.999
+_DISCONTINUOUS = 1.5  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
 
 @dataclass(frozen=True)
@@ -78,8 +79,30 @@ def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
     return u, q
 
 
+@dataclass(frozen=True)
+class _Profile:
+    """TOPP-RA's result: path speed ``sd`` at the grid points, constant path acceleration between."""
+
+    grid: np.ndarray  # (G,) path parameter u
+    sd: np.ndarray  # (G,) du/dt
+
+    @property
+    def t_nodes(self) -> np.ndarray:
+        dt = 2.0 * np.diff(self.grid) / (self.sd[:-1] + self.sd[1:])
+        return np.concatenate([[0.0], np.cumsum(dt)])
+
+    def u_at(self, t: np.ndarray) -> np.ndarray:
+        """Path parameter at times t (exact for the constant-acceleration profile)."""
+        nodes = self.t_nodes
+        i = np.clip(np.searchsorted(nodes, t, side="right") - 1, 0, len(self.grid) - 2)
+        ds = np.diff(self.grid)
+        sdd = (self.sd[1:] ** 2 - self.sd[:-1] ** 2) / (2.0 * ds)
+        tau = t - nodes[i]
+        return np.minimum(self.grid[i] + self.sd[i] * tau + 0.5 * sdd[i] * tau**2, self.grid[i + 1])
+
+
 def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale_v: float, scale_a: float,
-                    move_index: int) -> ta.interpolator.AbstractGeometricPath:
+                    move_index: int) -> _Profile:
     arc_scale = limits.length_m if limits.length_m > 0 else 1.0
     waypoints = np.hstack([q, (u * arc_scale)[:, None]])
     path = ta.SplineInterpolator(u, waypoints)
@@ -88,13 +111,13 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale_v: f
     amax = np.append(limits.acceleration_rad_s2 * scale_a, _UNLIMITED)
     constraints = [ta_constraint.JointVelocityConstraint(np.stack([-vmax, vmax], axis=1)),
                    ta_constraint.JointAccelerationConstraint(np.stack([-amax, amax], axis=1))]
-    grid = _grid(u)
-    instance = ta_algo.TOPPRA(constraints, path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
-    traj = instance.compute_trajectory(0.0, 0.0)
-    if traj is None:
+    instance = ta_algo.TOPPRA(constraints, path, gridpoints=_grid(u))
+    instance.compute_parameterization(0.0, 0.0)
+    data = instance.problem_data
+    if data.return_code != ta_algo.ParameterizationReturnCode.Ok or data.sd_vec is None:
         raise PlanningError(f"move {move_index}: TOPP-RA found no feasible time-parameterisation "
-                            f"(joint limits too tight for the path)")
-    return traj
+                            f"({data.return_code}; joint limits too tight for the path)")
+    return _Profile(np.asarray(data.gridpoints, dtype=float), np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0))
 
 
 def _grid(u: np.ndarray) -> np.ndarray:
@@ -106,18 +129,15 @@ def _grid(u: np.ndarray) -> np.ndarray:
     return np.unique(np.concatenate([u, *extra])) if extra else u
 
 
-def _sample(traj: ta.interpolator.AbstractGeometricPath, period_s: float, arc_scale: float,
-            move_index: int) -> tuple[np.ndarray, float]:
-    duration = float(traj.duration)
+def _sample(profile: _Profile, period_s: float, move_index: int) -> tuple[np.ndarray, float]:
+    duration = float(profile.t_nodes[-1])
     count = max(1, math.ceil(duration / period_s - 1e-9))
     if count > MAX_OUTPUT_SAMPLES:
         raise TaskError("output.period", f"move {move_index} lasts {duration:.1f} s: {count} samples at "
                                          f"{period_s} s is over the cap of {MAX_OUTPUT_SAMPLES}")
     stretch = count * period_s / duration if duration > 0 else 1.0
     t = np.arange(count + 1) * period_s / stretch
-    t[-1] = duration
-    u = np.clip(np.asarray(traj(t))[:, -1] / arc_scale, 0.0, 1.0)
-    u = np.maximum.accumulate(u)
+    u = np.maximum.accumulate(np.clip(profile.u_at(t), 0.0, 1.0))
     u[0], u[-1] = 0.0, 1.0
     return u, count * period_s
 
@@ -135,11 +155,10 @@ def sample_ratios(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.nda
 def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int) -> TimedMove:
     """Fastest uniform sampling of the move within the limits, every sample on the path."""
     u_ref, q_ref = _reference(jmap)
-    arc_scale = limits.length_m if limits.length_m > 0 else 1.0
     scale_v = scale_a = 1.0
     for _ in range(_TIGHTEN_PASSES):
-        traj = _toppra_profile(u_ref, q_ref, limits, scale_v, scale_a, move_index)
-        u, duration = _sample(traj, period_s, arc_scale, move_index)
+        profile = _toppra_profile(u_ref, q_ref, limits, scale_v, scale_a, move_index)
+        u, duration = _sample(profile, period_s, move_index)
         q = jmap.evaluate(u)
         speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
         tcp = _tcp_ratio(u, limits, period_s)
@@ -147,6 +166,8 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
         worst_a = accel / _ACCEL_MARGIN
         if worst_v <= 1.0 and worst_a <= 1.0:
             return TimedMove(u, q, duration, speed, accel)
+        if worst_v > _DISCONTINUOUS or worst_a > _DISCONTINUOUS:
+            break  # not a grid effect: the joint map jumps somewhere; tightening cannot help
         logger.debug("move %d: samples at x%.4f speed, x%.4f accel; tightening", move_index, speed, accel)
         scale_v *= min(1.0, 1.0 / worst_v) * (0.998 if worst_v > 1.0 else 1.0)
         scale_a *= min(1.0, 1.0 / worst_a) * (0.995 if worst_a > 1.0 else 1.0)

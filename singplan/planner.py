@@ -121,7 +121,7 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
         if not pm.zones:
             break  # nothing to cross: every method gives this same motion
     if not results:
-        unreachable = [exc for _, exc in failures if isinstance(exc, UnreachableError)]
+        unreachable: list[PlanningError] = [exc for _, exc in failures if isinstance(exc, UnreachableError)]
         if len(failures) == 1 or unreachable:  # the path itself fails: no method can help
             raise (unreachable or [failures[0][1]])[0]
         raise PlanningError(f"move {i} ({move.kind}): no method could plan it: "

@@ -38,7 +38,7 @@ _TIGHTEN_PASSES = 8
 _SPEED_MARGIN = 0.999  # ratios the samples must stay under
 _ACCEL_MARGIN = 0.995
 _TCP_MARGIN = 0.999
-_DISCONTINUOUS = 1.5  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
+_DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
 
 @dataclass(frozen=True)

@@ -29,9 +29,6 @@ from scipy.spatial.transform import RigidTransform
 from singplan.ik import opw_batch, solve_all
 from singplan.robot import Robot, load_robot
 
-MARK_BEGIN = "<!-- bench_ik:begin -->"
-MARK_END = "<!-- bench_ik:end -->"
-
 
 def _oracle(robot: Robot) -> OpwRobot:
     p = robot.opw
@@ -110,13 +107,14 @@ def table(robot_name: str, rows: list[dict[str, float]]) -> str:
     return "\n".join(lines)
 
 
-def write_section(path: Path, text: str) -> None:
-    """Replace this benchmark's section of the results file, keeping the others."""
+def write_section(path: Path, text: str, mark: str = "bench_ik") -> None:
+    """Replace one benchmark's section of the results file (between its markers), keeping the others."""
+    begin, end = f"<!-- {mark}:begin -->", f"<!-- {mark}:end -->"
     old = path.read_text() if path.exists() else "# Benchmarks\n"
-    block = f"{MARK_BEGIN}\n{text}\n{MARK_END}"
-    if MARK_BEGIN in old:
-        head, rest = old.split(MARK_BEGIN, 1)
-        new = head + block + rest.split(MARK_END, 1)[1]
+    block = f"{begin}\n{text}\n{end}"
+    if begin in old:
+        head, rest = old.split(begin, 1)
+        new = head + block + rest.split(end, 1)[1]
     else:
         new = old.rstrip() + "\n\n" + block + "\n"
     path.write_text(new)

@@ -11,7 +11,10 @@ import logging
 from singplan.configuration import Configuration, SingularityDistances, classify, singularity_distances
 from singplan.errors import InputError, PlanningError, SingplanError
 from singplan.ik import IkSolutions, opw_batch, solve_all
+from singplan.planner import detect, plan
 from singplan.robot import Robot, bundled_robots, load_robot
+from singplan.task import Task, load_task, parse_task
+from singplan.trajectory import Segment, Trajectory, save
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
@@ -23,13 +26,21 @@ __all__ = [
     "InputError",
     "PlanningError",
     "Robot",
+    "Segment",
     "SingplanError",
     "SingularityDistances",
+    "Task",
+    "Trajectory",
     "__version__",
     "bundled_robots",
     "classify",
+    "detect",
     "load_robot",
+    "load_task",
     "opw_batch",
+    "parse_task",
+    "plan",
+    "save",
     "singularity_distances",
     "solve_all",
 ]

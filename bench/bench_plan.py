@@ -1,0 +1,113 @@
+"""Planning time and trajectory duration on the public scenarios, beside the reference.
+
+    python bench/bench_plan.py [--scenarios ../shared/scenarios] [--method exact] [--write docs/benchmarks.md]
+
+For every scenario that expect.yaml says must plan (exit 0), in one process: planning time
+(in-process ``singplan.plan``, imports excluded), planning time per path sample, the
+trajectory duration, and the ``reference`` duration of expect.yaml (plain exact tracking +
+TOPP-RA on a joint spline) with the checker's verdict on that reference. Also times an
+in-process plan of a 0.3 m LIN (target: under 0.3 s).
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import sys
+import time
+from importlib.metadata import version
+from pathlib import Path
+
+import yaml
+
+from singplan.errors import SingplanError
+from singplan.planner import plan
+from singplan.task import load_task, parse_task
+
+HERE = Path(__file__).resolve().parent
+MARK = "bench_plan"
+LIN_03 = {
+    "robot": "kuka_kr6_r900_2", "tool": {"xyz": [0, 0, 0.1]},
+    "start": {"joints_deg": [0, -80, 100, 0, 40, 0]},
+    "moves": [{"lin": {"to": {"xyz": [0.45, 0.3, 0.45]}, "speed": 0.5}}],
+}
+
+
+def _machine() -> str:
+    sys.path.insert(0, str(HERE))
+    from bench_ik import machine  # one definition of the machine line for every benchmark
+
+    return machine()
+
+
+def measure(scenarios: Path, method: str | None) -> list[dict[str, object]]:
+    expect = yaml.safe_load((scenarios / "expect.yaml").read_text())
+    rows = []
+    for name in sorted(expect):
+        want = expect[name]
+        if want.get("exit") != 0:
+            continue
+        task = load_task(scenarios / f"{name}.yaml")
+        if method and task.singularity.method == "auto":
+            task = task.with_method(method)
+        t0 = time.perf_counter()
+        try:
+            traj = plan(task)
+            duration: float | None = traj.duration_s
+            samples = int(traj.metrics["samples"])
+            note = ""
+        except SingplanError as exc:
+            duration, samples, note = None, 0, f"exit {exc.exit_code}"
+        elapsed = time.perf_counter() - t0
+        ref = want.get("reference") or {}
+        rows.append({"name": name, "seconds": elapsed, "samples": samples, "duration": duration,
+                     "reference": ref.get("duration_s"), "ref_verdict": str(ref.get("verify", "")).split(" ")[0],
+                     "note": note})
+    return rows
+
+
+def time_lin() -> float:
+    task = parse_task(LIN_03)
+    plan(task)  # warm caches (robot parsing) like a long-lived process would
+    best = float("inf")
+    for _ in range(3):
+        t0 = time.perf_counter()
+        plan(task)
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def table(rows: list[dict[str, object]], method: str | None, lin_s: float) -> str:
+    lines = [f"### Planning on the public scenarios (method: {method or 'task (auto)'})", "",
+             f"Machine: {_machine()}; Python {platform.python_version()}, pin {version('pin')}, "
+             f"toppra {version('toppra')}, numpy {version('numpy')}.", "",
+             f"In-process `singplan.plan()` of a 0.3 m LIN (KR 6 R900-2, imports excluded, best of 3): "
+             f"**{lin_s:.3f} s** (target < 0.3 s).", "",
+             "| scenario | plan time [s] | per output sample [ms] | duration [s] | reference [s] | reference verdict |",
+             "|---|---:|---:|---:|---:|---|"]
+    for r in rows:
+        dur = f"{r['duration']:.3f}" if r["duration"] is not None else str(r["note"])
+        ref = f"{r['reference']:.3f}" if r["reference"] is not None else "-"
+        per = f"{1e3 * float(r['seconds']) / int(r['samples']):.2f}" if r["samples"] else "-"  # type: ignore[call-overload]
+        lines.append(f"| {r['name']} | {float(r['seconds']):.2f} | {per} | {dur} | {ref} | {r['ref_verdict'] or '-'} |")  # type: ignore[arg-type]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenarios", type=Path, default=HERE.parents[1] / "shared" / "scenarios")
+    parser.add_argument("--method", default=None, help="plan tasks whose method is auto with this one")
+    parser.add_argument("--write", type=Path, default=None)
+    args = parser.parse_args(argv)
+    text = table(measure(args.scenarios, args.method), args.method, time_lin())
+    sys.stdout.write(text + "\n")
+    if args.write:
+        sys.path.insert(0, str(HERE))
+        from bench_ik import write_section
+
+        write_section(args.write, text, f"{MARK}-{args.method or 'auto'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -34,3 +34,9 @@ def test_every_public_scenario_passes_with_exact_tracking(tmp_path: Path) -> Non
     failing = [line for line in text.splitlines() if line.startswith("FAIL")]
     assert code == 0 and not failing, "\n".join(failing) or text[-2000:]
     assert text.strip().splitlines()[-1].endswith("0 failed")
+
+
+def test_every_public_scenario_passes_with_the_tasks_own_methods(tmp_path: Path) -> None:
+    code, text = run_suite(tmp_path)
+    failing = [line for line in text.splitlines() if line.startswith("FAIL")]
+    assert code == 0 and not failing, "\n".join(failing) or text[-2000:]

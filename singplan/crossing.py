@@ -7,6 +7,7 @@ Methods never time anything; the timing slows the path where joints must move fa
 
 Available now:
 
+* ``wrist-joint``: see :class:`WristJoint` (SEEDS 001).
 * ``exact``: the full pose is kept. At a near miss the branch is kept and the wrist (or axis
   1) swings while the timing slows the path (SEEDS 002's speed scaleback). Where the path
   passes within the exact tolerance of the singularity (0.01 deg, or the position tolerance

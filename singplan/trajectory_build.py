@@ -138,7 +138,7 @@ def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone
             "max_orientation_error_deg": math.degrees(float(ori_err[a:b + 1].max())),
             "max_orientation_error_at_s": float(tm.u[k] * pm.limits.length_m),
             "time_lost_s": max(0.0, (b - a) * period - nominal),
-            "through": through, "alternatives": list(pm.alternatives)}
+            "changes_branch": through, "alternatives": list(pm.alternatives)}
 
 
 def _move_events(pm: PlannedMove, segs: list[Segment], k0: int, k1: int, period: float,

@@ -20,9 +20,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Protocol
+from typing import ClassVar, Protocol
 
 import numpy as np
+import pinocchio as pin
 
 from singplan.configuration import classify
 from singplan.errors import SingularityError
@@ -183,17 +184,13 @@ class WristJoint:
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
         if zone.kind != "wrist":
             return Exact().cross(ctx, zone)  # other kinds: as exact tracking does
-        u = ctx.tracked.u
-        a = max(0, int(np.searchsorted(u, zone.u_entry, side="right")) - 1)
-        b = min(len(u) - 1, int(np.searchsorted(u, zone.u_exit, side="left")))
+        a, b = _zone_span(ctx, zone)
         if b <= a:
             return None
-        options = exit_candidates(ctx, float(u[b]))
-        if self.target is not None:
-            options = [c for c in options if classify(ctx.robot, c).label == self.target] or options
-        if not options:
+        u = ctx.tracked.u
+        q_exit = _exit_joints(ctx, zone, ctx.tracked.q[a], float(u[b]), self.target, change=False)
+        if q_exit is None:
             return None
-        q_exit, _ = nearest_candidate(np.array(options), ctx.tracked.q[a])
         return blend_crossing(ctx, zone, self.name, a, float(u[b]), q_exit)
 
 
@@ -202,4 +199,141 @@ def _letter(robot: Robot, q: np.ndarray, kind: str) -> str:
     return {"shoulder": c.shoulder, "elbow": c.elbow, "wrist": c.wrist}[kind]
 
 
-METHODS_AVAILABLE: dict[str, CrossingMethod] = {"exact": Exact(), "stop": Stop(), "wrist-joint": WristJoint()}
+def _zone_span(ctx: MoveContext, zone: Zone) -> tuple[int, int]:
+    """Tracked sample indices a <= entry and b >= exit of a zone."""
+    u = ctx.tracked.u
+    a = max(0, int(np.searchsorted(u, zone.u_entry, side="right")) - 1)
+    b = min(len(u) - 1, int(np.searchsorted(u, zone.u_exit, side="left")))
+    return a, b
+
+
+def _exit_joints(ctx: MoveContext, zone: Zone, q_entry: np.ndarray, u_b: float,
+                 target: str | None, change: bool) -> np.ndarray | None:
+    """Exit joints: the target label's branch, else (``change``) the other label of the zone's
+    kind, else any branch; the one nearest the entry joints."""
+    options = exit_candidates(ctx, u_b)
+    if not options:
+        return None
+    if target is not None:
+        wanted = [c for c in options if classify(ctx.robot, c).label == target]
+    elif change:
+        letter = _letter(ctx.robot, q_entry, zone.kind)
+        wanted = [c for c in options if _letter(ctx.robot, c, zone.kind) != letter]
+    else:
+        wanted = []
+    return nearest_candidate(np.array(wanted or options), q_entry)[0]
+
+
+class Axis:
+    """SEEDS 000: interpolate one axis across the zone; the others keep one pose component.
+
+    Wrist zone: A4 interpolated, A1-A3 keep the position exact, A5/A6 minimise the orientation
+    error. Shoulder zone: A1 interpolated, A4-A6 keep the orientation exact, A2/A3 minimise the
+    position error. Elbow zone: A2 interpolated, A1/A3 minimise the position error (the wrist
+    keeps the orientation). The zone ends in the other configuration of its kind (or the
+    move's target). The residual of the minimised component is the reported deviation; the
+    shoulder and elbow variants leave the path by about the miss distance.
+    """
+
+    name = "axis"
+    _SETUP: ClassVar[dict[str, tuple[int, str]]] = {
+        "wrist": (3, "position"), "shoulder": (0, "orientation"), "elbow": (1, "orientation")}
+
+    def __init__(self, target: str | None = None) -> None:
+        self.target = target
+
+    def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
+        a, b = _zone_span(ctx, zone)
+        if b <= a:
+            return None
+        u, q = ctx.tracked.u, ctx.tracked.q
+        q_exit = _exit_joints(ctx, zone, q[a], float(u[b]), self.target, change=True)
+        if q_exit is None:
+            return None
+        fixed, exact = self._SETUP[zone.kind]
+        slope_a = (q[a] - q[a - 1]) / (u[a] - u[a - 1]) if a > 0 else (q_exit - q[a]) / (u[b] - u[a])
+        slopes = np.array([slope_a, (q_exit - q[a]) / (u[b] - u[a])])
+        ends = JointPart("axis", np.array([u[a], u[b]]), np.array([q[a], q_exit]), slopes, fixed, exact)
+        dense_u = np.linspace(u[a], u[b], max(9, math.ceil((u[b] - u[a]) * ctx.length_m / _BLEND_STEP_M) + 1))
+        dense_q = JointMap(ctx.robot, ctx.poses, [ends]).solve_axis(ends, dense_u)
+        return Crossing(zone, self.name, JointPart("axis", dense_u, dense_q, slopes, fixed, exact), dense_q[-1])
+
+
+class Ptp:
+    """Baseline (SEEDS 004): jump over the zone with a joint-space straight line."""
+
+    name = "ptp"
+
+    def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
+        a, b = _zone_span(ctx, zone)
+        if b <= a:
+            return None
+        u, q = ctx.tracked.u, ctx.tracked.q
+        q_exit = _exit_joints(ctx, zone, q[a], float(u[b]), None, change=False)
+        if q_exit is None:
+            return None
+        line = JointPart("ptp", np.array([u[a], u[b]]), np.array([q[a], q_exit]))
+        return Crossing(zone, self.name, line, q_exit)
+
+
+class Average:
+    """Baseline (SEEDS 004): near the singular point, replace each sample's joints by the
+    average of its neighbours; the branch (and its swing) is otherwise kept."""
+
+    name = "average"
+    _CORE = 0.2  # the "singular samples": |distance| under this fraction of the threshold
+
+    def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
+        a, b = _zone_span(ctx, zone)
+        if b - a < 2:
+            return None
+        i = {"wrist": 0, "shoulder": 1, "elbow": 2}[zone.kind]
+        u, q = ctx.tracked.u[a:b + 1], ctx.tracked.q[a:b + 1].copy()
+        core = np.abs(ctx.distances[a:b + 1, i]) < self._CORE * zone.threshold
+        core[0] = core[-1] = False
+        original = q.copy()
+        for k in np.nonzero(core)[0]:
+            q[k] = 0.5 * (original[k - 1] + original[k + 1])
+        return Crossing(zone, self.name, JointPart("ptp", u, q), q[-1])
+
+
+class Dls:
+    """Baseline: damped least squares tracking, one step per sample as a servo loop does.
+
+    ``qd = J^T (J J^T + lambda^2 I)^-1 e`` with the pose error ``e`` to the next path pose
+    (lambda = 0.01). Near the singularity the damping trades tracking for bounded joint speed,
+    so the tool leaves the path; at the zone exit the motion rejoins the nearest exact
+    solution. The deviation is measured and reported.
+    """
+
+    name = "dls"
+    damping = 1e-2
+
+    def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
+        a, b = _zone_span(ctx, zone)
+        if b <= a:
+            return None
+        u_all = ctx.tracked.u
+        steps = max(2, math.ceil((u_all[b] - u_all[a]) * ctx.length_m / _BLEND_STEP_M))
+        u = np.linspace(u_all[a], u_all[b], steps + 1)
+        targets = ctx.poses(u)
+        q = np.empty((len(u), ctx.robot.n_joints))
+        q[0] = ctx.tracked.q[a]
+        for k in range(1, len(u)):
+            q[k] = self._step(ctx.robot, q[k - 1], targets[k])
+        q_exit = _exit_joints(ctx, zone, q[-2], float(u[-1]), None, change=False)
+        if q_exit is None:
+            return None
+        q[-1] = q_exit
+        return Crossing(zone, self.name, JointPart("ptp", u, q), q_exit)
+
+    def _step(self, robot: Robot, q: np.ndarray, T_target: np.ndarray) -> np.ndarray:
+        T = robot.fk(q)
+        err = np.concatenate([T_target[:3, 3] - T.translation, T.rotation @ pin.log3(T.rotation.T @ T_target[:3, :3])])
+        J = robot.jacobian(q)
+        return q + J.T @ np.linalg.solve(J @ J.T + self.damping**2 * np.eye(6), err)
+
+
+METHODS_AVAILABLE: dict[str, CrossingMethod] = {
+    "exact": Exact(), "stop": Stop(), "wrist-joint": WristJoint(), "axis": Axis(), "dls": Dls(), "average": Average(),
+    "ptp": Ptp()}

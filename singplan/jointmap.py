@@ -8,7 +8,9 @@ output sample lies on the path. It is stitched from parts:
   samples, interpolated at ``u``.
 * ``blend``: a crossing's joint interpolation (cubic Hermite between the entry and exit
   joint values and slopes), with joints 1-3 re-solved so that the TCP *position* is exact.
-* ``ptp``: a straight line in joint space.
+* ``axis``: one joint follows the blend; the others keep one pose component exact and
+  minimise the error of the other (SEEDS 000, :func:`axis_solve`).
+* ``ptp``: piecewise-linear in joint space (PTP moves, and the baselines' samples).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ class JointPart:
     """One part of a joint map over [u0, u1].
 
     Attributes:
-        kind: "track" | "blend" | "ptp".
+        kind: "track" | "blend" | "axis" | "ptp".
         u: reference parameters inside [u0, u1], increasing, shape (K,).
         q: reference joint values [rad], shape (K, n).
         dq_du: joint slopes at u0 and u1 (blend only), shape (2, n).
@@ -43,6 +45,8 @@ class JointPart:
     u: np.ndarray  # (K,)
     q: np.ndarray  # (K, n)
     dq_du: np.ndarray | None = None  # (2, n)
+    axis: int = -1  # "axis" parts: the interpolated joint
+    exact: str = "position"  # "axis" parts: the pose component kept exact
 
     @property
     def u0(self) -> float:
@@ -103,7 +107,16 @@ class JointMap:
             return interpolate(part, u)
         if part.kind == "blend":
             return self.fix_position(hermite(part, u), u)
+        if part.kind == "axis":
+            return self.solve_axis(part, u)
         return self._exact_near(interpolate(part, u), u)
+
+    def solve_axis(self, part: JointPart, u: np.ndarray) -> np.ndarray:
+        """The axis method's joints at u: part.axis on the blend, the rest by :func:`axis_solve`."""
+        assert self.poses is not None
+        q_ref = hermite(part, u)
+        T = self.poses(u)
+        return np.array([axis_solve(self.robot, q_ref[k], T[k], part.axis, part.exact) for k in range(len(u))])
 
     def _exact_near(self, q_ref: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Exact IK at each u: the branch and turn nearest the reference joint values."""
@@ -154,4 +167,51 @@ def position_solve(robot: Robot, q: np.ndarray, target_m: np.ndarray, joints: in
         J = robot.jacobian(q)[:3, :joints]
         # constant damping: directions the joints barely move (a shoulder singularity) stay put
         q[:joints] += J.T @ np.linalg.solve(J @ J.T + _DAMPING * np.eye(3), err)
+    return q
+
+
+_EXACT_WEIGHT = 1e4  # weight of the kept component against the minimised one (per m / per rad)
+
+
+def axis_solve(robot: Robot, q: np.ndarray, T_target: np.ndarray, fixed: int, exact: str,
+               iterations: int = 25) -> np.ndarray:
+    """Joints with ``q[fixed]`` held: one pose component exact, the other's error minimised.
+
+    Gauss-Newton on the weighted residual ``[w_p (p - p*), w_o log3(R*^T R)]`` over the free
+    joints, with Pinocchio's Jacobian and ``Jlog3``; then the kept component is made exact by
+    the three joints that control it (arm joints for the position, wrist joints for the
+    orientation). SEEDS 000: wrist zone -> A4 held, position exact; shoulder -> A1 held,
+    orientation exact; elbow -> A2 held, orientation exact.
+    """
+    q = np.array(q, dtype=float)
+    free = [j for j in range(robot.n_joints) if j != fixed]
+    w = np.array([_EXACT_WEIGHT] * 3 + [1.0] * 3) if exact == "position" else np.array([1.0] * 3 + [_EXACT_WEIGHT] * 3)
+    p_star, R_star = T_target[:3, 3], T_target[:3, :3]
+    for _ in range(iterations):
+        T = robot.fk(q)
+        M = R_star.T @ T.rotation
+        r = w * np.concatenate([T.translation - p_star, pin.log3(M)])
+        J = robot.jacobian(q)
+        Jr = np.vstack([J[:3], pin.Jlog3(M) @ T.rotation.T @ J[3:]])[:, free] * w[:, None]
+        step = np.linalg.lstsq(Jr, -r, rcond=None)[0]
+        q[free] += step
+        if float(np.max(np.abs(step))) < 1e-13:
+            break
+    if exact == "position":
+        return position_solve(robot, q, p_star)
+    return orientation_solve(robot, q, R_star)
+
+
+def orientation_solve(robot: Robot, q: np.ndarray, R_target: np.ndarray, tol_rad: float = 1e-13,
+                      iterations: int = 30) -> np.ndarray:
+    """Move the wrist joints (the last three) so the TCP orientation is ``R_target``."""
+    q = np.array(q, dtype=float)
+    wrist = slice(robot.n_joints - 3, robot.n_joints)
+    for _ in range(iterations):
+        T = robot.fk(q)
+        err = pin.log3(T.rotation.T @ R_target)  # body frame
+        if float(np.linalg.norm(err)) < tol_rad:
+            break
+        Jw = T.rotation.T @ robot.jacobian(q)[3:, wrist]
+        q[wrist] += Jw.T @ np.linalg.solve(Jw @ Jw.T + _DAMPING * np.eye(3), err)
     return q

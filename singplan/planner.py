@@ -20,8 +20,8 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.configuration import classify, parse_configuration, singularity_distances
-from singplan.crossing import METHODS_AVAILABLE, Crossing, CrossingMethod, Exact, MoveContext, WristJoint, refit
-from singplan.errors import InputError, JointLimitError, PlanningError, SingularityError, UnreachableError
+from singplan.crossing import METHODS_AVAILABLE, Axis, Crossing, CrossingMethod, Exact, MoveContext, WristJoint, refit
+from singplan.errors import JointLimitError, PlanningError, SingularityError, UnreachableError
 from singplan.ik import solve_all
 from singplan.jointmap import JointMap, JointPart
 from singplan.path import CartesianPiece, make_circ, make_lin, rpy_deg_to_rotation
@@ -57,12 +57,11 @@ def candidate_methods(name: str, move: Move) -> list[CrossingMethod]:
     """The methods to try on a move: one, or for ``auto`` every pose-keeping candidate."""
     target = move.config if move.config not in ("auto", "keep") else None
     if name == "auto":
-        return [Exact(), WristJoint(target)]
+        return [Exact(), WristJoint(target), Axis(target)]
     if name == "wrist-joint":
         return [WristJoint(target)]
-    if name not in METHODS_AVAILABLE:
-        raise InputError(f"singularity.method: {name!r} is not available in this version; "
-                         f"available: auto, {', '.join(sorted(METHODS_AVAILABLE))}")
+    if name == "axis":
+        return [Axis(target)]
     return [METHODS_AVAILABLE[name]]
 
 

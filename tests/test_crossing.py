@@ -1,0 +1,124 @@
+"""Crossing methods: exact positions, honest deviations, C1 seams, baselines that fail loudly."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from singplan.errors import PlanningError
+from singplan.ik import solve_all
+from singplan.planner import candidate_methods, load_task_robot, plan
+from singplan.robot import load_robot
+from singplan.task import load_task, parse_task
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+NEAR_MISS = EXAMPLES / "abb_near_miss_auto.yaml"
+
+
+def _independent_deviation(traj, task_path: Path, move: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Distance of each sample of a single-LIN task from its line [m] and its tilt from the
+    (constant) programmed orientation [rad], recomputed from the task and the samples."""
+    task = load_task(task_path)
+    robot = load_task_robot(task)
+    a = robot.fk(np.radians(task.start_joints_deg))
+    b = np.array(task.moves[move].to.xyz)
+    d = b - a.translation
+    pos, ori = [], []
+    for q in traj.q:
+        T = robot.fk(q)
+        s = float(np.clip((T.translation - a.translation) @ d / (d @ d), 0.0, 1.0))
+        pos.append(np.linalg.norm(T.translation - a.translation - s * d))
+        ori.append(np.linalg.norm(pin.log3(a.rotation.T @ T.rotation)))
+    return np.array(pos), np.array(ori)
+
+
+@pytest.mark.parametrize("method", ["wrist-joint", "axis"])
+def test_wrist_crossings_keep_the_position_exact_and_report_the_true_deviation(method: str) -> None:
+    traj = plan(NEAR_MISS, method=method)
+    pos, ori = _independent_deviation(traj, NEAR_MISS)
+    assert pos.max() < 1e-9  # TCP on the line everywhere, crossing included
+    crossing = next(s for s in traj.segments if s.kind == "crossing")
+    assert crossing.method == method and crossing.config_before != crossing.config_after
+    assert 0.01 < math.degrees(ori.max()) < 2.0  # it did deviate, within the task's tolerance
+    assert crossing.details["max_orientation_error_deg"] == pytest.approx(math.degrees(ori.max()), abs=1e-6)
+    assert traj.metrics["max_orientation_error_deg"] == pytest.approx(math.degrees(ori.max()), abs=1e-6)
+
+
+@pytest.mark.parametrize("method", ["wrist-joint", "axis"])
+def test_crossing_seams_are_c1(method: str) -> None:
+    from singplan.planner import _plan_move  # the joint map before timing
+
+    task = load_task(NEAR_MISS).with_method(method)
+    robot = load_task_robot(task)
+    q0 = np.radians(task.start_joints_deg)
+    pm = _plan_move(robot, task, 0, task.moves[0], robot.fk(q0), q0, candidate_methods(method, task.moves[0])[0])
+    part = next(p for p in pm.jmap.parts if p.kind in ("blend", "axis"))
+    h = 1e-5
+    for u in (part.u0, part.u1):
+        if u in (0.0, 1.0):
+            continue
+        q = pm.jmap.evaluate(np.array([u - h, u, u + h]))
+        left, right = (q[1] - q[0]) / h, (q[2] - q[1]) / h
+        assert np.max(np.abs(left - right)) <= 0.02 * max(1.0, float(np.max(np.abs(left)))), (u, left, right)
+
+
+def test_auto_prefers_a_crossing_and_reports_the_runner_up() -> None:
+    traj = plan(NEAR_MISS)
+    crossing = next(s for s in traj.segments if s.kind == "crossing")
+    alternatives = crossing.details["alternatives"]
+    assert crossing.method in ("wrist-joint", "axis")
+    feasible = [a for a in alternatives if a["feasible"]]
+    assert feasible[0]["method"] == crossing.method
+    assert feasible[0]["duration_s"] == pytest.approx(traj.duration_s)
+    exact = next(a for a in alternatives if a["method"] == "exact")
+    assert exact["duration_s"] > traj.duration_s  # the swing costs exact tracking time
+
+
+def _shoulder_near_miss(miss_m: float) -> dict:
+    """An IRB 2400 LIN passing ``miss_m`` beside axis 1 (wrist centre over the base)."""
+    robot = load_robot("abb_irb2400", tool=pin.SE3(np.eye(3), np.array([0, 0, 0.1])))
+
+    def wrist_x(q2: float) -> float:
+        return float(robot.wrist_center(np.array([0.0, q2, 0.3, 0.5, 0.6, 0.2]))[0])
+
+    lo, hi = -1.7, 0.0  # bisect q2 so the wrist centre sits on axis 1
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if (wrist_x(lo) > 0) == (wrist_x(mid) > 0) else (lo, mid)
+    q_mid = np.array([0.0, 0.5 * (lo + hi), 0.3, 0.5, 0.6, 0.2])
+    T = robot.fk(q_mid)
+    side = np.array([0.0, miss_m, 0.0])
+    start = pin.SE3(T.rotation, T.translation - np.array([0.1, 0, 0]) + side)
+    sols = solve_all(robot, start, seed=q_mid)
+    q0 = sols.nearest(q_mid)
+    return {"robot": "abb_irb2400", "tool": {"xyz": [0, 0, 0.1]}, "start": {"joints_deg": list(np.degrees(q0))},
+            "moves": [{"lin": {"to": {"xyz": list(T.translation + np.array([0.1, 0, 0]) + side),
+                                      "rpy_deg": list(np.degrees(pin.rpy.matrixToRpy(T.rotation)))}}}],
+            "singularity": {"method": "axis", "position_tolerance_mm": 2.0}}
+
+
+def test_axis_at_the_shoulder_keeps_the_orientation_and_leaves_the_path_by_about_the_miss() -> None:
+    traj = plan(parse_task(_shoulder_near_miss(0.0002)))
+    crossing = [s for s in traj.segments if s.kind == "crossing"]
+    assert [(s.singularity, s.method) for s in crossing] == [("shoulder", "axis")]
+    assert crossing[0].config_before[0] != crossing[0].config_after[0]  # front <-> back
+    assert traj.metrics["max_orientation_error_deg"] < 1e-6  # the kept component
+    assert 0.1 < traj.metrics["max_position_error_mm"] < 0.3  # the minimised one: about the 0.2 mm miss
+
+
+def test_auto_keeps_exact_tracking_when_the_tolerance_is_tight() -> None:
+    doc = _shoulder_near_miss(0.0002)
+    doc["singularity"] = {"method": "auto", "position_tolerance_mm": 0.01}
+    with pytest.raises(PlanningError, match="exact"):
+        plan(parse_task(doc))  # exact breaks a joint limit here and axis breaks the tolerance
+
+
+@pytest.mark.parametrize("method", ["ptp", "dls", "average"])
+def test_baselines_leave_the_path_and_say_so(method: str) -> None:
+    with pytest.raises(PlanningError) as info:
+        plan(NEAR_MISS, method=method)
+    assert "move 0" in str(info.value)

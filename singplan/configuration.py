@@ -26,6 +26,7 @@ crosses zero, and there the Jacobian loses rank (tested).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import NamedTuple
@@ -199,3 +200,30 @@ def label_and_distances(robot: Robot, q: np.ndarray) -> tuple[Configuration, Sin
     """Both at once (one forward kinematics), for sampling along paths."""
     d = singularity_distances(robot, q)
     return _label(d.wrist_rad, d.shoulder_m, d.elbow_rad), d
+
+
+def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """Signed (wrist [rad], shoulder [m], elbow [rad]) distances of many samples q (N, n).
+
+    For OPW arms this is closed form and vectorised, from the OPW joint angles: the wrist
+    distance is q5 (axes 4 and 6 meet at the wrist centre at that angle), the shoulder
+    distance is the wrist centre's forward coordinate in the arm plane,
+    ``a1 + c2 sin q2 + k sin(q2 + q3 + psi)`` with ``k = hypot(a2, c3)``, ``psi = atan2(a2, c3)``,
+    and the elbow distance is ``q3 + psi``, the angle from the upper arm to the forearm.
+    These equal the frame-based definitions above (tested); other arms use those, per sample.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    p = robot.opw
+    if p is None:
+        return np.array([singularity_distances(robot, qk)[:3] for qk in q]).reshape(-1, 3)
+    t = q * np.asarray(p.sign_corrections) - np.asarray(p.offsets_rad)
+    psi = math.atan2(p.a2, p.c3)
+    k = math.hypot(p.a2, p.c3)
+    wrap = np.pi - np.mod(np.pi - np.stack([t[:, 4], t[:, 2] + psi], axis=1), 2 * np.pi)
+    shoulder = p.a1 + p.c2 * np.sin(t[:, 1]) + k * np.sin(t[:, 1] + t[:, 2] + psi)
+    return np.stack([wrap[:, 0], shoulder, wrap[:, 1]], axis=1)
+
+
+def labels_from_distances(d: np.ndarray) -> list[str]:
+    """Configuration labels of distance rows (N, 3): the sign of each distance."""
+    return [_label(float(w), float(s), float(e)).label for w, s, e in d]

@@ -19,14 +19,14 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from singplan.configuration import classify, parse_configuration, singularity_distances
+from singplan.configuration import classify, distances_batch, parse_configuration
 from singplan.crossing import METHODS_AVAILABLE, Axis, Crossing, CrossingMethod, Exact, MoveContext, WristJoint, refit
 from singplan.errors import JointLimitError, PlanningError, SingularityError, UnreachableError
 from singplan.ik import solve_all
 from singplan.jointmap import JointMap, JointPart
 from singplan.path import CartesianPiece, make_circ, make_lin, rpy_deg_to_rotation
 from singplan.robot import Robot, load_robot
-from singplan.singularity import Zone, distances_along, find_zones, thresholds_si
+from singplan.singularity import DistanceFunction, Zone, distances_along, find_zones, thresholds_si
 from singplan.task import Move, Task, check_against_robot, load_task
 from singplan.timing import MoveLimits, TimedMove, time_move
 from singplan.tracking import TrackedPath, track
@@ -259,10 +259,9 @@ def _first_crossing(method: CrossingMethod, ctx: MoveContext, found: list[Zone],
     return None
 
 
-def _refiner(robot: Robot, ref: JointMap) -> Callable[[float, int], float]:
-    def abs_distance(u: float, index: int) -> float:
-        q = ref.evaluate(np.array([u]))[0]
-        return abs(singularity_distances(robot, q)[index])
+def _refiner(robot: Robot, ref: JointMap) -> DistanceFunction:
+    def abs_distance(u: np.ndarray, index: int) -> np.ndarray:
+        return np.abs(distances_batch(robot, ref.evaluate(u))[:, index])
 
     return abs_distance
 

@@ -4,7 +4,7 @@ Per sample, the signed distances of :mod:`singplan.configuration` (wrist and elb
 [rad], shoulder distance [m]). A zone of one kind is a maximal run of the path where its
 |distance| is under the task's threshold; its entry and exit (SEEDS 000's points 48 and 50)
 are interpolated between samples. Each zone also records where the path comes closest to
-the singularity and how close, refined between samples by a golden-section search.
+the singularity and how close, refined between samples by zooming in on a vectorised grid.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from singplan.configuration import label_and_distances
+from singplan.configuration import distances_batch, labels_from_distances
 from singplan.robot import Robot
 from singplan.task import ZoneThresholds
 
@@ -58,16 +58,15 @@ def thresholds_si(zone: ZoneThresholds) -> np.ndarray:
 
 def distances_along(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, list[str]]:
     """Signed (wrist, shoulder, elbow) distances (N, 3) and labels at joint samples q (N, n)."""
-    rows, labels = [], []
-    for qk in q:
-        label, d = label_and_distances(robot, qk)
-        rows.append((d.wrist_rad, d.shoulder_m, d.elbow_rad))
-        labels.append(label.label)
-    return np.array(rows).reshape(-1, 3), labels
+    d = distances_batch(robot, q)
+    return d, labels_from_distances(d)
+
+
+DistanceFunction = Callable[[np.ndarray, int], np.ndarray]  # (u (M,), kind index) -> |distance| (M,)
 
 
 def find_zones(u: np.ndarray, dist: np.ndarray, thresholds: np.ndarray,
-               abs_distance_at: Callable[[float, int], float] | None = None) -> list[Zone]:
+               abs_distance_at: DistanceFunction | None = None) -> list[Zone]:
     """Zones from sampled distances; ``abs_distance_at(u, index)`` refines the closest point."""
     zones = []
     for kind in KINDS:
@@ -96,33 +95,29 @@ def _crossing_u(u: np.ndarray, d: np.ndarray, thr: float, a: int, b: int) -> flo
 
 
 def _zone(kind: str, u: np.ndarray, d: np.ndarray, thr: float, start: int, end: int,
-          refine: Callable[[float, int], float] | None, index: int) -> Zone:
+          refine: DistanceFunction | None, index: int) -> Zone:
     u_entry = 0.0 if start == 0 else _crossing_u(u, d, thr, start - 1, start)
     u_exit = 1.0 if end == len(u) - 1 else _crossing_u(u, d, thr, end, end + 1)
     k = start + int(np.argmin(d[start:end + 1]))
     u_best, d_best = float(u[k]), float(d[k])
     if refine is not None:
         lo, hi = float(u[max(k - 1, 0)]), float(u[min(k + 1, len(u) - 1)])
-        u_ref, d_ref = _golden_min(lambda x: refine(x, index), lo, hi)
+        u_ref, d_ref = _zoom_min(lambda x: refine(x, index), lo, hi)
         if d_ref < d_best:
             u_best, d_best = u_ref, d_ref
     return Zone(kind, u_entry, u_exit, u_best, d_best, float(thr))
 
 
-def _golden_min(f: Callable[[float], float], lo: float, hi: float, iterations: int = 60) -> tuple[float, float]:
-    """Minimum of a unimodal f on [lo, hi]."""
-    g = (math.sqrt(5.0) - 1.0) / 2.0
-    a, b = lo, hi
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = f(c), f(d)
-    for _ in range(iterations):
-        if fc < fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = f(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = f(d)
-    x = 0.5 * (a + b)
-    return x, f(x)
+def _zoom_min(f: Callable[[np.ndarray], np.ndarray], lo: float, hi: float, points: int = 33,
+              levels: int = 8) -> tuple[float, float]:
+    """Minimum of f on [lo, hi]: evaluate a grid, zoom on the best cell, repeat (f is vectorised)."""
+    best_u, best_d = lo, math.inf
+    for _ in range(levels):
+        grid = np.linspace(lo, hi, points)
+        values = f(grid)
+        k = int(np.argmin(values))
+        if values[k] < best_d:
+            best_u, best_d = float(grid[k]), float(values[k])
+        step = (hi - lo) / (points - 1)
+        lo, hi = max(lo, grid[k] - step), min(hi, grid[k] + step)
+    return best_u, best_d

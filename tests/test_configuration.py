@@ -12,7 +12,9 @@ from hypothesis import strategies as st
 from singplan.configuration import (
     Configuration,
     classify,
+    distances_batch,
     label_and_distances,
+    labels_from_distances,
     parse_configuration,
     singularity_distances,
 )
@@ -79,6 +81,16 @@ def test_labels_flip_exactly_where_distances_change_sign_and_the_jacobian_drops_
                                float(ss[k]), float(ss[k + 1]), d0[dist_index])
                 sigma = singularity_distances(robot, at(root)).sigma_min
                 assert sigma < 1e-6, f"{part} label flips at s={root} where sigma_min={sigma}"
+
+
+@pytest.mark.parametrize("name", OPW_NAMES)
+def test_closed_form_opw_distances_equal_the_frame_based_ones(name: str) -> None:
+    robot = _ROBOTS[name]
+    rng = np.random.default_rng(7)
+    q = rng.uniform(np.maximum(robot.lower_rad, -np.pi), np.minimum(robot.upper_rad, np.pi), size=(300, 6))
+    frames = np.array([singularity_distances(robot, qk)[:3] for qk in q])
+    np.testing.assert_allclose(distances_batch(robot, q), frames, atol=1e-12)
+    assert labels_from_distances(distances_batch(robot, q)) == [classify(robot, qk).label for qk in q]
 
 
 def test_classify_matches_label_and_distances() -> None:

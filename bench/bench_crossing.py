@@ -19,7 +19,9 @@ Every result is measured here by the same code, independently of the method: the
 distance of a sample from the programmed line, the largest tilt from the programmed
 (slerped) orientation at the nearest point, the largest joint speed over its limit, the
 duration and the planning time per output sample. "ok" means position within the task's
-tolerance, orientation within its tolerance and joint speeds and accelerations within limits.
+tolerance, orientation within its tolerance, joint positions, speeds and accelerations within
+limits, and the move ending at its target. "plan" is the whole planning time (for singplan:
+IK, detection, crossing and timing; ``auto`` plans every candidate) per output sample.
 """
 
 from __future__ import annotations
@@ -108,11 +110,12 @@ def measure(robot: Robot, task: Task, q: np.ndarray, period: float, seconds: flo
     speed = float(np.max(np.abs(qd) / vmax))
     accel = float(np.max(np.abs(qdd) / robot.acceleration_rad_s2))
     end_err = float(np.linalg.norm(robot.fk(q[-1]).translation - p_b))
-    ok = (pos * 1e3 <= task.singularity.position_tolerance_mm and
+    inside = bool(np.all(q >= robot.lower_rad - 1e-9) and np.all(q <= robot.upper_rad + 1e-9))
+    ok = inside and (pos * 1e3 <= task.singularity.position_tolerance_mm and
           math.degrees(ori) <= task.singularity.orientation_tolerance_deg + 1e-9 and
           speed <= 1.005 and accel <= 1.02 and end_err * 1e3 <= task.singularity.position_tolerance_mm)
-    return Result(ok, pos * 1e3, math.degrees(ori), speed, accel, (len(q) - 1) * period, seconds / len(q) * 1e6,
-                  "" if end_err < 1e-4 else f"ends {end_err * 1e3:.1f} mm short")
+    note = "outside joint limits" if not inside else ("" if end_err < 1e-4 else f"ends {end_err * 1e3:.1f} mm short")
+    return Result(ok, pos * 1e3, math.degrees(ori), speed, accel, (len(q) - 1) * period, seconds / len(q) * 1e6, note)
 
 
 def _path_pose(task: Task, a: pin.SE3, s: float) -> pin.SE3:

@@ -178,13 +178,14 @@ class WristJoint:
 
     name = "wrist-joint"
 
-    def __init__(self, target: str | None = None) -> None:
+    def __init__(self, target: str | None = None, widen: float = 1.0) -> None:
         self.target = target  # a configuration label the zone must end in, or None for the nearest
+        self.widen = widen  # the blend spans the zone stretched by this factor about its closest point
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
         if zone.kind != "wrist":
             return Exact().cross(ctx, zone)  # other kinds: as exact tracking does
-        a, b = _zone_span(ctx, zone)
+        a, b = _zone_span(ctx, _widened(zone, self.widen))
         if b <= a:
             return None
         u = ctx.tracked.u
@@ -197,6 +198,13 @@ class WristJoint:
 def _letter(robot: Robot, q: np.ndarray, kind: str) -> str:
     c = classify(robot, q)
     return {"shoulder": c.shoulder, "elbow": c.elbow, "wrist": c.wrist}[kind]
+
+
+def _widened(zone: Zone, factor: float) -> Zone:
+    """The zone stretched about its closest point (clipped to the move)."""
+    entry = max(0.0, zone.u_closest - factor * (zone.u_closest - zone.u_entry))
+    exit_ = min(1.0, zone.u_closest + factor * (zone.u_exit - zone.u_closest))
+    return Zone(zone.kind, entry, exit_, zone.u_closest, zone.min_distance, zone.threshold)
 
 
 def _zone_span(ctx: MoveContext, zone: Zone) -> tuple[int, int]:

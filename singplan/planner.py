@@ -50,16 +50,26 @@ class PlannedMove:
     zones: tuple[Zone, ...] = ()
     crossings: tuple[Crossing, ...] = ()
     method: str = "exact"
+    variant: str = ""  # e.g. the wrist-joint blend window
     alternatives: tuple[dict[str, Any], ...] = ()  # what auto compared, fastest first
 
 
+WRIST_JOINT_WINDOWS = (1.0, 1.5, 2.5)  # blend spans, as multiples of the detected zone
+
+
 def candidate_methods(name: str, move: Move) -> list[CrossingMethod]:
-    """The methods to try on a move: one, or for ``auto`` every pose-keeping candidate."""
+    """The methods to try on a move: one, or for ``auto`` every pose-keeping candidate.
+
+    ``wrist-joint`` is tried with a few blend windows: a wider one spreads the wrist's change
+    of branch over more path (less acceleration) at the price of more orientation deviation;
+    the fastest within the tolerances wins.
+    """
     target = move.config if move.config not in ("auto", "keep") else None
+    wrist_joint: list[CrossingMethod] = [WristJoint(target, w) for w in WRIST_JOINT_WINDOWS]
     if name == "auto":
-        return [Exact(), WristJoint(target), Axis(target)]
+        return [Exact(), *wrist_joint, Axis(target)]
     if name == "wrist-joint":
-        return [WristJoint(target)]
+        return wrist_joint
     if name == "axis":
         return [Axis(target)]
     return [METHODS_AVAILABLE[name]]
@@ -108,6 +118,8 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
     results: list[tuple[PlannedMove, TimedMove]] = []
     failures: list[tuple[str, PlanningError]] = []
     for method in methods:
+        if results and not results[0][0].zones:
+            break  # nothing to cross: every method gives this same motion
         try:
             pm = _plan_move(robot, task, i, move, T, q, method)
             tm = time_move(pm.jmap, pm.limits, task.period_s, i)
@@ -116,9 +128,7 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
         except PlanningError as exc:
             failures.append((method.name, exc))
             continue
-        results.append((replace(pm, method=method.name), tm))
-        if not pm.zones:
-            break  # nothing to cross: every method gives this same motion
+        results.append((replace(pm, method=method.name, variant=_variant(method)), tm))
     if not results:
         unreachable: list[PlanningError] = [exc for _, exc in failures if isinstance(exc, UnreachableError)]
         if len(failures) == 1 or unreachable:  # the path itself fails: no method can help
@@ -126,10 +136,16 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
         raise PlanningError(f"move {i} ({move.kind}): no method could plan it: "
                             + "; ".join(f"{name}: {exc}" for name, exc in failures))
     results.sort(key=lambda r: r[1].duration_s)
-    alternatives = tuple([{"method": r[0].method, "duration_s": r[1].duration_s, "feasible": True} for r in results]
+    alternatives = tuple([{"method": r[0].method, "variant": r[0].variant, "duration_s": r[1].duration_s,
+                           "feasible": True} for r in results]
                          + [{"method": name, "feasible": False, "reason": str(exc)} for name, exc in failures])
     best_pm, best_tm = results[0]
     return replace(best_pm, alternatives=alternatives if len(methods) > 1 else ()), best_tm
+
+
+def _variant(method: CrossingMethod) -> str:
+    widen = getattr(method, "widen", None)
+    return f"window x{widen:g}" if widen is not None else ""
 
 
 def _check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove) -> None:

@@ -83,29 +83,51 @@ class BranchCandidates:
 
 def nearest_candidate(candidates: np.ndarray, q_prev: np.ndarray) -> tuple[np.ndarray, float]:
     """The candidate (shifted by whole turns) nearest ``q_prev``, and its max-norm distance."""
+    best, dist, _ = _nearest(candidates, q_prev)
+    return best, dist
+
+
+def _nearest(candidates: np.ndarray, q_prev: np.ndarray) -> tuple[np.ndarray, float, int]:
+    """As :func:`nearest_candidate`, plus the candidate's row index (-1 when none)."""
     finite = np.all(np.isfinite(candidates), axis=1)
     if not finite.any():
-        return np.full_like(q_prev, np.nan), math.inf
-    c = candidates[finite]
-    shifted = c + TWO_PI * np.round((q_prev - c) / TWO_PI)
-    dist = np.max(np.abs(shifted - q_prev), axis=1)
+        return np.full_like(q_prev, np.nan), math.inf, -1
+    shifted = candidates + TWO_PI * np.round((q_prev - candidates) / TWO_PI)
+    dist = np.where(finite, np.max(np.abs(shifted - q_prev), axis=1), np.inf)
     k = int(np.argmin(dist))
-    return shifted[k], float(dist[k])
+    return shifted[k], float(dist[k]), k
 
 
 def _select(cands: BranchCandidates, u: np.ndarray, q0: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray]:
-    """Follow the nearest candidate from q0; returns q (N, n) and the step before each sample."""
+    """Follow the nearest candidate from q0; returns q (N, n) and the step before each sample.
+
+    Between branch changes the same branch row is followed for a whole run at once
+    (unwrapped along the samples); only where a step is large, or the branch ends, is the
+    nearest candidate among all branches searched again.
+    """
+    C = np.stack([cands.cache[float(x)] for x in u])  # (N, B, n)
     q = np.empty((len(u), len(q0)))
     steps = np.zeros(len(u))
-    q_prev = q0
-    for k, x in enumerate(u):
-        best, dist = nearest_candidate(cands.cache[float(x)], q_prev)
+    k, q_prev = 0, q0
+    while k < len(u):
+        best, dist, row = _nearest(C[k], q_prev)
         if dist > max_step:  # at a singular sample the free joints may need the previous values
-            best2, dist2 = nearest_candidate(cands.exact(float(x), q_prev), q_prev)
+            best2, dist2, _ = _nearest(cands.exact(float(u[k]), q_prev), q_prev)
             if dist2 < dist:
-                best, dist = best2, dist2
+                best, dist, row = best2, dist2, -1
         q[k], steps[k] = best, dist
-        q_prev = best if np.all(np.isfinite(best)) else q_prev
+        if not np.all(np.isfinite(best)):
+            q[k + 1:], steps[k + 1:] = np.nan, np.inf
+            break
+        k += 1
+        if row >= 0 and k < len(u):
+            run = np.unwrap(np.vstack([best, C[k:, row]]), axis=0)[1:]
+            d = np.max(np.abs(np.diff(np.vstack([best, run]), axis=0)), axis=1)
+            bad = np.nonzero(~np.isfinite(d) | (d > max_step))[0]
+            good = int(bad[0]) if bad.size else len(run)
+            q[k:k + good], steps[k:k + good] = run[:good], d[:good]
+            k += good
+        q_prev = q[k - 1]
     return q, steps
 
 

@@ -50,6 +50,7 @@ class BranchCandidates:
         self.robot = robot
         self.poses = poses
         self.cache: dict[float, np.ndarray] = {}
+        self.free: dict[float, bool] = {}  # a branch sits on a singularity: some joints are free
         self.T_tool_inv = robot.T_tip_tcp.inverse().homogeneous
 
     def fill(self, u: np.ndarray) -> None:
@@ -66,6 +67,17 @@ class BranchCandidates:
             sols = np.full((len(todo), 0, self.robot.n_joints), np.nan)
         for x, s in zip(todo, sols, strict=True):
             self.cache[float(x)] = s
+            self.free[float(x)] = self._has_free_joints(s)
+
+    def _has_free_joints(self, sols: np.ndarray) -> bool:
+        """True where a branch is (numerically) wrist- or shoulder-singular, or none is known."""
+        if sols.shape[0] == 0:
+            return True  # no closed form: every sample is solved from its predecessor
+        q5 = sols[:, 4]
+        if self.robot.opw is not None:
+            p = self.robot.opw
+            q5 = q5 * p.sign_corrections[4] - p.offsets_rad[4]
+        return bool(np.nanmin(np.abs(np.sin(q5)), initial=1.0) < 1e-9)
 
     def exact(self, u: float, seed: np.ndarray) -> np.ndarray:
         """Branches of one pose, solved with ``seed`` for the free joints at a singularity."""
@@ -111,7 +123,7 @@ def _select(cands: BranchCandidates, u: np.ndarray, q0: np.ndarray, max_step: fl
     k, q_prev = 0, q0
     while k < len(u):
         best, dist, row = _nearest(C[k], q_prev)
-        if dist > max_step:  # at a singular sample the free joints may need the previous values
+        if dist > max_step and cands.free[float(u[k])]:  # free joints take the previous values
             best2, dist2, _ = _nearest(cands.exact(float(u[k]), q_prev), q_prev)
             if dist2 < dist:
                 best, dist, row = best2, dist2, -1

@@ -185,7 +185,8 @@ class WristJoint:
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
         if zone.kind != "wrist":
             return Exact().cross(ctx, zone)  # other kinds: as exact tracking does
-        a, b = _zone_span(ctx, _widened(zone, self.widen))
+        zone = _widened(zone, self.widen)  # the crossing (and its segment) spans the blend
+        a, b = _zone_span(ctx, zone)
         if b <= a:
             return None
         u = ctx.tracked.u

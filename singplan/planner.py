@@ -271,6 +271,7 @@ def _first_crossing(method: CrossingMethod, ctx: MoveContext, found: list[Zone],
         zones.append(zone)
         crossing = method.cross(ctx, zone)
         if crossing is not None:
+            zones[-1] = crossing.zone  # a crossing may span more than the detected zone
             return crossing
     return None
 

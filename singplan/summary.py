@@ -29,8 +29,32 @@ def summary(traj: Trajectory, task: Task) -> str:
                          f"method {s.method} {how}, {s.config_before} -> {s.config_after}, "
                          f"dev {d['max_position_error_mm']:.4f} mm / {d['max_orientation_error_deg']:.4f} deg, "
                          f"time lost {d['time_lost_s']:.3f} s")
+            choice = _choice(d.get("alternatives") or [])
+            if choice:
+                lines.append(f"        {choice}")
     m = traj.metrics
     lines.append(f"metrics: position error {m['max_position_error_mm']:.5f} mm, orientation error "
                  f"{m['max_orientation_error_deg']:.5f} deg, joint speed x{m['max_joint_speed_ratio']:.3f}, "
                  f"joint accel x{m['max_joint_accel_ratio']:.3f}, planning {m['planning_time_s']:.2f} s")
     return "\n".join(lines) + "\n"
+
+
+def _choice(alternatives: list[dict[str, object]]) -> str:
+    """'auto chose X (n s); runner-up Y (m s), k s saved; infeasible: Z' from a crossing's alternatives."""
+    feasible = [a for a in alternatives if a.get("feasible")]
+    if len(alternatives) < 2 or not feasible:
+        return ""
+
+    def name(a: dict[str, object]) -> str:
+        return f"{a['method']}{' ' + str(a['variant']) if a.get('variant') else ''}"
+
+    best = feasible[0]
+    text = f"auto chose {name(best)} ({float(best['duration_s']):.3f} s move)"  # type: ignore[arg-type]
+    others = [a for a in feasible[1:] if a["method"] != best["method"]] or feasible[1:]
+    if others:
+        saved = float(others[0]["duration_s"]) - float(best["duration_s"])  # type: ignore[arg-type]
+        text += f"; runner-up {name(others[0])} ({float(others[0]['duration_s']):.3f} s), {saved:.3f} s saved"  # type: ignore[arg-type]
+    infeasible = sorted({str(a["method"]) for a in alternatives if not a.get("feasible")})
+    if infeasible:
+        text += f"; infeasible: {', '.join(infeasible)}"
+    return text

@@ -94,15 +94,10 @@ class Trajectory:
         return {
             "format": FORMAT, "robot": self.robot, "urdf": self.urdf, "tip": self.tip, "tool": self.tool,
             "task": self.task, "joint_names": list(self.joint_names), "period": self.period,
-            "t": _rounded(self.t), "q": _rounded(self.q), "qd": _rounded(self.qd), "qdd": _rounded(self.qdd),
+            "t": self.t.tolist(), "q": self.q.tolist(), "qd": self.qd.tolist(), "qdd": self.qdd.tolist(),
             "segments": [s.to_json() for s in self.segments], "events": [e.to_json() for e in self.events],
             "metrics": _jsonable(self.metrics),
         }
-
-
-def _rounded(a: np.ndarray) -> Any:
-    """Full double precision (repr round-trips), as nested lists."""
-    return a.tolist()
 
 
 def _jsonable(value: Any) -> Any:

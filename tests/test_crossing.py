@@ -122,3 +122,11 @@ def test_baselines_leave_the_path_and_say_so(method: str) -> None:
     with pytest.raises(PlanningError) as info:
         plan(NEAR_MISS, method=method)
     assert "move 0" in str(info.value)
+
+
+def test_summary_names_the_choice_the_runner_up_and_the_time_saved() -> None:
+    from singplan.summary import summary
+
+    task = load_task(NEAR_MISS)
+    text = summary(plan(task), task)
+    assert "auto chose" in text and "runner-up" in text and "s saved" in text

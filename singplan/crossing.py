@@ -28,6 +28,7 @@ import pinocchio as pin
 from singplan.configuration import classify
 from singplan.errors import SingularityError
 from singplan.jointmap import JointMap, JointPart, hermite
+from singplan.path import CartesianPiece
 from singplan.robot import Robot
 from singplan.singularity import Zone
 from singplan.task import SingularitySettings
@@ -49,12 +50,11 @@ class MoveContext:
     robot: Robot
     move_index: int
     move_kind: str
-    poses: PoseFunction
+    piece: CartesianPiece
     tracked: TrackedPath
     distances: np.ndarray  # (N, 3) signed (wrist, shoulder, elbow) at tracked.u
     labels: list[str]
     settings: SingularitySettings
-    length_m: float
 
 
 @dataclass(frozen=True)
@@ -78,21 +78,17 @@ class CrossingMethod(Protocol):
         ...
 
 
-def _where(ctx: MoveContext, u: float) -> str:
-    p = ctx.poses(np.array([u]))[0][:3, 3]
-    return f"s = {u * ctx.length_m * 1e3:.1f} mm along the path (xyz {p[0]:.4f} {p[1]:.4f} {p[2]:.4f} m)"
-
-
 class Stop:
     """Refuse at every singular zone."""
 
     name = "stop"
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
+        where, closest = ctx.piece.describe(zone.u_entry), ctx.piece.describe(zone.u_closest)
         raise SingularityError(
-            f"move {ctx.move_index} ({ctx.move_kind}): {zone.kind} singular zone at {_where(ctx, zone.u_entry)}, "
-            f"closest {zone.describe_distance()} at {_where(ctx, zone.u_closest)}; method 'stop' refuses to cross",
-            move=ctx.move_index, kind=zone.kind, s_m=zone.u_entry * ctx.length_m)
+            f"move {ctx.move_index} ({ctx.move_kind}): {zone.kind} singular zone at {where}, "
+            f"closest {zone.describe_distance()} at {closest}; method 'stop' refuses to cross",
+            move=ctx.move_index, kind=zone.kind, s_m=zone.u_entry * ctx.piece.length_m)
 
 
 class Exact:
@@ -136,7 +132,7 @@ def through(ctx: MoveContext, zone: Zone, method: str) -> Crossing | None:
 
 def exit_candidates(ctx: MoveContext, u: float) -> list[np.ndarray]:
     """Every IK branch of the path pose at ``u``."""
-    cands = BranchCandidates(ctx.robot, ctx.poses)
+    cands = BranchCandidates(ctx.robot, ctx.piece.poses)
     cands.fill(np.array([u]))
     return [c for c in cands.cache[u] if np.all(np.isfinite(c))]
 
@@ -145,14 +141,15 @@ def blend_crossing(ctx: MoveContext, zone: Zone, method: str, a: int, u_b: float
                    slope_exit: np.ndarray | None = None) -> Crossing:
     """A Hermite blend from tracked sample ``a`` to ``q_exit`` at ``u_b``, position re-solved.
 
-    The entry slope is the tracked path's; the exit slope defaults to the chord (the planner
-    replaces it by the slope of the continuing path once that is tracked, see :func:`refit`).
+    The entry slope is the tracked path's; the exit slope is the chord until the planner, once
+    the continuing path is tracked, replaces it by that path's slope and samples the blend
+    densely (:func:`refit`).
     """
     u, q = ctx.tracked.u, ctx.tracked.q
     slope_a = (q[a] - q[a - 1]) / (u[a] - u[a - 1]) if a > 0 else (q_exit - q[a]) / (u_b - u[a])
     slope_b = (q_exit - q[a]) / (u_b - u[a]) if slope_exit is None else slope_exit
     ends = JointPart("blend", np.array([u[a], u_b]), np.array([q[a], q_exit]), np.array([slope_a, slope_b]))
-    return Crossing(zone, method, refit(ctx.robot, ctx.poses, ends, ctx.length_m), q_exit)
+    return Crossing(zone, method, ends, q_exit)
 
 
 def refit(robot: Robot, poses: PoseFunction, part: JointPart, length_m: float,
@@ -263,8 +260,8 @@ class Axis:
         slope_a = (q[a] - q[a - 1]) / (u[a] - u[a - 1]) if a > 0 else (q_exit - q[a]) / (u[b] - u[a])
         slopes = np.array([slope_a, (q_exit - q[a]) / (u[b] - u[a])])
         ends = JointPart("axis", np.array([u[a], u[b]]), np.array([q[a], q_exit]), slopes, fixed, exact)
-        dense_u = np.linspace(u[a], u[b], max(9, math.ceil((u[b] - u[a]) * ctx.length_m / _BLEND_STEP_M) + 1))
-        dense_q = JointMap(ctx.robot, ctx.poses, [ends]).solve_axis(ends, dense_u)
+        dense_u = np.linspace(u[a], u[b], max(9, math.ceil((u[b] - u[a]) * ctx.piece.length_m / _BLEND_STEP_M) + 1))
+        dense_q = JointMap(ctx.robot, ctx.piece.poses, [ends]).solve_axis(ends, dense_u)
         return Crossing(zone, self.name, JointPart("axis", dense_u, dense_q, slopes, fixed, exact), dense_q[-1])
 
 
@@ -323,9 +320,9 @@ class Dls:
         if b <= a:
             return None
         u_all = ctx.tracked.u
-        steps = max(2, math.ceil((u_all[b] - u_all[a]) * ctx.length_m / _BLEND_STEP_M))
+        steps = max(2, math.ceil((u_all[b] - u_all[a]) * ctx.piece.length_m / _BLEND_STEP_M))
         u = np.linspace(u_all[a], u_all[b], steps + 1)
-        targets = ctx.poses(u)
+        targets = ctx.piece.poses(u)
         q = np.empty((len(u), ctx.robot.n_joints))
         q[0] = ctx.tracked.q[a]
         for k in range(1, len(u)):

@@ -92,6 +92,11 @@ class CartesianPiece:
         T = self.poses(np.array([u]))[0]
         return pin.SE3(T[:3, :3], T[:3, 3])
 
+    def describe(self, u: float) -> str:
+        """A point of the path for messages: arc length and position."""
+        p = self.positions(np.array([u]))[0]
+        return f"s = {u * self.length_m * 1e3:.1f} mm along the path (xyz {p[0]:.4f} {p[1]:.4f} {p[2]:.4f} m)"
+
     def sample_count(self, step_m: float, step_rad: float) -> int:
         """Number of intervals so that each one moves at most ``step_m`` and turns ``step_rad``."""
         return max(2, math.ceil(self.length_m / step_m), math.ceil(self.rotation_rad / step_rad))

@@ -161,7 +161,7 @@ def _check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove) 
     assert pm.piece is not None
     raise SingularityError(
         f"move {pm.index} ({pm.kind}): the crossing {where}deviates {pos[k] * 1e3:.4f} mm / "
-        f"{math.degrees(ori[k]):.4f} deg at {_where(pm.piece, float(tm.u[k]))}, over the tolerance "
+        f"{math.degrees(ori[k]):.4f} deg at {pm.piece.describe(float(tm.u[k]))}, over the tolerance "
         f"{task.singularity.position_tolerance_mm:g} mm / {task.singularity.orientation_tolerance_deg:g} deg",
         move=pm.index, kind=zone.kind if zone else "path", s_m=float(tm.u[k]) * pm.piece.length_m)
 
@@ -237,14 +237,14 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
     while True:
         tracked = track(robot, piece.poses, np.concatenate([[u_from], grid[grid > u_from + 1e-12]]), q_from)
         _check_tracked(robot, i, move, piece, tracked)
-        if parts and parts[-1].kind == "blend" and len(tracked.u) > 1:  # C1 seam at the crossing's exit
-            slope = (tracked.q[1] - tracked.q[0]) / (tracked.u[1] - tracked.u[0])
+        if parts and parts[-1].kind == "blend":  # sample the crossing, C1 at its exit
+            slope = (tracked.q[1] - tracked.q[0]) / (tracked.u[1] - tracked.u[0]) if len(tracked.u) > 1 else None
             parts[-1] = refit(robot, piece.poses, parts[-1], piece.length_m, slope)
             _check_limits(robot, i, move, piece, parts[-1].u, parts[-1].q, zones)
         dist, labels = distances_along(robot, tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref))
-        ctx = MoveContext(robot, i, move.kind, piece.poses, tracked, dist, labels, task.singularity, piece.length_m)
+        ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, labels, task.singularity)
         result = _first_crossing(method, ctx, found, zones, u_from)
         if result is None:
             parts.append(JointPart("track", tracked.u, tracked.q))
@@ -283,21 +283,16 @@ def _refiner(robot: Robot, ref: JointMap) -> DistanceFunction:
     return abs_distance
 
 
-def _where(piece: CartesianPiece, u: float) -> str:
-    p = piece.positions(np.array([u]))[0]
-    return f"s = {u * piece.length_m * 1e3:.1f} mm (xyz {p[0]:.4f} {p[1]:.4f} {p[2]:.4f} m)"
-
-
 def _check_tracked(robot: Robot, i: int, move: Move, piece: CartesianPiece, tracked: TrackedPath) -> None:
     if tracked.gap_index < 0:
         return
     k = tracked.gap_index + 1
     u = float(tracked.u[k])
     if not np.all(np.isfinite(tracked.q[k])):
-        raise UnreachableError(f"move {i} ({move.kind}): the path leaves the workspace at {_where(piece, u)}: "
+        raise UnreachableError(f"move {i} ({move.kind}): the path leaves the workspace at {piece.describe(u)}: "
                                f"no inverse kinematics solution there", move=i)
     raise PlanningError(f"move {i} ({move.kind}): no continuous joint motion follows the path at "
-                        f"{_where(piece, u)} (the inverse kinematics jumps by "
+                        f"{piece.describe(u)} (the inverse kinematics jumps by "
                         f"{math.degrees(tracked.max_step_rad):.1f} deg)")
 
 
@@ -314,7 +309,7 @@ def _check_limits(robot: Robot, i: int, move: Move, piece: CartesianPiece, u: np
            f"pose swings the joints" if near else "")
     raise JointLimitError(
         f"move {i} ({move.kind}): following the path with the full pose drives {robot.joint_names[j]} to "
-        f"{math.degrees(q[k, j]):.2f} deg at {_where(piece, float(u[k]))}, outside its limits "
+        f"{math.degrees(q[k, j]):.2f} deg at {piece.describe(float(u[k]))}, outside its limits "
         f"[{math.degrees(lo):.1f}, {math.degrees(hi):.1f}] deg{why}",
         joint=robot.joint_names[j], value_rad=float(q[k, j]), lower_rad=float(lo), upper_rad=float(hi), move=i)
 

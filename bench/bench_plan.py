@@ -66,6 +66,34 @@ def measure(scenarios: Path, method: str | None) -> list[dict[str, object]]:
     return rows
 
 
+def geometry_us_per_sample(scenarios: Path, method: str) -> list[tuple[str, float, int]]:
+    """Time of the geometric part (tracking IK, detection, crossing) per joint-path sample, by move.
+
+    ``_plan_move`` is everything before timing; its joint map's reference samples are the
+    path samples it produced (the initial 2 mm grid plus refinements and crossing samples).
+    """
+    import numpy as np
+
+    from singplan.planner import _plan_move, candidate_methods, load_task_robot
+
+    rows = []
+    for path in sorted(scenarios.glob("*_lin.yaml")) + sorted(scenarios.glob("*_circ.yaml")):
+        task = load_task(path)
+        robot = load_task_robot(task)
+        q0 = np.radians(task.start_joints_deg)
+        crossing = candidate_methods(method, task.moves[0])[0]
+        try:
+            _plan_move(robot, task, 0, task.moves[0], robot.fk(q0), q0, crossing)  # warm caches
+        except SingplanError:
+            continue
+        t0 = time.perf_counter()
+        pm = _plan_move(robot, task, 0, task.moves[0], robot.fk(q0), q0, crossing)
+        elapsed = time.perf_counter() - t0
+        samples = len(pm.jmap.reference()[0])
+        rows.append((path.stem, elapsed / samples * 1e6, samples))
+    return rows
+
+
 def time_lin() -> float:
     task = parse_task(LIN_03)
     plan(task)  # warm caches (robot parsing) like a long-lived process would
@@ -75,6 +103,14 @@ def time_lin() -> float:
         plan(task)
         best = min(best, time.perf_counter() - t0)
     return best
+
+
+def geometry_table(rows: list[tuple[str, float, int]], method: str) -> str:
+    lines = [f"Geometric part (IK tracking, detection, `{method}` crossing) per joint-path sample "
+             "(target of issue 4: <= 20 us):", "",
+             "| scenario | us / sample | samples |", "|---|---:|---:|"]
+    lines += [f"| {name} | {us:.0f} | {n} |" for name, us, n in rows]
+    return "\n".join(lines)
 
 
 def table(rows: list[dict[str, object]], method: str | None, lin_s: float) -> str:
@@ -100,6 +136,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--write", type=Path, default=None)
     args = parser.parse_args(argv)
     text = table(measure(args.scenarios, args.method), args.method, time_lin())
+    geometry_method = args.method if args.method and args.method != "auto" else "wrist-joint"
+    text += "\n\n" + geometry_table(geometry_us_per_sample(args.scenarios, geometry_method), geometry_method)
     sys.stdout.write(text + "\n")
     if args.write:
         sys.path.insert(0, str(HERE))

@@ -20,7 +20,8 @@ import pinocchio as pin
 from singplan.configuration import singularity_distances
 from singplan.errors import InputError, SingplanError
 from singplan.ik import solve_all
-from singplan.planner import detect, plan
+from singplan.planner import detect, load_task_robot, plan
+from singplan.report import report_html
 from singplan.robot import Robot, RobotEntry, bundled_robots, load_robot
 from singplan.summary import summary
 from singplan.task import load_task
@@ -111,12 +112,14 @@ def _progress_printer(err: TextIO, quiet: bool) -> Callable[[int, int], None] | 
 def cmd_plan(args: argparse.Namespace, out: TextIO) -> int:
     task = load_task(args.task)
     traj = plan(task, method=args.method, progress=_progress_printer(sys.stderr, args.quiet))
-    folder = save(traj, args.output)
+    extra = {} if args.no_report else {"report.html": report_html(traj, load_task_robot(task))}
+    folder = save(traj, args.output, extra_files=extra)
     if args.quiet:
         out.write(f"planned {args.task}: {traj.duration_s:.3f} s, {len(traj.t)} samples -> {folder}\n")
     else:
         out.write(summary(traj, task))
-        out.write(f"wrote {folder / 'trajectory.csv'} and {folder / 'trajectory.json'}\n")
+        written = ", ".join(str(folder / name) for name in ("trajectory.csv", "trajectory.json", *extra))
+        out.write(f"wrote {written}\n")
     return 0
 
 
@@ -135,7 +138,8 @@ def cmd_check(args: argparse.Namespace, out: TextIO) -> int:
 def cmd_demo(args: argparse.Namespace, out: TextIO) -> int:
     task_path = Path(__file__).with_name("demo_task.yaml")
     out.write(f"singplan demo: planning {task_path.name} (a LIN through a wrist singularity, KUKA KR 6 R900-2)\n")
-    code = cmd_plan(argparse.Namespace(task=task_path, output=args.output, method=None, quiet=False), out)
+    code = cmd_plan(argparse.Namespace(task=task_path, output=args.output, method=None, quiet=False,
+                                       no_report=False), out)
     out.write(f"task: {task_path}\n")
     return code
 
@@ -164,6 +168,7 @@ def build_parser() -> argparse.ArgumentParser:
     plan_p.add_argument("-o", "--output", default="singplan-out", help="output folder (default: singplan-out)")
     plan_p.add_argument("--method", default=None, help="crossing method, overriding the task's")
     plan_p.add_argument("--quiet", action="store_true", help="one line instead of the summary")
+    plan_p.add_argument("--no-report", action="store_true", help="do not write report.html")
     plan_p.set_defaults(func=cmd_plan)
     check = sub.add_parser("check", help="print the singular zones along a task's path, without planning")
     check.add_argument("task", help="task file (YAML v1)")

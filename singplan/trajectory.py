@@ -85,6 +85,8 @@ class Trajectory:
     segments: tuple[Segment, ...]
     events: tuple[Event, ...]
     metrics: dict[str, Any]
+    # per-sample series, each (K,) or (K, 3): position_error_m, orientation_error_rad, distances
+    samples: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def duration_s(self) -> float:
@@ -97,7 +99,22 @@ class Trajectory:
             "t": self.t.tolist(), "q": self.q.tolist(), "qd": self.qd.tolist(), "qdd": self.qdd.tolist(),
             "segments": [s.to_json() for s in self.segments], "events": [e.to_json() for e in self.events],
             "metrics": _jsonable(self.metrics),
+            "samples": _sample_series(self.samples),
         }
+
+
+def _sample_series(samples: dict[str, np.ndarray]) -> dict[str, Any]:
+    """Per-sample series in the file's units: mm, deg (shoulder distance in mm)."""
+    out: dict[str, Any] = {}
+    if "position_error_m" in samples:
+        out["position_error_mm"] = (samples["position_error_m"] * 1e3).tolist()
+    if "orientation_error_rad" in samples:
+        out["orientation_error_deg"] = np.degrees(samples["orientation_error_rad"]).tolist()
+    if "distances" in samples:
+        d = samples["distances"]
+        out["singular_distances"] = {"wrist_deg": np.degrees(d[:, 0]).tolist(), "shoulder_mm": (d[:, 1] * 1e3).tolist(),
+                                     "elbow_deg": np.degrees(d[:, 2]).tolist()}
+    return out
 
 
 def _jsonable(value: Any) -> Any:
@@ -133,6 +150,9 @@ def save(traj: Trajectory, out_dir: str | Path, extra_files: dict[str, str] | No
     target = Path(out_dir).resolve()
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+    umask = os.umask(0)
+    os.umask(umask)
+    staging.chmod(0o777 & ~umask)  # mkdtemp makes it private; the result is an ordinary folder
     try:
         write_csv(staging / "trajectory.csv", traj)
         (staging / "trajectory.json").write_text(json.dumps(traj.to_json()))

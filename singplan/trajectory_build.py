@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from singplan.configuration import classify
+from singplan.configuration import distances_batch, labels_from_distances
 from singplan.path import CartesianPiece, rotation_angle
 from singplan.robot import Robot
 from singplan.singularity import Zone
@@ -31,15 +31,19 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
     period = task.period_s
     q = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
     t = np.arange(len(q)) * period
-    labels = [classify(robot, qk).label for qk in q]
+    distances = distances_batch(robot, q)  # (K, 3)
+    labels = labels_from_distances(distances)
     segments: list[Segment] = []
     events: list[Event] = []
     crossings: list[dict[str, Any]] = []
     worst_pos, worst_ori = 0.0, 0.0
     k0 = 0
+    pos_all, ori_all = [np.zeros(1)], [np.zeros(1)]
     for pm, tm in zip(planned, timed, strict=True):
         k1 = k0 + len(tm.q) - 1
         pos_err, ori_err = sample_deviations(robot, pm.piece, tm.u, tm.q)
+        pos_all.append(pos_err[1:])
+        ori_all.append(ori_err[1:])
         worst_pos = max(worst_pos, float(pos_err.max(initial=0.0)))
         worst_ori = max(worst_ori, float(ori_err.max(initial=0.0)))
         segs = _move_segments(pm, tm, k0, k1, period, labels, pos_err, ori_err)
@@ -57,8 +61,10 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
                "planning_time_s": planning_time_s, "samples": len(t), "method": task.singularity.method,
                "crossings": crossings}
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
+    samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all),
+               "distances": distances}
     return Trajectory(robot.name, str(robot.urdf_path), robot.tip, tool, task.to_mapping(), robot.joint_names,
-                      period, t, q, qd, qdd, tuple(segments), tuple(events), metrics)
+                      period, t, q, qd, qdd, tuple(segments), tuple(events), metrics, samples)
 
 
 def sample_deviations(robot: Robot, piece: CartesianPiece | None, u: np.ndarray,

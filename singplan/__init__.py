@@ -15,6 +15,7 @@ from singplan.planner import detect, plan
 from singplan.robot import Robot, bundled_robots, load_robot
 from singplan.task import Task, load_task, parse_task
 from singplan.trajectory import Segment, Trajectory, save
+from singplan.viewer import replay
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
@@ -40,6 +41,7 @@ __all__ = [
     "opw_batch",
     "parse_task",
     "plan",
+    "replay",
     "save",
     "singularity_distances",
     "solve_all",

@@ -26,6 +26,7 @@ from singplan.robot import Robot, RobotEntry, bundled_robots, load_robot
 from singplan.summary import summary
 from singplan.task import load_task
 from singplan.trajectory import save
+from singplan.viewer import replay, replay_html
 
 
 def _reach_m(robot: Robot) -> float:
@@ -112,7 +113,10 @@ def _progress_printer(err: TextIO, quiet: bool) -> Callable[[int, int], None] | 
 def cmd_plan(args: argparse.Namespace, out: TextIO) -> int:
     task = load_task(args.task)
     traj = plan(task, method=args.method, progress=_progress_printer(sys.stderr, args.quiet))
-    extra = {} if args.no_report else {"report.html": report_html(traj, load_task_robot(task))}
+    robot = load_task_robot(task)
+    extra = {} if args.no_report else {"report.html": report_html(traj, robot)}
+    if not args.no_replay:
+        extra["replay.html"] = replay_html(traj, robot)
     folder = save(traj, args.output, extra_files=extra)
     if args.quiet:
         out.write(f"planned {args.task}: {traj.duration_s:.3f} s, {len(traj.t)} samples -> {folder}\n")
@@ -139,9 +143,15 @@ def cmd_demo(args: argparse.Namespace, out: TextIO) -> int:
     task_path = Path(__file__).with_name("demo_task.yaml")
     out.write(f"singplan demo: planning {task_path.name} (a LIN through a wrist singularity, KUKA KR 6 R900-2)\n")
     code = cmd_plan(argparse.Namespace(task=task_path, output=args.output, method=None, quiet=False,
-                                       no_report=False), out)
+                                       no_report=False, no_replay=False), out)
     out.write(f"task: {task_path}\n")
     return code
+
+
+def cmd_replay(args: argparse.Namespace, out: TextIO) -> int:
+    written = replay(args.trajectory, args.html)
+    out.write(f"wrote {written}: open it in a browser (offline, self-contained)\n")
+    return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -169,10 +179,15 @@ def build_parser() -> argparse.ArgumentParser:
     plan_p.add_argument("--method", default=None, help="crossing method, overriding the task's")
     plan_p.add_argument("--quiet", action="store_true", help="one line instead of the summary")
     plan_p.add_argument("--no-report", action="store_true", help="do not write report.html")
+    plan_p.add_argument("--no-replay", action="store_true", help="do not write replay.html")
     plan_p.set_defaults(func=cmd_plan)
     check = sub.add_parser("check", help="print the singular zones along a task's path, without planning")
     check.add_argument("task", help="task file (YAML v1)")
     check.set_defaults(func=cmd_check)
+    rep = sub.add_parser("replay", help="write the browser replay of a planned trajectory")
+    rep.add_argument("trajectory", help="trajectory.json or the output folder holding it")
+    rep.add_argument("--html", required=True, help="the HTML file to write")
+    rep.set_defaults(func=cmd_replay)
     demo = sub.add_parser("demo", help="plan the bundled demo task into ./singplan-demo")
     demo.add_argument("-o", "--output", default="singplan-demo", help="output folder (default: singplan-demo)")
     demo.set_defaults(func=cmd_demo)

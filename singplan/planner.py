@@ -194,10 +194,10 @@ def _plan_move(robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3, q
         q_target = _ptp_target(robot, i, move, q_start)
         part = JointPart("ptp", np.array([0.0, 1.0]), np.array([q_start, q_target]))
         return PlannedMove(i, "ptp", JointMap(robot, None, [part]), _limits(robot, task, move, 0.0))
-    return _plan_cartesian(robot, task, i, move, _plan_move_piece(i, move, T_start), q_start, method)
+    return _plan_cartesian(robot, task, i, move, plan_move_piece(i, move, T_start), q_start, method)
 
 
-def _plan_move_piece(i: int, move: Move, T_start: pin.SE3) -> CartesianPiece:
+def plan_move_piece(i: int, move: Move, T_start: pin.SE3) -> CartesianPiece:
     """The LIN / CIRC geometry of a move starting at ``T_start``."""
     assert move.to is not None
     field_name = f"moves[{i}].{move.kind}"
@@ -358,7 +358,7 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
             T = robot.fk(q)
             out.append(MoveZones(i, "ptp", 0.0, ()))
             continue
-        piece = _plan_move_piece(i, move, T)
+        piece = plan_move_piece(i, move, T)
         grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
         tracked = track(robot, piece.poses, grid, q)
         _check_tracked(robot, i, move, piece, tracked)

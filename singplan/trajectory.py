@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from singplan.errors import InputError
+
 FORMAT = "singplan.trajectory/1"
 
 
@@ -175,12 +177,26 @@ def _replace_dir(staging: Path, target: Path) -> None:
         staging.rename(target)
 
 
-def load(path: str | Path) -> dict[str, Any]:
-    """Read a trajectory.json (or the folder holding it) as a mapping."""
+_SEGMENT_FIELDS = ("move", "kind", "t0", "t1", "config_before", "config_after", "singularity", "method")
+
+
+def load(path: str | Path) -> Trajectory:
+    """Read a trajectory.json (or the folder holding it)."""
     p = Path(path)
     if p.is_dir():
         p = p / "trajectory.json"
-    doc = json.loads(p.read_text())
-    if doc.get("format") != FORMAT:
-        raise ValueError(f"{p}: not a {FORMAT} file")
-    return dict(doc)
+    try:
+        doc = json.loads(p.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{p}: cannot read a trajectory ({exc})") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise InputError(f"{p}: not a {FORMAT} file")
+    segments = tuple(Segment(**{k: s.get(k) for k in _SEGMENT_FIELDS},
+                             details={k: v for k, v in s.items() if k not in _SEGMENT_FIELDS})
+                     for s in doc["segments"])
+    events = tuple(Event(e["t"], e["move"], e["type"], {k: v for k, v in e.items() if k not in ("t", "move", "type")})
+                   for e in doc["events"])
+    arrays = {k: np.asarray(doc[k], dtype=float) for k in ("t", "q", "qd", "qdd")}
+    return Trajectory(doc["robot"], doc["urdf"], doc["tip"], doc["tool"], doc["task"], tuple(doc["joint_names"]),
+                      float(doc["period"]), arrays["t"], arrays["q"], arrays["qd"], arrays["qdd"], segments, events,
+                      doc["metrics"])

@@ -166,3 +166,25 @@ def test_report_is_self_contained_with_every_plot(tmp_path: Path) -> None:
     assert "Crossings" in page and "wrist" in page
     assert main(["plan", str(DEMO), "-o", str(tmp_path / "bare"), "--no-report", "--quiet"], out=io.StringIO()) == 0
     assert not (tmp_path / "bare" / "report.html").exists()
+
+
+def test_replay_is_written_self_contained_and_can_be_rebuilt_from_the_saved_trajectory(tmp_path: Path) -> None:
+    import singplan
+    from singplan.trajectory import load
+
+    assert main(["plan", str(DEMO), "-o", str(tmp_path / "out"), "--no-report"], out=io.StringIO()) == 0
+    page = (tmp_path / "out" / "replay.html").read_text()
+    assert len(page.encode()) < 5_000_000  # the demo's replay stays small enough to mail around
+    assert 'src="http' not in page and 'href="http' not in page and "<link" not in page  # nothing fetched
+    assert "new MeshCat.Viewer" in page and "window.singplanReady" in page
+    saved = load(tmp_path / "out")
+    again = plan(DEMO)
+    np.testing.assert_allclose(saved.q, again.q, atol=1e-12)  # trajectory.json round-trips
+    assert [s.kind for s in saved.segments] == [s.kind for s in again.segments]
+    out = io.StringIO()
+    assert main(["replay", str(tmp_path / "out"), "--html", str(tmp_path / "again.html")], out=out) == 0
+    assert (tmp_path / "again.html").stat().st_size > 100_000
+    assert singplan.replay(saved, html=tmp_path / "api.html").is_file()
+    err = io.StringIO()
+    assert main(["replay", str(tmp_path / "nowhere"), "--html", str(tmp_path / "x.html")], err=err) == 2
+    assert "cannot read a trajectory" in err.getvalue()

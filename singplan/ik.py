@@ -213,10 +213,8 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
     range exceeds +-180 deg have several). With a seed, each branch gives the variant nearest
     the seed, and at a wrist singularity the seed's q4 is kept.
     """
-    if robot.opw is not None:
-        rows, branches = _opw_candidates(robot, T_base_tcp, seed)
-    elif robot.family == "ur" and robot.tip == "tool0":
-        rows, branches = _ur_candidates(robot, T_base_tcp, seed)
+    if robot.opw is not None or (robot.family == "ur" and robot.tip == "tool0"):
+        rows, branches = _closed_form_candidates(robot, T_base_tcp, seed)
     else:
         rows, branches = _numeric_candidates(robot, T_base_tcp, seed)
     q_list: list[np.ndarray] = []
@@ -233,23 +231,29 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
     return IkSolutions(q=q_all, labels=labels, branches=np.array(branch_list, dtype=int))
 
 
-def _opw_candidates(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None) -> tuple[list[np.ndarray], list[int]]:
-    params = robot.opw
-    assert params is not None  # guarded by the caller
-    T_flange = (T_base_tcp * robot.T_tip_tcp.inverse()).homogeneous[None]
-    q4s = q1s = None
-    if seed is not None:
-        seed_opw = _to_opw(params, np.asarray(seed, dtype=float))
-        q4s, q1s = seed_opw[3:4], seed_opw[0:1]
-    sols = opw_batch(params, T_flange, q4s, q1s)[0]
-    keep = [k for k in range(8) if np.all(np.isfinite(sols[k]))]
-    return [sols[k] for k in keep], keep
+def closed_form_branches(robot: Robot, T_base_tcp: np.ndarray, seeds: np.ndarray | None = None) -> np.ndarray:
+    """Every closed-form branch of N TCP poses (N, 4, 4): (N, B, n) joint values, NaN rows unreachable.
+
+    B = 8 for OPW and UR arms, 0 for chains with no closed form. ``seeds`` (N, n) give the
+    free joints at a singularity (the seed's q4 at q5 = 0, its q1 on axis 1).
+    """
+    T_flange = np.asarray(T_base_tcp, dtype=float).reshape(-1, 4, 4) @ robot.T_tip_tcp.inverse().homogeneous
+    if robot.opw is not None:
+        p = robot.opw
+        seeds_opw = None if seeds is None else _to_opw(p, np.asarray(seeds, dtype=float).reshape(len(T_flange), -1))
+        return opw_batch(p, T_flange, None if seeds_opw is None else seeds_opw[:, 3],
+                         None if seeds_opw is None else seeds_opw[:, 0])
+    if robot.family == "ur" and robot.tip == "tool0":
+        params = UrParameters.from_robot(robot)
+        rows = [None] * len(T_flange) if seeds is None else list(seeds)
+        return np.array([ur_solutions(params, T, s) for T, s in zip(T_flange, rows, strict=True)])
+    return np.full((len(T_flange), 0, robot.n_joints), np.nan)
 
 
-def _ur_candidates(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None) -> tuple[list[np.ndarray], list[int]]:
-    T_flange = (T_base_tcp * robot.T_tip_tcp.inverse()).homogeneous
-    sols = ur_solutions(UrParameters.from_robot(robot), T_flange, seed)
-    keep = [k for k in range(8) if np.all(np.isfinite(sols[k]))]
+def _closed_form_candidates(robot: Robot, T_base_tcp: pin.SE3,
+                            seed: np.ndarray | None) -> tuple[list[np.ndarray], list[int]]:
+    sols = closed_form_branches(robot, T_base_tcp.homogeneous[None], None if seed is None else seed[None])[0]
+    keep = [k for k in range(len(sols)) if np.all(np.isfinite(sols[k]))]
     return [sols[k] for k in keep], keep
 
 

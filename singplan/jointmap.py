@@ -21,8 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from singplan.ik import opw_batch, solve_newton
-from singplan.ik_ur import UrParameters, ur_solutions
+from singplan.ik import closed_form_branches, solve_newton
 from singplan.robot import Robot
 from singplan.tracking import PoseFunction
 
@@ -79,7 +78,6 @@ class JointMap:
         self.robot = robot
         self.poses = poses
         self.parts = parts
-        self.T_tool_inv = robot.T_tip_tcp.inverse().homogeneous
 
     def reference(self) -> tuple[np.ndarray, np.ndarray]:
         """All reference samples (u (K,), q (K, n)), without repeated part ends."""
@@ -122,15 +120,8 @@ class JointMap:
         """Exact IK at each u: the branch and turn nearest the reference joint values."""
         assert self.poses is not None
         T_tcp = self.poses(u)
-        T_flange = T_tcp @ self.T_tool_inv
-        if self.robot.opw is not None:
-            p = self.robot.opw
-            seeds = q_ref * np.asarray(p.sign_corrections) - np.asarray(p.offsets_rad)
-            cands = opw_batch(p, T_flange, seeds[:, 3], seeds[:, 0])
-        elif self.robot.family == "ur" and self.robot.tip == "tool0":
-            params = UrParameters.from_robot(self.robot)
-            cands = np.array([ur_solutions(params, T, s) for T, s in zip(T_flange, q_ref, strict=True)])
-        else:
+        cands = closed_form_branches(self.robot, T_tcp, q_ref)
+        if cands.shape[1] == 0:
             return np.array([self._newton(T, s) for T, s in zip(T_tcp, q_ref, strict=True)])
         shifted = cands + TWO_PI * np.round((q_ref[:, None, :] - cands) / TWO_PI)
         dist = np.max(np.abs(shifted - q_ref[:, None, :]), axis=2)

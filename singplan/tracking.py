@@ -17,8 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from singplan.ik import opw_batch, solve_newton
-from singplan.ik_ur import UrParameters, ur_solutions
+from singplan.ik import closed_form_branches, solve_newton
 from singplan.robot import Robot
 
 TWO_PI = 2.0 * math.pi
@@ -51,20 +50,12 @@ class BranchCandidates:
         self.poses = poses
         self.cache: dict[float, np.ndarray] = {}
         self.free: dict[float, bool] = {}  # a branch sits on a singularity: some joints are free
-        self.T_tool_inv = robot.T_tip_tcp.inverse().homogeneous
 
     def fill(self, u: np.ndarray) -> None:
         todo = np.array([x for x in u if float(x) not in self.cache])
         if todo.size == 0:
             return
-        T_flange = self.poses(todo) @ self.T_tool_inv
-        if self.robot.opw is not None:
-            sols = opw_batch(self.robot.opw, T_flange)
-        elif self.robot.family == "ur" and self.robot.tip == "tool0":
-            params = UrParameters.from_robot(self.robot)
-            sols = np.array([ur_solutions(params, T) for T in T_flange])
-        else:
-            sols = np.full((len(todo), 0, self.robot.n_joints), np.nan)
+        sols = closed_form_branches(self.robot, self.poses(todo))
         for x, s in zip(todo, sols, strict=True):
             self.cache[float(x)] = s
             self.free[float(x)] = self._has_free_joints(s)
@@ -82,13 +73,9 @@ class BranchCandidates:
     def exact(self, u: float, seed: np.ndarray) -> np.ndarray:
         """Branches of one pose, solved with ``seed`` for the free joints at a singularity."""
         T = self.poses(np.array([u]))[0]
-        T_flange = T @ self.T_tool_inv
-        if self.robot.opw is not None:
-            p = self.robot.opw
-            seed_opw = seed * np.asarray(p.sign_corrections) - np.asarray(p.offsets_rad)
-            return opw_batch(p, T_flange[None], seed_opw[3:4], seed_opw[0:1])[0]
-        if self.robot.family == "ur" and self.robot.tip == "tool0":
-            return ur_solutions(UrParameters.from_robot(self.robot), T_flange, seed)
+        sols = closed_form_branches(self.robot, T[None], seed[None])[0]
+        if sols.shape[0]:
+            return sols
         q = solve_newton(self.robot, pin.SE3(T[:3, :3], T[:3, 3]), seed)
         return np.full((1, self.robot.n_joints), np.nan) if q is None else q[None]
 

@@ -27,12 +27,13 @@ import pinocchio as pin
 
 from singplan.configuration import classify
 from singplan.errors import SingularityError
+from singplan.ik import closed_form_branches
 from singplan.jointmap import JointMap, JointPart, hermite
 from singplan.path import CartesianPiece
 from singplan.robot import Robot
 from singplan.singularity import Zone
 from singplan.task import SingularitySettings
-from singplan.tracking import BranchCandidates, PoseFunction, TrackedPath, nearest_candidate
+from singplan.tracking import PoseFunction, TrackedPath, nearest_candidate
 
 EXACT_ORIENTATION_TOL_RAD = math.radians(0.01)
 # a through-crossing blends where the in-branch swing has not started: |distance| above
@@ -132,9 +133,8 @@ def through(ctx: MoveContext, zone: Zone, method: str) -> Crossing | None:
 
 def exit_candidates(ctx: MoveContext, u: float) -> list[np.ndarray]:
     """Every IK branch of the path pose at ``u``."""
-    cands = BranchCandidates(ctx.robot, ctx.piece.poses)
-    cands.fill(np.array([u]))
-    return [c for c in cands.cache[u] if np.all(np.isfinite(c))]
+    sols = closed_form_branches(ctx.robot, ctx.piece.poses(np.array([u])))[0]
+    return [c for c in sols if np.all(np.isfinite(c))]
 
 
 def blend_crossing(ctx: MoveContext, zone: Zone, method: str, a: int, u_b: float, q_exit: np.ndarray,

@@ -65,8 +65,11 @@ class IkSolutions:
         return np.array(self.q[k])
 
 
-def _arm_solutions(p: OpwParameters, c: np.ndarray, q1_seed: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The four (theta1, theta2, theta3) of the OPW arm for wrist centres ``c`` (N, 3)."""
+def _arm_solutions(p: OpwParameters | _ArmGeometry, c: np.ndarray, q1_seed: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The four (theta1, theta2, theta3) of the OPW arm for wrist centres ``c`` (N, 3), each (N, 4).
+
+    ``p``'s a2, b and c3 may be arrays (N,): one arm geometry per point (see :func:`opw_arm_for_point`).
+    """
     cx, cy, cz = c[:, 0], c[:, 1], c[:, 2]
     r2 = cx**2 + cy**2
     with np.errstate(invalid="ignore"):
@@ -89,10 +92,10 @@ def _arm_solutions(p: OpwParameters, c: np.ndarray, q1_seed: np.ndarray) -> tupl
     t2_ii = acos_a + np.arctan2(nx1, tmp3)
     t2_iii = -acos_b - np.arctan2(tmp4, tmp3)
     t2_iv = acos_b - np.arctan2(tmp4, tmp3)
-    k = 2.0 * p.c2 * math.sqrt(kappa_2)
+    k = 2.0 * p.c2 * np.sqrt(kappa_2)
     acos_c = _safe_acos((s1_2 - c2_2 - kappa_2) / k)
     acos_d = _safe_acos((s2_2 - c2_2 - kappa_2) / k)
-    phi = math.atan2(p.a2, p.c3)
+    phi = np.arctan2(p.a2, p.c3)
     t3_i, t3_ii = acos_c - phi, -acos_c - phi
     t3_iii, t3_iv = acos_d - phi, -acos_d - phi
     return (np.stack([t1_i, t1_i, t1_ii, t1_ii], axis=1),
@@ -177,6 +180,60 @@ def opw_batch(params: OpwParameters, T_base_flange: np.ndarray, q4_seed_opw: np.
     q[:, :4][unreachable] = np.nan
     q[:, 4:][unreachable] = np.nan
     return q
+
+
+@dataclass(frozen=True)
+class _ArmGeometry:
+    """The OPW arm parameters :func:`_arm_solutions` reads; a2, b, c3 (N,) may differ per point."""
+
+    a1: float
+    c1: float
+    c2: float
+    a2: np.ndarray  # (N,)
+    b: np.ndarray  # (N,)
+    c3: np.ndarray  # (N,)
+
+
+def _zyz(t4: np.ndarray, t5: np.ndarray, t6: np.ndarray) -> np.ndarray:
+    """Rz(t4) Ry(t5) Rz(t6), (N, 3, 3)."""
+    s4, c4, s5, c5, s6, c6 = np.sin(t4), np.cos(t4), np.sin(t5), np.cos(t5), np.sin(t6), np.cos(t6)
+    return np.stack([np.stack([c4 * c5 * c6 - s4 * s6, -c4 * c5 * s6 - s4 * c6, c4 * s5], axis=-1),
+                     np.stack([s4 * c5 * c6 + c4 * s6, -s4 * c5 * s6 + c4 * c6, s4 * s5], axis=-1),
+                     np.stack([-s5 * c6, s5 * s6, c5], axis=-1)], axis=-2)
+
+
+def opw_arm_for_point(params: OpwParameters, q_robot: np.ndarray, point_flange_m: np.ndarray,
+                      targets_m: np.ndarray) -> np.ndarray:
+    """Joints 1-3 that put a point fixed to the flange at ``targets_m``, joints 4-6 held (SEEDS 001).
+
+    With the wrist angles fixed, the point sits at ``w = R_ce (c4 e_z + point_flange)`` in the
+    frame ``c`` of the OPW arm (``R_0c = Rz(t1) Ry(t2 + t3)``). Because ``Ry(t2 + t3)`` turns
+    ``w`` with the forearm and leaves its y part alone, the point is the wrist centre of an
+    OPW arm with ``a2 + w_x``, ``b + w_y`` and ``c3 + w_z``: the arm closed form then gives
+    all four (q1, q2, q3), and the one nearest ``q_robot``'s is kept.
+
+    Args:
+        params: the arm's OPW parameters.
+        q_robot: joint values [rad] (N, 6); joints 4-6 are kept, joints 1-3 seed the choice.
+        point_flange_m: the point in the flange (tip) frame [m], (3,).
+        targets_m: where the point must be, in the base frame [m], (N, 3).
+
+    Returns:
+        (N, 6) joint values; rows whose point is out of reach are NaN.
+    """
+    q_opw = _to_opw(params, q_robot)
+    w = _zyz(q_opw[:, 3], q_opw[:, 4], q_opw[:, 5]) @ (np.array([0.0, 0.0, params.c4]) + point_flange_m)
+    arm = _ArmGeometry(params.a1, params.c1, params.c2, params.a2 + w[:, 0], params.b + w[:, 1], params.c3 + w[:, 2])
+    t1, t2, t3 = _arm_solutions(arm, np.asarray(targets_m, dtype=float), q_opw[:, 0])
+    signs, offsets = np.asarray(params.sign_corrections[:3]), np.asarray(params.offsets_rad[:3])
+    arms = (np.stack([t1, t2, t3], axis=-1) + offsets) * signs  # (N, 4, 3) robot coordinates
+    seed = q_robot[:, None, :3]
+    arms = arms + TWO_PI * np.round((seed - arms) / TWO_PI)
+    dist = np.max(np.abs(arms - seed), axis=2)
+    best = np.argmin(np.where(np.isnan(dist), np.inf, dist), axis=1)
+    out = np.array(q_robot, dtype=float)
+    out[:, :3] = arms[np.arange(len(out)), best]
+    return out
 
 
 def _to_opw(params: OpwParameters, q_robot: np.ndarray) -> np.ndarray:

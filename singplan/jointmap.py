@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from singplan.ik import closed_form_branches, solve_newton
+from singplan.ik import closed_form_branches, opw_arm_for_point, solve_newton
 from singplan.robot import Robot
 from singplan.tracking import PoseFunction
 
@@ -134,9 +134,18 @@ class JointMap:
         return seed if q is None else q
 
     def fix_position(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Re-solve joints 1-3 so the TCP position is exact (damped Newton, a few steps)."""
+        """Re-solve joints 1-3 so the TCP position is exact.
+
+        OPW arms: the closed form of :func:`singplan.ik.opw_arm_for_point` (the solution nearest
+        ``q``); other chains, or where the point is out of the arm's reach: damped Newton from ``q``.
+        """
         assert self.poses is not None
         targets = self.poses(u)[:, :3, 3]
+        if self.robot.opw is not None:
+            out = opw_arm_for_point(self.robot.opw, q, self.robot.T_tip_tcp.translation, targets)
+            for k in np.nonzero(np.isnan(out[:, 0]))[0]:
+                out[k] = position_solve(self.robot, q[k], targets[k])
+            return out
         out = q.copy()
         for k in range(len(u)):
             out[k] = position_solve(self.robot, out[k], targets[k])

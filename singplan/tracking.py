@@ -48,27 +48,37 @@ class BranchCandidates:
     def __init__(self, robot: Robot, poses: PoseFunction) -> None:
         self.robot = robot
         self.poses = poses
-        self.cache: dict[float, np.ndarray] = {}
-        self.free: dict[float, bool] = {}  # a branch sits on a singularity: some joints are free
+        self.u = np.empty(0)  # (M,) sorted parameters solved so far
+        self.sols = np.empty((0, 0, robot.n_joints))  # (M, B, n)
+        self.free = np.empty(0, dtype=bool)  # (M,) a branch sits on a singularity: some joints are free
 
     def fill(self, u: np.ndarray) -> None:
-        todo = np.array([x for x in u if float(x) not in self.cache])
+        """Solve the parameters of ``u`` not solved yet."""
+        todo = np.setdiff1d(u, self.u)
         if todo.size == 0:
             return
         sols = closed_form_branches(self.robot, self.poses(todo))
-        for x, s in zip(todo, sols, strict=True):
-            self.cache[float(x)] = s
-            self.free[float(x)] = self._has_free_joints(s)
+        u_all = np.concatenate([self.u, todo])
+        order = np.argsort(u_all, kind="stable")
+        self.u = u_all[order]
+        self.sols = np.concatenate([self.sols, sols])[order] if self.sols.size else sols[order]
+        self.free = np.concatenate([self.free, self._has_free_joints(sols)])[order]
 
-    def _has_free_joints(self, sols: np.ndarray) -> bool:
-        """True where a branch is (numerically) wrist- or shoulder-singular, or none is known."""
-        if sols.shape[0] == 0:
-            return True  # no closed form: every sample is solved from its predecessor
-        q5 = sols[:, 4]
+    def at(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Branches (N, B, n) and free-joint flags (N,) of already solved parameters."""
+        k = np.searchsorted(self.u, u)
+        return self.sols[k], self.free[k]
+
+    def _has_free_joints(self, sols: np.ndarray) -> np.ndarray:
+        """(N,) True where a branch is (numerically) wrist-singular, or no closed form is known."""
+        if sols.shape[1] == 0:
+            return np.ones(len(sols), dtype=bool)  # no closed form: every sample is solved from its predecessor
+        q5 = sols[:, :, 4]
         if self.robot.opw is not None:
             p = self.robot.opw
             q5 = q5 * p.sign_corrections[4] - p.offsets_rad[4]
-        return bool(np.nanmin(np.abs(np.sin(q5)), initial=1.0) < 1e-9)
+        with np.errstate(invalid="ignore"):
+            return np.any(np.abs(np.sin(q5)) < 1e-9, axis=1)
 
     def exact(self, u: float, seed: np.ndarray) -> np.ndarray:
         """Branches of one pose, solved with ``seed`` for the free joints at a singularity."""
@@ -97,20 +107,58 @@ def _nearest(candidates: np.ndarray, q_prev: np.ndarray) -> tuple[np.ndarray, fl
     return shifted[k], float(dist[k]), k
 
 
+def _unwrapped_rows(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each branch row unwrapped along the samples, and its max joint step before each sample.
+
+    C: (N, B, n) candidates. Returns Cu (N, B, n), equal to C up to whole turns per joint and
+    continuous from sample to sample, and step (N, B) (step[0] = 0; inf where a row is NaN).
+    """
+    turns = np.nan_to_num(np.round((C[:-1] - C[1:]) / TWO_PI))  # a NaN sample does not shift the rest
+    Cu = C.copy()
+    Cu[1:] += TWO_PI * np.cumsum(turns, axis=0)
+    step = np.zeros(C.shape[:2])
+    with np.errstate(invalid="ignore"):
+        step[1:] = np.max(np.abs(np.diff(Cu, axis=0)), axis=2)
+    return Cu, np.where(np.isnan(step), np.inf, step)
+
+
+def _leaves_row(C: np.ndarray, Cu: np.ndarray, step: np.ndarray, free: np.ndarray, max_step: float) -> np.ndarray:
+    """(N, B) True where following a row must stop and the nearest candidate be searched again.
+
+    A row is left where its step is large and some other row is nearer the row's previous
+    value, where it is NaN, or where a large step meets a sample with free joints.
+    """
+    leave = ~np.isfinite(step)
+    large = np.isfinite(step) & (step > max_step)
+    j, r = np.nonzero(large)
+    if j.size:
+        prev = Cu[j - 1, r][:, None, :]  # (M, 1, n)
+        cand = C[j]  # (M, B, n)
+        shifted = cand + TWO_PI * np.round((prev - cand) / TWO_PI)
+        with np.errstate(invalid="ignore"):
+            dist = np.max(np.abs(shifted - prev), axis=2)
+        nearest = np.argmin(np.where(np.isnan(dist), np.inf, dist), axis=1)
+        leave[j, r] = (nearest != r) | free[j]
+    leave[0] = True
+    return leave
+
+
 def _select(cands: BranchCandidates, u: np.ndarray, q0: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray]:
     """Follow the nearest candidate from q0; returns q (N, n) and the step before each sample.
 
-    Between branch changes the same branch row is followed for a whole run at once
-    (unwrapped along the samples); only where a step is large, or the branch ends, is the
-    nearest candidate among all branches searched again.
+    A branch row, once chosen, is followed (unwrapped) up to the next sample where another
+    candidate is nearer; only there, and at samples with free joints, is the search repeated,
+    so the loop runs once per branch change, not once per sample.
     """
-    C = np.stack([cands.cache[float(x)] for x in u])  # (N, B, n)
+    C, free = cands.at(u)  # (N, B, n), (N,)
+    Cu, step = _unwrapped_rows(C)
+    leave = _leaves_row(C, Cu, step, free, max_step)
     q = np.empty((len(u), len(q0)))
     steps = np.zeros(len(u))
     k, q_prev = 0, q0
     while k < len(u):
         best, dist, row = _nearest(C[k], q_prev)
-        if dist > max_step and cands.free[float(u[k])]:  # free joints take the previous values
+        if dist > max_step and free[k]:  # free joints take the previous values
             best2, dist2, _ = _nearest(cands.exact(float(u[k]), q_prev), q_prev)
             if dist2 < dist:
                 best, dist, row = best2, dist2, -1
@@ -120,12 +168,11 @@ def _select(cands: BranchCandidates, u: np.ndarray, q0: np.ndarray, max_step: fl
             break
         k += 1
         if row >= 0 and k < len(u):
-            run = np.unwrap(np.vstack([best, C[k:, row]]), axis=0)[1:]
-            d = np.max(np.abs(np.diff(np.vstack([best, run]), axis=0)), axis=1)
-            bad = np.nonzero(~np.isfinite(d) | (d > max_step))[0]
-            good = int(bad[0]) if bad.size else len(run)
-            q[k:k + good], steps[k:k + good] = run[:good], d[:good]
-            k += good
+            stops = np.nonzero(leave[k:, row])[0]
+            end = k + (int(stops[0]) if stops.size else len(u) - k)
+            q[k:end] = Cu[k:end, row] + (best - Cu[k - 1, row])
+            steps[k:end] = step[k:end, row]
+            k = end
         q_prev = q[k - 1]
     return q, steps
 

@@ -19,7 +19,7 @@ Available now:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar, Protocol
 
 import numpy as np
@@ -137,6 +137,17 @@ def exit_candidates(ctx: MoveContext, u: float) -> list[np.ndarray]:
     return [c for c in sols if np.all(np.isfinite(c))]
 
 
+def path_slope(robot: Robot, poses: PoseFunction, tracked: TrackedPath, k: int, h: float = 1e-7) -> np.ndarray:
+    """dq/du [rad] of the exact IK branch through tracked sample ``k`` (central difference of
+    exact solutions at u +- h, one-sided at the ends of the move), so seams match the path's
+    true slope rather than a chord of samples."""
+    u_k = float(tracked.u[k])
+    lo, hi = max(0.0, u_k - h), min(1.0, u_k + h)
+    ref = JointMap(robot, poses, [JointPart("track", tracked.u, tracked.q)])
+    q = ref.evaluate(np.array([lo, hi]))
+    return (q[1] - q[0]) / (hi - lo)
+
+
 def blend_crossing(ctx: MoveContext, zone: Zone, method: str, a: int, u_b: float, q_exit: np.ndarray,
                    slope_exit: np.ndarray | None = None) -> Crossing:
     """A Hermite blend from tracked sample ``a`` to ``q_exit`` at ``u_b``, position re-solved.
@@ -146,7 +157,7 @@ def blend_crossing(ctx: MoveContext, zone: Zone, method: str, a: int, u_b: float
     densely (:func:`refit`).
     """
     u, q = ctx.tracked.u, ctx.tracked.q
-    slope_a = (q[a] - q[a - 1]) / (u[a] - u[a - 1]) if a > 0 else (q_exit - q[a]) / (u_b - u[a])
+    slope_a = path_slope(ctx.robot, ctx.piece.poses, ctx.tracked, a) if a > 0 else (q_exit - q[a]) / (u_b - u[a])
     slope_b = (q_exit - q[a]) / (u_b - u[a]) if slope_exit is None else slope_exit
     ends = JointPart("blend", np.array([u[a], u_b]), np.array([q[a], q_exit]), np.array([slope_a, slope_b]))
     return Crossing(zone, method, ends, q_exit)
@@ -154,13 +165,17 @@ def blend_crossing(ctx: MoveContext, zone: Zone, method: str, a: int, u_b: float
 
 def refit(robot: Robot, poses: PoseFunction, part: JointPart, length_m: float,
           slope_exit: np.ndarray | None = None) -> JointPart:
-    """Dense, position-exact samples of a blend (optionally with a new exit slope)."""
-    slopes = part.dq_du if slope_exit is None else np.array([part.dq_du[0], slope_exit])  # type: ignore[index]
-    ends = JointPart("blend", np.array([part.u0, part.u1]), np.array([part.q[0], part.q[-1]]), slopes)
+    """Dense samples of a blend or axis part (optionally with a new exit slope), each exact in
+    what its method keeps (the position for a blend)."""
+    assert part.dq_du is not None
+    slopes = part.dq_du if slope_exit is None else np.array([part.dq_du[0], slope_exit])
+    ends = replace(part, u=np.array([part.u0, part.u1]), q=np.array([part.q[0], part.q[-1]]), dq_du=slopes)
     count = max(9, math.ceil((part.u1 - part.u0) * length_m / _BLEND_STEP_M) + 1)
     dense_u = np.linspace(part.u0, part.u1, count)
-    dense_q = JointMap(robot, poses, [ends]).fix_position(hermite(ends, dense_u), dense_u)
-    return JointPart("blend", dense_u, dense_q, slopes)
+    jmap = JointMap(robot, poses, [ends])
+    dense_q = jmap.fix_position(hermite(ends, dense_u), dense_u) if part.kind == "blend" else \
+        jmap.solve_axis(ends, dense_u)
+    return replace(ends, u=dense_u, q=dense_q)
 
 
 class WristJoint:
@@ -257,12 +272,11 @@ class Axis:
         if q_exit is None:
             return None
         fixed, exact = self._SETUP[zone.kind]
-        slope_a = (q[a] - q[a - 1]) / (u[a] - u[a - 1]) if a > 0 else (q_exit - q[a]) / (u[b] - u[a])
+        slope_a = path_slope(ctx.robot, ctx.piece.poses, ctx.tracked, a) if a > 0 else (q_exit - q[a]) / (u[b] - u[a])
         slopes = np.array([slope_a, (q_exit - q[a]) / (u[b] - u[a])])
         ends = JointPart("axis", np.array([u[a], u[b]]), np.array([q[a], q_exit]), slopes, fixed, exact)
-        dense_u = np.linspace(u[a], u[b], max(9, math.ceil((u[b] - u[a]) * ctx.piece.length_m / _BLEND_STEP_M) + 1))
-        dense_q = JointMap(ctx.robot, ctx.piece.poses, [ends]).solve_axis(ends, dense_u)
-        return Crossing(zone, self.name, JointPart("axis", dense_u, dense_q, slopes, fixed, exact), dense_q[-1])
+        part = refit(ctx.robot, ctx.piece.poses, ends, ctx.piece.length_m)
+        return Crossing(zone, self.name, part, part.q[-1])
 
 
 class Ptp:

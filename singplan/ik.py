@@ -163,19 +163,15 @@ def opw_batch(params: OpwParameters, T_base_flange: np.ndarray, q4_seed_opw: np.
     c = p - params.c4 * R[:, :, 2]
     t1, t2, t3 = _arm_solutions(params, c, q1s)
     t4, t5, t6 = _wrist_solutions(R, t1, t2 + t3, q4s)
-    signs = params.sign_corrections
-    offsets = params.offsets_rad
+    signs = np.asarray(params.sign_corrections)
+    offsets = np.asarray(params.offsets_rad)
     q = np.empty((n, 8, 6))
-    # the flipped wrist (q4 + pi, -q5, q6 - pi) shares the arm joints: wrap each column once
     for j, t in enumerate((t1, t2, t3, t4, t5, t6)):
-        plain = wrap_to_pi((t + offsets[j]) * signs[j])
-        q[:, :4, j] = plain
-        if j == 4:
-            q[:, 4:, j] = wrap_to_pi((offsets[j] - t) * signs[j])
-        elif j in (3, 5):
-            q[:, 4:, j] = wrap_to_pi(plain + math.pi)
-        else:
-            q[:, 4:, j] = plain
+        q[:, :4, j] = t
+    # the flipped wrist (q4 + pi, -q5, q6 + pi) shares the arm joints
+    q[:, 4:] = q[:, :4] + np.array([0.0, 0.0, 0.0, math.pi, 0.0, math.pi])
+    q[:, 4:, 4] *= -1.0
+    q = wrap_to_pi((q + offsets) * signs)
     unreachable = np.isnan(t1) | np.isnan(t2) | np.isnan(t3)  # (N, 4): the whole branch goes
     q[:, :4][unreachable] = np.nan
     q[:, 4:][unreachable] = np.nan

@@ -20,7 +20,17 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.configuration import classify, distances_batch, parse_configuration
-from singplan.crossing import METHODS_AVAILABLE, Axis, Crossing, CrossingMethod, Exact, MoveContext, WristJoint, refit
+from singplan.crossing import (
+    METHODS_AVAILABLE,
+    Axis,
+    Crossing,
+    CrossingMethod,
+    Exact,
+    MoveContext,
+    WristJoint,
+    path_slope,
+    refit,
+)
 from singplan.errors import JointLimitError, PlanningError, SingularityError, UnreachableError
 from singplan.ik import solve_all
 from singplan.jointmap import JointMap, JointPart
@@ -29,7 +39,7 @@ from singplan.robot import Robot, load_robot
 from singplan.singularity import DistanceFunction, Zone, distances_along, find_zones, thresholds_si
 from singplan.task import Move, Task, check_against_robot, load_task
 from singplan.timing import MoveLimits, TimedMove, time_move
-from singplan.tracking import TrackedPath, track
+from singplan.tracking import BranchCandidates, TrackedPath, track
 from singplan.trajectory import Trajectory
 from singplan.trajectory_build import build_trajectory, sample_deviations
 
@@ -234,11 +244,14 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
     zones: list[Zone] = []
     crossings: list[Crossing] = []
     u_from, q_from = 0.0, q_start
+    cands = BranchCandidates(robot, piece.poses)
     while True:
-        tracked = track(robot, piece.poses, np.concatenate([[u_from], grid[grid > u_from + 1e-12]]), q_from)
+        tracked = track(robot, piece.poses, np.concatenate([[u_from], grid[grid > u_from + 1e-12]]), q_from,
+                        cands=cands)
+        grid = np.union1d(grid, tracked.u)  # refined once: a re-track after a crossing starts from it
         _check_tracked(robot, i, move, piece, tracked)
-        if parts and parts[-1].kind == "blend":  # sample the crossing, C1 at its exit
-            slope = (tracked.q[1] - tracked.q[0]) / (tracked.u[1] - tracked.u[0]) if len(tracked.u) > 1 else None
+        if parts and parts[-1].kind in ("blend", "axis"):  # sample the crossing, C1 at its exit
+            slope = path_slope(robot, piece.poses, tracked, 0) if len(tracked.u) > 1 else None
             parts[-1] = refit(robot, piece.poses, parts[-1], piece.length_m, slope)
             _check_limits(robot, i, move, piece, parts[-1].u, parts[-1].q, zones)
         dist, labels = distances_along(robot, tracked.q)

@@ -108,8 +108,8 @@ def _zone(kind: str, u: np.ndarray, d: np.ndarray, thr: float, start: int, end: 
     return Zone(kind, u_entry, u_exit, u_best, d_best, float(thr))
 
 
-def _zoom_min(f: Callable[[np.ndarray], np.ndarray], lo: float, hi: float, points: int = 33,
-              levels: int = 8) -> tuple[float, float]:
+def _zoom_min(f: Callable[[np.ndarray], np.ndarray], lo: float, hi: float, points: int = 65,
+              levels: int = 4) -> tuple[float, float]:
     """Minimum of f on [lo, hi]: evaluate a grid, zoom on the best cell, repeat (f is vectorised)."""
     best_u, best_d = lo, math.inf
     for _ in range(levels):

@@ -179,13 +179,14 @@ def _select(cands: BranchCandidates, u: np.ndarray, q0: np.ndarray, max_step: fl
 
 def track(robot: Robot, poses: PoseFunction, u0: np.ndarray, q_start: np.ndarray,
           max_joint_step_rad: float = math.radians(1.0), min_du: float = 1e-10,
-          max_passes: int = 48) -> TrackedPath:
+          max_passes: int = 48, cands: BranchCandidates | None = None) -> TrackedPath:
     """Follow one continuous IK solution along ``poses(u)``, starting at ``q_start`` (u0[0]).
 
     ``u0`` is the initial grid; it is refined where joints move more than
-    ``max_joint_step_rad`` between samples.
+    ``max_joint_step_rad`` between samples. ``cands`` (of the same ``poses``) carries the
+    branches already solved by an earlier call.
     """
-    cands = BranchCandidates(robot, poses)
+    cands = BranchCandidates(robot, poses) if cands is None else cands
     u = np.asarray(u0, dtype=float)
     q, steps = _select_all(cands, u, q_start, max_joint_step_rad)
     for _ in range(max_passes):
@@ -195,11 +196,20 @@ def track(robot: Robot, poses: PoseFunction, u0: np.ndarray, q_start: np.ndarray
         big = np.nonzero((steps[1:] > max_joint_step_rad) & (np.diff(u) > min_du))[0]
         if big.size == 0 or len(u) > _MAX_SAMPLES:
             break
-        u = np.sort(np.concatenate([u, 0.5 * (u[big] + u[big + 1])]))
+        u = np.sort(np.concatenate([u, _subdivide(u, big, steps[big + 1] / max_joint_step_rad)]))
         q, steps = _select_all(cands, u, q_start, max_joint_step_rad)
     gaps = np.nonzero(~np.isfinite(steps) | (steps > max_joint_step_rad))[0]
     gap = int(gaps[0]) - 1 if gaps.size else -1
     return TrackedPath(u=u, q=q, max_step_rad=float(np.max(steps[1:])) if len(u) > 1 else 0.0, gap_index=gap)
+
+
+def _subdivide(u: np.ndarray, big: np.ndarray, ratio: np.ndarray) -> np.ndarray:
+    """New parameters inside the intervals u[big] -> u[big + 1]: a step ``ratio`` times too large
+    gets that many pieces (2 to 8); a jump that stays large is thus narrowed 8x per pass."""
+    pieces = np.clip(np.ceil(ratio), 2, 8).astype(int)
+    t = np.concatenate([np.arange(1, m) / m for m in pieces])
+    k = np.repeat(big, pieces - 1)
+    return u[k] + t * (u[k + 1] - u[k])
 
 
 def _select_all(cands: BranchCandidates, u: np.ndarray, q_start: np.ndarray,

@@ -143,12 +143,11 @@ class JointMap:
         targets = self.poses(u)[:, :3, 3]
         if self.robot.opw is not None:
             out = opw_arm_for_point(self.robot.opw, q, self.robot.T_tip_tcp.translation, targets)
-            for k in np.nonzero(np.isnan(out[:, 0]))[0]:
-                out[k] = position_solve(self.robot, q[k], targets[k])
-            return out
-        out = q.copy()
-        for k in range(len(u)):
-            out[k] = position_solve(self.robot, out[k], targets[k])
+            lost = np.isnan(out[:, 0])  # the point is out of the arm's reach: the nearest Newton can do
+        else:
+            out, lost = q.copy(), np.ones(len(u), dtype=bool)
+        for k in np.nonzero(lost)[0]:
+            out[k] = position_solve(self.robot, q[k], targets[k])
         return out
 
 

@@ -11,7 +11,7 @@ from py_opw_kinematics import KinematicModel
 from py_opw_kinematics import Robot as OpwRobot
 
 from singplan.configuration import classify
-from singplan.ik import opw_batch, solve_all, wrap_to_pi
+from singplan.ik import opw_arm_for_point, opw_batch, solve_all, wrap_to_pi
 from singplan.robot import Robot
 
 from .conftest import OPW_NAMES, random_q
@@ -135,3 +135,20 @@ def test_two_pi_variants_are_expanded_within_limits_and_the_seed_picks_one(robot
     seeded = solve_all(robot, target, seed=np.radians([10, 20, 10, 30, 40, -300]))
     picked = [s for s in seeded.q if np.allclose(s[:5], q[:5], atol=1e-9)]
     assert len(picked) == 1 and math.isclose(math.degrees(picked[0][5]), -310.0, abs_tol=1e-6)
+
+
+@pytest.mark.parametrize("name", OPW_NAMES)
+def test_arm_solve_for_a_flange_point_puts_the_tcp_on_target_with_the_wrist_held(name: str, robots, rng) -> None:
+    """SEEDS 001's closed-form arm solve, checked with Pinocchio's FK of the whole chain."""
+    tool = pin.SE3(pin.rpy.rpyToMatrix(0.2, -0.1, 0.3), np.array([0.02, -0.03, 0.12]))
+    robot = robots[name].with_tool(tool)
+    q = random_q(robot, rng, 200)
+    targets = np.array([robot.fk(x).translation for x in q])
+    seeds = q.copy()
+    seeds[:, :3] += rng.normal(0.0, 0.05, size=(len(q), 3))
+    out = opw_arm_for_point(robot.opw, seeds, tool.translation, targets)
+    assert np.array_equal(out[:, 3:], seeds[:, 3:])  # the wrist is held
+    error_m = [np.linalg.norm(robot.fk(x).translation - t) for x, t in zip(out, targets, strict=True)]
+    assert max(error_m) < 1e-9
+    recovered = np.max(np.abs(out[:, :3] - q[:, :3]), axis=1) < 1e-7
+    assert recovered.mean() > 0.97  # the seed's own arm solution, unless another one is as near

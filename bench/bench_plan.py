@@ -69,41 +69,32 @@ def measure(scenarios: Path, method: str | None) -> list[dict[str, object]]:
     return rows
 
 
-def geometry_us_per_sample(scenarios: Path, method: str) -> list[tuple[str, float, int, float]]:
+def geometry_us_per_sample(scenarios: Path, method: str) -> list[tuple[str, float, int]]:
     """Time of the geometric part (tracking IK, detection, crossing) per joint-path sample, by move.
 
     ``_plan_move`` is everything before timing; its joint map's reference samples are the
     path samples it produced (the initial 2 mm grid plus refinements and crossing samples).
-    The move is also planned on a 4x denser initial grid: the difference in time over the
-    difference in samples is the marginal cost of a sample, without the per-move fixed cost.
     """
     rows = []
     for path in sorted(scenarios.glob("*_lin.yaml")) + sorted(scenarios.glob("*_circ.yaml")):
-        task = load_task(path)
         try:
-            coarse_s, coarse_n = _time_geometry(task, method, planner.STEP_M)
-            fine_s, fine_n = _time_geometry(task, method, planner.STEP_M / 4)
+            seconds, samples = _time_geometry(load_task(path), method)
         except SingplanError:
             continue
-        marginal = (fine_s - coarse_s) / (fine_n - coarse_n) * 1e6 if fine_n > coarse_n else math.nan
-        rows.append((path.stem, coarse_s / coarse_n * 1e6, coarse_n, marginal))
+        rows.append((path.stem, seconds / samples * 1e6, samples))
     return rows
 
 
-def _time_geometry(task: Task, method: str, step_m: float) -> tuple[float, int]:
-    """Best of 3 seconds of ``_plan_move`` on the first move with an initial grid of ``step_m``."""
+def _time_geometry(task: Task, method: str) -> tuple[float, int]:
+    """Best of 3 seconds of ``_plan_move`` on the first move, and its joint-path sample count."""
     robot = planner.load_task_robot(task)
     q0 = np.radians(task.start_joints_deg)
     crossing = planner.candidate_methods(method, task.moves[0])[0]
-    default, planner.STEP_M = planner.STEP_M, step_m
-    try:
-        best = math.inf
-        for _ in range(4):  # the first warms caches
-            t0 = time.perf_counter()
-            pm = planner._plan_move(robot, task, 0, task.moves[0], robot.fk(q0), q0, crossing)
-            best = min(best, time.perf_counter() - t0)
-    finally:
-        planner.STEP_M = default
+    best = math.inf
+    for _ in range(4):  # the first warms caches
+        t0 = time.perf_counter()
+        pm = planner._plan_move(robot, task, 0, task.moves[0], robot.fk(q0), q0, crossing)
+        best = min(best, time.perf_counter() - t0)
     return best, len(pm.jmap.reference()[0])
 
 
@@ -118,12 +109,11 @@ def time_lin() -> float:
     return best
 
 
-def geometry_table(rows: list[tuple[str, float, int, float]], method: str) -> str:
-    lines = [f"Geometric part (IK tracking, detection, `{method}` crossing) of the first move, best of 3 "
-             "(target of issue 4: <= 20 us per path sample). *marginal*: the extra time per extra sample "
-             "when the initial grid is 4x denser (0.5 mm), i.e. without the per-move fixed cost:", "",
-             "| scenario | us / sample | samples | marginal us / sample |", "|---|---:|---:|---:|"]
-    lines += [f"| {name} | {us:.0f} | {n} | {marginal:.1f} |" for name, us, n, marginal in rows]
+def geometry_table(rows: list[tuple[str, float, int]], method: str) -> str:
+    lines = [f"Geometric part (IK tracking, detection, `{method}` crossing) of the first move, best of 3, "
+             "per joint-path sample (target of issue 4: <= 20 us):", "",
+             "| scenario | us / sample | samples |", "|---|---:|---:|"]
+    lines += [f"| {name} | {us:.0f} | {n} |" for name, us, n in rows]
     return "\n".join(lines)
 
 

@@ -9,7 +9,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import signal
 import sys
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TextIO
@@ -26,7 +28,7 @@ from singplan.robot import Robot, RobotEntry, bundled_robots, load_robot
 from singplan.summary import summary
 from singplan.task import load_task
 from singplan.trajectory import save
-from singplan.viewer import replay, replay_html
+from singplan.viewer import LiveReplay, replay, replay_html
 
 
 def _reach_m(robot: Robot) -> float:
@@ -149,9 +151,35 @@ def cmd_demo(args: argparse.Namespace, out: TextIO) -> int:
 
 
 def cmd_replay(args: argparse.Namespace, out: TextIO) -> int:
-    written = replay(args.trajectory, args.html)
+    if args.serve:
+        return _serve(args, out)
+    if args.html is None:
+        raise InputError("replay: give --html FILE (write the page) or --serve (live meshcat server)")
+    written = replay(args.trajectory, html=args.html)
     out.write(f"wrote {written}: open it in a browser (offline, self-contained)\n")
     return 0
+
+
+def _serve(args: argparse.Namespace, out: TextIO) -> int:
+    """Play the trajectory on a live meshcat server until Ctrl-C (or SIGTERM)."""
+    live = replay(args.trajectory, serve=True, speed=args.speed, loop=not args.no_loop)
+    assert isinstance(live, LiveReplay)
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        out.write(f"replay served at {live.url} (Ctrl-C stops it)\n")
+        out.flush()
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        out.write("replay server stopped\n")
+    finally:
+        live.close()
+        signal.signal(signal.SIGTERM, previous)
+    return 0
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -184,9 +212,12 @@ def build_parser() -> argparse.ArgumentParser:
     check = sub.add_parser("check", help="print the singular zones along a task's path, without planning")
     check.add_argument("task", help="task file (YAML v1)")
     check.set_defaults(func=cmd_check)
-    rep = sub.add_parser("replay", help="write the browser replay of a planned trajectory")
+    rep = sub.add_parser("replay", help="replay a planned trajectory in the browser (HTML file or live server)")
     rep.add_argument("trajectory", help="trajectory.json or the output folder holding it")
-    rep.add_argument("--html", required=True, help="the HTML file to write")
+    rep.add_argument("--html", default=None, help="write the self-contained replay page to this file")
+    rep.add_argument("--serve", action="store_true", help="start a live meshcat server on loopback and play there")
+    rep.add_argument("--speed", type=float, default=1.0, help="--serve: playback speed, x real time (default 1)")
+    rep.add_argument("--no-loop", action="store_true", help="--serve: play once instead of looping")
     rep.set_defaults(func=cmd_replay)
     demo = sub.add_parser("demo", help="plan the bundled demo task into ./singplan-demo")
     demo.add_argument("-o", "--output", default="singplan-demo", help="output folder (default: singplan-demo)")

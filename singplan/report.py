@@ -20,6 +20,7 @@ import matplotlib
 matplotlib.use("Agg")  # no display: render to files only
 import matplotlib.pyplot as plt
 import numpy as np
+from numpy.typing import ArrayLike
 
 from singplan.robot import Robot
 from singplan.trajectory import Trajectory
@@ -77,7 +78,20 @@ def _speed_ratio(traj: Trajectory, vmax: np.ndarray) -> Callable[[plt.Figure], N
     return draw
 
 
-def _distances(traj: Trajectory, thresholds: list[float]) -> Callable[[plt.Figure], None]:
+def _path_length_axis(ax: plt.Axes, traj: Trajectory, s_mm: np.ndarray) -> None:
+    """A top axis in path length [mm]: the TCP distance travelled since t = 0."""
+    def to_length(t: ArrayLike) -> ArrayLike:
+        return np.interp(np.asarray(t, dtype=float), traj.t, s_mm)
+
+    def to_time(s: ArrayLike) -> ArrayLike:
+        return np.interp(np.asarray(s, dtype=float), s_mm, traj.t)
+
+    top = ax.secondary_xaxis("top", functions=(to_length, to_time))
+    top.set_xlabel("path length [mm]", fontsize=8)
+    top.tick_params(labelsize=7)
+
+
+def _distances(traj: Trajectory, thresholds: list[float], s_mm: np.ndarray) -> Callable[[plt.Figure], None]:
     d = traj.samples["distances"]
     series = [("wrist [deg]", np.degrees(d[:, 0]), thresholds[0]), ("shoulder [mm]", d[:, 1] * 1e3, thresholds[1]),
               ("elbow [deg]", np.degrees(d[:, 2]), thresholds[2])]
@@ -92,10 +106,12 @@ def _distances(traj: Trajectory, thresholds: list[float]) -> Callable[[plt.Figur
             ax.axhline(0, color="k", lw=0.5)
             ax.set_title(label, fontsize=9)
             ax.set_xlabel("t [s]", fontsize=8)
+            _path_length_axis(ax, traj, s_mm)
     return draw
 
 
-def _deviation(traj: Trajectory, pos_tol_mm: float, ori_tol_deg: float) -> Callable[[plt.Figure], None]:
+def _deviation(traj: Trajectory, pos_tol_mm: float, ori_tol_deg: float,
+               s_mm: np.ndarray) -> Callable[[plt.Figure], None]:
     def draw(fig: plt.Figure) -> None:
         for k, (label, values, tol) in enumerate((
                 ("position deviation [mm]", traj.samples["position_error_m"] * 1e3, pos_tol_mm),
@@ -106,12 +122,12 @@ def _deviation(traj: Trajectory, pos_tol_mm: float, ori_tol_deg: float) -> Calla
             ax.axhline(tol, color="r", ls="--", lw=0.8)
             ax.set_title(label, fontsize=9)
             ax.set_xlabel("t [s]", fontsize=8)
+            _path_length_axis(ax, traj, s_mm)
     return draw
 
 
-def _tcp_speed(traj: Trajectory, robot: Robot) -> Callable[[plt.Figure], None]:
-    p = np.array([robot.fk(q).translation for q in traj.q])
-    speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / traj.period
+def _tcp_speed(traj: Trajectory, step_m: np.ndarray) -> Callable[[plt.Figure], None]:
+    speed = step_m / traj.period
     moves = traj.task["moves"]
 
     def draw(fig: plt.Figure) -> None:
@@ -159,15 +175,20 @@ def report_html(traj: Trajectory, robot: Robot) -> str:
     sing = traj.task.get("singularity", {})
     zone = sing.get("zone", {})
     vmax = robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", 1.0))
+    tcp = np.array([robot.fk(q).translation for q in traj.q])  # (K, 3)
+    step_m = np.linalg.norm(np.diff(tcp, axis=0), axis=1)  # (K - 1,)
+    s_mm = np.concatenate([[0.0], np.cumsum(step_m)]) * 1e3  # (K,)
     figures = [
         ("joints", "Joint positions [deg] with their limits (dashed); crossings shaded.", _joints(traj, robot), 4.5),
         ("speed", "Joint speed as a fraction of its limit.", _speed_ratio(traj, vmax), 3.0),
-        ("distances", "Signed singular distances with the detection thresholds.",
-         _distances(traj, [zone.get("wrist_deg", 5.0), zone.get("shoulder_mm", 20.0), zone.get("elbow_deg", 5.0)]),
-         3.0),
-        ("deviation", "Deviation from the programmed path with the tolerances.",
-         _deviation(traj, sing.get("position_tolerance_mm", 0.01), sing.get("orientation_tolerance_deg", 5.0)), 3.0),
-        ("tcp", "TCP speed against the programmed speed (dashed).", _tcp_speed(traj, robot), 3.0),
+        ("distances", "Signed singular distances with the detection thresholds, against time (bottom) and path "
+                      "length (top).",
+         _distances(traj, [zone.get("wrist_deg", 5.0), zone.get("shoulder_mm", 20.0), zone.get("elbow_deg", 5.0)],
+                    s_mm), 3.3),
+        ("deviation", "Deviation from the programmed path with the tolerances, against time and path length.",
+         _deviation(traj, sing.get("position_tolerance_mm", 0.01), sing.get("orientation_tolerance_deg", 5.0), s_mm),
+         3.3),
+        ("tcp", "TCP speed against the programmed speed (dashed).", _tcp_speed(traj, step_m), 3.0),
     ]
     body = "".join(f'<figure id="plot-{key}">{_svg(draw, h)}<figcaption>{html.escape(cap)}</figcaption></figure>'
                    for key, cap, draw, h in figures)

@@ -11,7 +11,13 @@ commands in order, so it works offline in any current browser; the animation con
 from __future__ import annotations
 
 import base64
+import contextlib
+import io
 import json
+import math
+import re
+from dataclasses import dataclass
+from html import escape
 from pathlib import Path
 from typing import Any
 
@@ -24,15 +30,25 @@ import pinocchio as pin
 import umsgpack
 from pinocchio.visualize import MeshcatVisualizer
 
-from singplan.errors import RobotModelError
+from singplan.errors import InputError, RobotModelError
 from singplan.path import rpy_deg_to_rotation
 from singplan.planner import plan_move_piece
 from singplan.robot import Robot, bundled_robots, load_robot
 from singplan.task import parse_task
-from singplan.trajectory import Trajectory, load
+from singplan.trajectory import Segment, Trajectory, load
 
 ANIMATION_STEP_S = 0.02  # animation keyframes; the browser interpolates between them
 SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575}
+_DOT_EVERY = 3  # executed-path dots: one per this many samples
+_STRIP_POINTS = 1500  # joint-speed strip: at most this many points
+_VIEW_DIRECTION = np.array([0.8, -1.0, 0.75]) / np.linalg.norm([0.8, -1.0, 0.75])  # camera side of the scene
+_PACKAGE_DIR = Path(__file__).resolve().parent
+
+
+def viewer_dir() -> Path:
+    """Folder of the replay page's template, script and style (in the wheel or a source checkout)."""
+    installed = _PACKAGE_DIR / "_viewer"
+    return installed if installed.is_dir() else _PACKAGE_DIR.parent / "viewer"
 
 
 class _Recorder:
@@ -50,9 +66,9 @@ def _line(points: np.ndarray, colour: int, width: float = 2.0) -> mg.Line:
     return mg.Line(geometry, mg.LineBasicMaterial(color=colour, linewidth=width))
 
 
-def _scene(traj: Trajectory, robot: Robot, tcp: np.ndarray, programmed: np.ndarray | None) -> _Recorder:
-    recorder = _Recorder()
-    vis = meshcat.Visualizer(window=recorder)
+def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: np.ndarray, programmed: np.ndarray,
+           speed: float = 1.0, loop: bool = False, play: bool = False) -> None:
+    """Send the replay scene to ``vis``: robot, paths, crossing markers and the animation."""
     # package:// meshes resolve against every folder above the URDF (example-robot-data's layout)
     package_dirs = [str(p) for p in robot.urdf_path.parents]
     try:
@@ -64,26 +80,36 @@ def _scene(traj: Trajectory, robot: Robot, tcp: np.ndarray, programmed: np.ndarr
     viz.loadViewerModel(rootNodeName="robot")
     full = _full_configuration(model, robot)
     viz.display(full(traj.q[0]))
-    if programmed is not None:
-        vis["paths/programmed"].set_object(_line(programmed, 0x9E9E9E, 1.0))
-    period = traj.period
+    vis["/Grid"].set_property("visible", False)  # the robot's base axes show the ground frame
+    vis["paths/programmed"].set_object(_line(programmed, 0x9E9E9E, 1.0))
     for n, seg in enumerate(traj.segments):
-        k0, k1 = round(seg.t0 / period), round(seg.t1 / period)
+        k0, k1 = _sample_range(traj, seg)
         colour = SEGMENT_COLOURS.get(seg.kind, 0)
         vis[f"paths/executed/{n:03d}_{seg.kind}"].set_object(_line(tcp[k0:k1 + 1], colour, 3.0))
+        # browsers draw lines one pixel wide: dots make the executed path readable at a glance
+        points = np.asarray(tcp[k0:k1 + 1:_DOT_EVERY], dtype=np.float32).T  # (3, M)
+        rgb = np.array([(colour >> 16) & 255, (colour >> 8) & 255, colour & 255], dtype=np.float32)[:, None] / 255
+        dots = mg.PointsGeometry(points, color=np.repeat(rgb, points.shape[1], axis=1))
+        vis[f"paths/dots/{n:03d}_{seg.kind}"].set_object(mg.Points(dots, mg.PointsMaterial(size=0.006)))
         if seg.kind == "crossing":
             marker = vis[f"crossings/{n:03d}_{seg.singularity}_{seg.method}"]
             marker.set_object(mg.Sphere(0.012), mg.MeshLambertMaterial(color=0xF4B400, opacity=0.8))
             marker.set_transform(mtf.translation_matrix(tcp[(k0 + k1) // 2]))
-    animation = meshcat.animation.Animation(default_framerate=round(1.0 / ANIMATION_STEP_S))
-    step = max(1, round(ANIMATION_STEP_S / period))
+    step = max(1, round(ANIMATION_STEP_S / traj.period))
+    animation = meshcat.animation.Animation(default_framerate=speed / (step * traj.period))
     for frame_index, k in enumerate(range(0, len(traj.t), step)):
         with animation.at_frame(vis, frame_index) as frame:
             viz.viewer = frame
             viz.display(full(traj.q[k]))
     viz.viewer = vis
-    vis.set_animation(animation, play=False, repetitions=1)
-    return recorder
+    vis.set_animation(animation, play=play, repetitions=_LOOP_REPETITIONS if loop else 1)
+
+
+_LOOP_REPETITIONS = 1_000_000  # meshcat's "loop": repeat the clip this many times
+
+
+def _sample_range(traj: Trajectory, seg: Segment) -> tuple[int, int]:
+    return round(seg.t0 / traj.period), round(seg.t1 / traj.period)
 
 
 def _full_configuration(model: pin.Model, robot: Robot) -> Any:
@@ -118,25 +144,60 @@ def programmed_path(traj: Trajectory, robot: Robot, tcp: np.ndarray) -> np.ndarr
 
 
 def replay_html(traj: Trajectory, robot: Robot) -> str:
-    """The replay page, a self-contained HTML document."""
-    tcp = np.array([robot.fk(q).translation for q in traj.q])
-    programmed = programmed_path(traj, robot, tcp)
-    recorder = _scene(traj, robot, tcp, programmed)
-    bundle = (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text()
-    blobs = json.dumps([base64.b64encode(umsgpack.packb(c)).decode("ascii") for c in recorder.commands])
-    legend = " ".join(f'<span style="color:#{colour:06x}">&#9632; {kind}</span>'
-                      for kind, colour in SEGMENT_COLOURS.items())
-    title = f"singplan replay: {traj.robot}, {traj.duration_s:.3f} s"
-    return (f'<!DOCTYPE html><html><head><meta charset="utf-8"><title>{title}</title></head>'
-            f'<body style="margin:0;font-family:sans-serif">'
-            f'<div style="position:absolute;left:8px;bottom:8px;z-index:10;background:#fff8;padding:4px">'
-            f"{title}<br>{legend}</div>"
-            f'<div id="meshcat-pane" style="width:100vw;height:100vh"></div>'
-            f"<script>{bundle}</script>"
-            f"<script>var viewer = new MeshCat.Viewer(document.getElementById('meshcat-pane'));\n"
-            f"for (const b64 of {blobs}) {{\n"
-            f"  viewer.handle_command_bytearray(Uint8Array.from(atob(b64), c => c.charCodeAt(0)));\n}}\n"
-            f"window.singplanReady = true;</script></body></html>")
+    """The replay page, a self-contained HTML document (the template and assets of :func:`viewer_dir`)."""
+    tcp = np.array([robot.fk(q).translation for q in traj.q])  # (K, 3)
+    recorder = _Recorder()
+    _scene(meshcat.Visualizer(window=recorder), traj, robot, tcp, programmed_path(traj, robot, tcp))
+    assets = viewer_dir()
+    data = _page_data(traj, robot, tcp)
+    data["commands"] = [base64.b64encode(umsgpack.packb(c)).decode("ascii") for c in recorder.commands]
+    title = escape(f"singplan replay: {traj.robot}, {traj.duration_s:.3f} s")
+    fills = {"__TITLE__": title, "__CSS__": (assets / "replay.css").read_text(),
+             "__MESHCAT__": _meshcat_bundle(), "__DATA__": json.dumps(data).replace("</", "<\\/"),
+             "__JS__": (assets / "replay.js").read_text()}
+    template = (assets / "replay.html").read_text()
+    return re.sub(r"__(TITLE|CSS|MESHCAT|DATA|JS)__", lambda m: fills[m.group(0)], template)  # values not rescanned
+
+
+def _meshcat_bundle() -> str:
+    return (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text()
+
+
+def _page_data(traj: Trajectory, robot: Robot, tcp: np.ndarray) -> dict[str, Any]:
+    """What replay.js shows besides the scene: segments, crossing labels, speed strip, camera."""
+    segments, labels = [], []
+    for seg in traj.segments:
+        k0, k1 = _sample_range(traj, seg)
+        title, detail = _describe(seg)
+        crossing = seg.kind == "crossing"
+        t_jump = traj.t[(k0 + k1) // 2] if crossing else seg.t0
+        segments.append({"kind": seg.kind, "move": seg.move, "t0": seg.t0, "t1": seg.t1, "t_jump": float(t_jump),
+                         "colour": SEGMENT_COLOURS.get(seg.kind, 0), "title": title, "detail": detail})
+        if crossing:
+            labels.append({"text": title.split(": ", 1)[1], "xyz": tcp[(k0 + k1) // 2].tolist()})
+    vmax = robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", 1.0))
+    ratio = np.max(np.abs(traj.qd) / vmax, axis=1)  # (K,)
+    keep = np.unique(np.linspace(0, len(traj.t) - 1, min(len(traj.t), _STRIP_POINTS)).astype(int))
+    points = np.vstack([tcp, np.zeros((1, 3))])  # the path and the robot's base
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    radius = max(0.3, 0.5 * float(np.linalg.norm(hi - lo)))
+    return {"duration": traj.duration_s, "colours": SEGMENT_COLOURS, "segments": segments, "labels": labels,
+            "speed": {"t": np.round(traj.t[keep], 4).tolist(), "ratio": np.round(ratio[keep], 4).tolist()},
+            "frame": {"center": (0.5 * (lo + hi)).tolist(), "distance": 2.2 * radius,
+                      "direction": _VIEW_DIRECTION.tolist()}}
+
+
+def _describe(seg: Segment) -> tuple[str, str]:
+    """A segment's list entry: a title and a line of figures."""
+    span = f"t {seg.t0:.3f}-{seg.t1:.3f} s, {seg.config_before}"
+    if seg.kind != "crossing":
+        return f"move {seg.move}: {seg.kind}", span + ("" if seg.config_after == seg.config_before
+                                                       else f" -> {seg.config_after}")
+    d = seg.details
+    title = f"move {seg.move}: {seg.singularity} crossing, {seg.method}, {seg.config_before} -> {seg.config_after}"
+    detail = (f"t {seg.t0:.3f}-{seg.t1:.3f} s; deviation {d.get('max_position_error_mm', 0.0):.4f} mm / "
+              f"{d.get('max_orientation_error_deg', 0.0):.3f} deg; time lost {d.get('time_lost_s', 0.0):.3f} s")
+    return title, detail
 
 
 def robot_of(traj: Trajectory) -> Robot:
@@ -147,9 +208,62 @@ def robot_of(traj: Trajectory) -> Robot:
     return load_robot(source, tip=traj.tip, tool=tool)
 
 
-def replay(traj: Trajectory | str | Path, html: str | Path) -> Path:
-    """Write the replay page of a trajectory (object, or a trajectory.json / output folder) to ``html``."""
+@dataclass
+class LiveReplay:
+    """A meshcat server playing a trajectory on loopback; :meth:`close` stops it.
+
+    Attributes:
+        url: the page to open (meshcat's viewer, with play / pause / time / speed controls).
+    """
+
+    url: str
+    visualizer: meshcat.Visualizer
+
+    def close(self) -> None:
+        """Stop the meshcat server process."""
+        proc = self.visualizer.window.server_proc
+        if proc is not None and proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+    def __enter__(self) -> LiveReplay:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def serve_replay(traj: Trajectory, robot: Robot, speed: float = 1.0, loop: bool = True) -> LiveReplay:
+    """Start a meshcat server (a free loopback port from 7000 up) and play the trajectory there."""
+    with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its URL; the caller decides
+        vis = meshcat.Visualizer()
+    live = LiveReplay(vis.url(), vis)
+    try:
+        tcp = np.array([robot.fk(q).translation for q in traj.q])
+        _scene(vis, traj, robot, tcp, programmed_path(traj, robot, tcp), speed=speed, loop=loop, play=True)
+    except BaseException:
+        live.close()
+        raise
+    return live
+
+
+def replay(traj: Trajectory | str | Path, html: str | Path | None = None, serve: bool = False,
+           speed: float = 1.0, loop: bool = True) -> Path | LiveReplay:
+    """Replay a trajectory (object, or a trajectory.json / output folder) in the browser.
+
+    ``html=path`` writes the self-contained page and returns its path; ``serve=True`` starts a
+    live meshcat server playing it (``speed`` x real time, looping unless ``loop=False``) and
+    returns the running :class:`LiveReplay`, whose ``url`` to open and ``close()`` to stop it.
+    """
+    if (html is None) == (not serve):
+        raise InputError("replay: give exactly one of html=PATH or serve=True")
+    if not (math.isfinite(speed) and 0.01 <= speed <= 100.0):
+        raise InputError(f"replay: speed must be a number in [0.01, 100], got {speed}")
     trajectory = traj if isinstance(traj, Trajectory) else load(traj)
+    robot = robot_of(trajectory)
+    if serve:
+        return serve_replay(trajectory, robot, speed=speed, loop=loop)
+    assert html is not None
     out = Path(html)
-    out.write_text(replay_html(trajectory, robot_of(trajectory)))
+    out.write_text(replay_html(trajectory, robot))
     return out

@@ -176,7 +176,7 @@ def test_replay_is_written_self_contained_and_can_be_rebuilt_from_the_saved_traj
     page = (tmp_path / "out" / "replay.html").read_text()
     assert len(page.encode()) < 5_000_000  # the demo's replay stays small enough to mail around
     assert 'src="http' not in page and 'href="http' not in page and "<link" not in page  # nothing fetched
-    assert "new MeshCat.Viewer" in page and "window.singplanReady" in page
+    assert "new MeshCat.Viewer" in page and "window.singplan = " in page and "__DATA__" not in page
     saved = load(tmp_path / "out")
     again = plan(DEMO)
     np.testing.assert_allclose(saved.q, again.q, atol=1e-12)  # trajectory.json round-trips
@@ -188,3 +188,31 @@ def test_replay_is_written_self_contained_and_can_be_rebuilt_from_the_saved_traj
     err = io.StringIO()
     assert main(["replay", str(tmp_path / "nowhere"), "--html", str(tmp_path / "x.html")], err=err) == 2
     assert "cannot read a trajectory" in err.getvalue()
+    err = io.StringIO()
+    assert main(["replay", str(tmp_path / "out")], err=err) == 2  # neither --html nor --serve
+    assert "--serve" in err.getvalue()
+
+
+def test_replay_serve_runs_a_live_meshcat_server_on_loopback_until_stopped(tmp_path: Path) -> None:
+    import signal
+    import subprocess
+    import sys
+    import urllib.request
+
+    assert main(["plan", str(DEMO), "-o", str(tmp_path / "out"), "--quiet", "--no-report", "--no-replay"],
+                out=io.StringIO()) == 0
+    proc = subprocess.Popen([sys.executable, "-m", "singplan", "replay", str(tmp_path / "out"), "--serve"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()  # type: ignore[union-attr]
+        assert line.startswith("replay served at http://127.0.0.1:"), line + proc.stderr.read()  # type: ignore[union-attr]
+        url = line.split()[3]
+        with urllib.request.urlopen(url, timeout=20) as response:
+            assert response.status == 200
+            assert "meshcat" in response.read().decode().lower()
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 0 and "stopped" in out
+    with pytest.raises(OSError):  # the meshcat server went with it
+        urllib.request.urlopen(url, timeout=5)

@@ -1,0 +1,51 @@
+"""Regenerate docs/img/replay.png: the demo's replay in Debian's chromium, paused in its crossing.
+
+    python docs/screenshot.py [--chromium /usr/bin/chromium] [--out docs/img/replay.png]
+
+Needs the test extra (Playwright's Python package) and the Debian ``chromium`` package; no
+browser is downloaded.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+from playwright.sync_api import sync_playwright
+
+from singplan.cli import main as singplan_main
+from singplan.trajectory import load
+
+HERE = Path(__file__).resolve().parent
+FLAGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
+         "--disable-component-update", "--disable-sync", "--use-gl=swiftshader", "--enable-unsafe-swiftshader"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--chromium", default="/usr/bin/chromium")
+    parser.add_argument("--out", type=Path, default=HERE / "img" / "replay.png")
+    args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "demo"
+        if singplan_main(["demo", "-o", str(out)]) != 0:
+            return 1
+        crossing = next(s for s in load(out).segments if s.kind == "crossing")
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=args.chromium, headless=True, args=FLAGS)
+            page = browser.new_page(viewport={"width": 1200, "height": 760})
+            page.goto((out / "replay.html").as_uri())
+            page.wait_for_function("window.singplan && window.singplan.ready", timeout=60_000)
+            page.evaluate("(t) => window.singplan.seek(t)", 0.5 * (crossing.t0 + crossing.t1))
+            page.wait_for_timeout(500)
+            args.out.parent.mkdir(parents=True, exist_ok=True)
+            page.screenshot(path=str(args.out))
+            browser.close()
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

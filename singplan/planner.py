@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from singplan.configuration import classify, distances_batch, parse_configuration
+from singplan.configuration import classify, distances_batch, labels_from_distances, parse_configuration
 from singplan.crossing import (
     METHODS_AVAILABLE,
     Axis,
@@ -330,10 +330,10 @@ def _check_limits(robot: Robot, i: int, move: Move, piece: CartesianPiece, u: np
 def _check_config(robot: Robot, i: int, move: Move, q: np.ndarray) -> None:
     if move.config == "auto":
         return
-    first, last = classify(robot, q[0]).label, classify(robot, q[-1]).label
+    labels = labels_from_distances(distances_batch(robot, q))  # vectorised for OPW arms
+    first, last = labels[0], labels[-1]
     if move.config == "keep":
-        changed = [k for k in range(1, len(q)) if classify(robot, q[k]).label != first] if first != last else []
-        if first != last or changed:
+        if any(label != first for label in labels):
             raise SingularityError(f"move {i} ({move.kind}): config 'keep', but the motion changes the "
                                    f"configuration from {first} to {last}", move=i, kind="config", s_m=0.0)
         return

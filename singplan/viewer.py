@@ -174,7 +174,10 @@ def _page_data(traj: Trajectory, robot: Robot, tcp: np.ndarray) -> dict[str, Any
         segments.append({"kind": seg.kind, "move": seg.move, "t0": seg.t0, "t1": seg.t1, "t_jump": float(t_jump),
                          "colour": SEGMENT_COLOURS.get(seg.kind, 0), "title": title, "detail": detail})
         if crossing:
-            labels.append({"text": title.split(": ", 1)[1], "xyz": tcp[(k0 + k1) // 2].tolist()})
+            d = seg.details
+            text = (f"{title.split(': ', 1)[1]}; {d.get('max_position_error_mm', 0.0):.3f} mm / "
+                    f"{d.get('max_orientation_error_deg', 0.0):.2f} deg")
+            labels.append({"text": text, "xyz": tcp[(k0 + k1) // 2].tolist()})
     vmax = robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", 1.0))
     ratio = np.max(np.abs(traj.qd) / vmax, axis=1)  # (K,)
     keep = np.unique(np.linspace(0, len(traj.t) - 1, min(len(traj.t), _STRIP_POINTS)).astype(int))

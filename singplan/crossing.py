@@ -25,7 +25,7 @@ from typing import ClassVar, Protocol
 import numpy as np
 import pinocchio as pin
 
-from singplan.configuration import classify
+from singplan.configuration import distances_batch, labels_from_distances
 from singplan.errors import SingularityError
 from singplan.ik import closed_form_branches
 from singplan.jointmap import JointMap, JointPart, hermite
@@ -42,6 +42,7 @@ _EDGE_FACTOR = 50.0
 _EDGE_MIN = {"wrist": math.radians(0.05), "elbow": math.radians(0.05), "shoulder": 0.0005}
 _THROUGH_MAX_JUMP_RAD = math.radians(5.0)
 _BLEND_STEP_M = 0.001  # reference samples of a blend: every millimetre of path
+_KIND_INDEX = {"wrist": 0, "shoulder": 1, "elbow": 2}  # columns of the singular distances
 
 
 @dataclass(frozen=True)
@@ -113,16 +114,14 @@ def through(ctx: MoveContext, zone: Zone, method: str) -> Crossing | None:
     branch of the other label just after it; the pose deviates there by about the miss.
     Returns None when no nearby solution of the other label exists.
     """
-    i = {"wrist": 0, "shoulder": 1, "elbow": 2}[zone.kind]
-    u, q, d = ctx.tracked.u, ctx.tracked.q, np.abs(ctx.distances[:, i])
+    u, q, d = ctx.tracked.u, ctx.tracked.q, np.abs(ctx.distances[:, _KIND_INDEX[zone.kind]])
     edge = max(_EDGE_FACTOR * zone.min_distance, _EDGE_MIN[zone.kind])
     before = np.nonzero((u < zone.u_closest) & (d >= edge))[0]
     after = np.nonzero((u > zone.u_closest) & (d >= edge))[0]
     if before.size == 0 or after.size == 0:
         return None
     a, b = int(before[-1]), int(after[0])
-    letter = _letter(ctx.robot, q[a], zone.kind)
-    options = [c for c in exit_candidates(ctx, float(u[b])) if _letter(ctx.robot, c, zone.kind) != letter]
+    options = _other_side(ctx.robot, exit_candidates(ctx, float(u[b])), q[a], zone.kind)
     if not options:
         return None
     q_exit, jump = nearest_candidate(np.array(options), q[a])
@@ -208,9 +207,14 @@ class WristJoint:
         return blend_crossing(ctx, zone, self.name, a, float(u[b]), q_exit)
 
 
-def _letter(robot: Robot, q: np.ndarray, kind: str) -> str:
-    c = classify(robot, q)
-    return {"shoulder": c.shoulder, "elbow": c.elbow, "wrist": c.wrist}[kind]
+def _other_side(robot: Robot, options: list[np.ndarray], q: np.ndarray, kind: str) -> list[np.ndarray]:
+    """The options on the other side of the ``kind`` singularity than ``q`` (the other letter of
+    that kind in the configuration label: the sign of its singular distance)."""
+    if not options:
+        return []
+    i = _KIND_INDEX[kind]
+    sides = np.sign(distances_batch(robot, np.vstack([q, *options]))[:, i])  # (1 + M,)
+    return [c for c, side in zip(options, sides[1:], strict=True) if side != sides[0]]
 
 
 def _widened(zone: Zone, factor: float) -> Zone:
@@ -236,10 +240,10 @@ def _exit_joints(ctx: MoveContext, zone: Zone, q_entry: np.ndarray, u_b: float,
     if not options:
         return None
     if target is not None:
-        wanted = [c for c in options if classify(ctx.robot, c).label == target]
+        labels = labels_from_distances(distances_batch(ctx.robot, np.array(options)))
+        wanted = [c for c, label in zip(options, labels, strict=True) if label == target]
     elif change:
-        letter = _letter(ctx.robot, q_entry, zone.kind)
-        wanted = [c for c in options if _letter(ctx.robot, c, zone.kind) != letter]
+        wanted = _other_side(ctx.robot, options, q_entry, zone.kind)
     else:
         wanted = []
     return nearest_candidate(np.array(wanted or options), q_entry)[0]
@@ -307,7 +311,7 @@ class Average:
         a, b = _zone_span(ctx, zone)
         if b - a < 2:
             return None
-        i = {"wrist": 0, "shoulder": 1, "elbow": 2}[zone.kind]
+        i = _KIND_INDEX[zone.kind]
         u, q = ctx.tracked.u[a:b + 1], ctx.tracked.q[a:b + 1].copy()
         core = np.abs(ctx.distances[a:b + 1, i]) < self._CORE * zone.threshold
         core[0] = core[-1] = False

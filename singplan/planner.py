@@ -245,9 +245,11 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
     crossings: list[Crossing] = []
     u_from, q_from = 0.0, q_start
     cands = BranchCandidates(robot, piece.poses)
+    hold: Callable[[np.ndarray], np.ndarray] | None = _in_zone(robot, thresholds)
     while True:
+        # inside singular zones the in-branch swing is resolved only if the method keeps it
         tracked = track(robot, piece.poses, np.concatenate([[u_from], grid[grid > u_from + 1e-12]]), q_from,
-                        cands=cands)
+                        cands=cands, hold=hold)
         grid = np.union1d(grid, tracked.u)  # refined once: a re-track after a crossing starts from it
         _check_tracked(robot, i, move, piece, tracked)
         if parts and parts[-1].kind in ("blend", "axis"):  # sample the crossing, C1 at its exit
@@ -256,9 +258,15 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
             _check_limits(robot, i, move, piece, parts[-1].u, parts[-1].q, zones)
         dist, labels = distances_along(robot, tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
-        found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref))
+        found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref),
+                           continued=crossings[-1].zone.kind if crossings else None)
         ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, labels, task.singularity)
+        zones_before = list(zones)
         result = _first_crossing(method, ctx, found, zones, u_from)
+        if tracked.coarse_from_u < (result.blend.u0 if result is not None else math.inf):
+            zones[:], hold = zones_before, None  # a kept zone was left coarse: track it in full
+            continue
+        hold = _in_zone(robot, thresholds)
         if result is None:
             parts.append(JointPart("track", tracked.u, tracked.q))
             _check_limits(robot, i, move, piece, tracked.u, tracked.q, zones)
@@ -287,6 +295,15 @@ def _first_crossing(method: CrossingMethod, ctx: MoveContext, found: list[Zone],
             zones[-1] = crossing.zone  # a crossing may span more than the detected zone
             return crossing
     return None
+
+
+def _in_zone(robot: Robot, thresholds: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """(N,) True for joint samples (N, n) inside a singular zone of any kind."""
+    def inside(q: np.ndarray) -> np.ndarray:
+        with np.errstate(invalid="ignore"):
+            return np.any(np.abs(distances_batch(robot, q)) < thresholds, axis=1)
+
+    return inside
 
 
 def _refiner(robot: Robot, ref: JointMap) -> DistanceFunction:

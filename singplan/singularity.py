@@ -66,8 +66,12 @@ DistanceFunction = Callable[[np.ndarray, int], np.ndarray]  # (u (M,), kind inde
 
 
 def find_zones(u: np.ndarray, dist: np.ndarray, thresholds: np.ndarray,
-               abs_distance_at: DistanceFunction | None = None) -> list[Zone]:
-    """Zones from sampled distances; ``abs_distance_at(u, index)`` refines the closest point."""
+               abs_distance_at: DistanceFunction | None = None, continued: str | None = None) -> list[Zone]:
+    """Zones from sampled distances; ``abs_distance_at(u, index)`` refines the closest point.
+
+    ``continued``: the samples start inside a zone of this kind already measured (the rest of
+    a crossed zone), so a zone of that kind open at the first sample is not refined again.
+    """
     zones = []
     for kind in KINDS:
         i = _INDEX[kind]
@@ -82,7 +86,8 @@ def find_zones(u: np.ndarray, dist: np.ndarray, thresholds: np.ndarray,
             while k < len(u) and inside[k]:
                 k += 1
             end = k - 1
-            zones.append(_zone(kind, u, d, thresholds[i], start, end, abs_distance_at, i))
+            refine = None if kind == continued and start == 0 else abs_distance_at
+            zones.append(_zone(kind, u, d, thresholds[i], start, end, refine, i))
     return sorted(zones, key=lambda z: z.u_entry)
 
 
@@ -109,7 +114,7 @@ def _zone(kind: str, u: np.ndarray, d: np.ndarray, thr: float, start: int, end: 
 
 
 def _zoom_min(f: Callable[[np.ndarray], np.ndarray], lo: float, hi: float, points: int = 65,
-              levels: int = 4) -> tuple[float, float]:
+              levels: int = 3) -> tuple[float, float]:
     """Minimum of f on [lo, hi]: evaluate a grid, zoom on the best cell, repeat (f is vectorised)."""
     best_u, best_d = lo, math.inf
     for _ in range(levels):

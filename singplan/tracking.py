@@ -34,12 +34,15 @@ class TrackedPath:
         q: joint values [rad], shape (N, n), continuous from sample to sample.
         max_step_rad: largest joint change between neighbouring samples.
         gap_index: first interval k (u[k] -> u[k+1]) where no continuous solution was found, or -1.
+        coarse_from_u: where the first large step left unrefined inside a held (singular)
+            interval starts; inf when there is none.
     """
 
     u: np.ndarray  # (N,)
     q: np.ndarray  # (N, n)
     max_step_rad: float
     gap_index: int
+    coarse_from_u: float = math.inf
 
 
 class BranchCandidates:
@@ -179,12 +182,15 @@ def _select(cands: BranchCandidates, u: np.ndarray, q0: np.ndarray, max_step: fl
 
 def track(robot: Robot, poses: PoseFunction, u0: np.ndarray, q_start: np.ndarray,
           max_joint_step_rad: float = math.radians(1.0), min_du: float = 1e-10,
-          max_passes: int = 48, cands: BranchCandidates | None = None) -> TrackedPath:
+          max_passes: int = 48, cands: BranchCandidates | None = None,
+          hold: Callable[[np.ndarray], np.ndarray] | None = None) -> TrackedPath:
     """Follow one continuous IK solution along ``poses(u)``, starting at ``q_start`` (u0[0]).
 
     ``u0`` is the initial grid; it is refined where joints move more than
     ``max_joint_step_rad`` between samples. ``cands`` (of the same ``poses``) carries the
-    branches already solved by an earlier call.
+    branches already solved by an earlier call. ``hold(q) -> (N,) bool`` marks samples whose
+    intervals stay coarse (inside a singular zone that a crossing may replace): their large
+    steps are neither refined nor reported as gaps, only located in ``coarse_from_u``.
     """
     cands = BranchCandidates(robot, poses) if cands is None else cands
     u = np.asarray(u0, dtype=float)
@@ -193,14 +199,26 @@ def track(robot: Robot, poses: PoseFunction, u0: np.ndarray, q_start: np.ndarray
         lost = np.nonzero(~np.isfinite(steps))[0]
         if lost.size:  # the path leaves the workspace: nothing to refine past that sample
             u, q, steps = u[:lost[0] + 1], q[:lost[0] + 1], steps[:lost[0] + 1]
-        big = np.nonzero((steps[1:] > max_joint_step_rad) & (np.diff(u) > min_du))[0]
+        free = ~_held_intervals(hold, q)
+        big = np.nonzero((steps[1:] > max_joint_step_rad) & (np.diff(u) > min_du) & free)[0]
         if big.size == 0 or len(u) > _MAX_SAMPLES:
             break
         u = np.sort(np.concatenate([u, _subdivide(u, big, steps[big + 1] / max_joint_step_rad)]))
         q, steps = _select_all(cands, u, q_start, max_joint_step_rad)
-    gaps = np.nonzero(~np.isfinite(steps) | (steps > max_joint_step_rad))[0]
-    gap = int(gaps[0]) - 1 if gaps.size else -1
-    return TrackedPath(u=u, q=q, max_step_rad=float(np.max(steps[1:])) if len(u) > 1 else 0.0, gap_index=gap)
+    large = ~np.isfinite(steps[1:]) | (steps[1:] > max_joint_step_rad)
+    held = _held_intervals(hold, q)
+    gaps, coarse = np.nonzero(large & ~held)[0], np.nonzero(large & held)[0]
+    return TrackedPath(u=u, q=q, max_step_rad=float(np.max(steps[1:])) if len(u) > 1 else 0.0,
+                       gap_index=int(gaps[0]) if gaps.size else -1,
+                       coarse_from_u=float(u[coarse[0]]) if coarse.size else math.inf)
+
+
+def _held_intervals(hold: Callable[[np.ndarray], np.ndarray] | None, q: np.ndarray) -> np.ndarray:
+    """(N - 1,) True for intervals whose both ends are held."""
+    if hold is None or len(q) < 2:
+        return np.zeros(max(len(q) - 1, 0), dtype=bool)
+    inside = hold(q)
+    return inside[:-1] & inside[1:]
 
 
 def _subdivide(u: np.ndarray, big: np.ndarray, ratio: np.ndarray) -> np.ndarray:

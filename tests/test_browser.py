@@ -64,9 +64,12 @@ def planned(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _open(browser: Browser, path: Path) -> tuple[Page, list[str]]:
+    """Open a page from disk with the network cut off; the list collects page errors and any
+    request that tried to leave the disk."""
     page = browser.new_page(viewport={"width": 1200, "height": 800})
     errors: list[str] = []
     page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.on("request", lambda r: None if r.url.startswith(("file:", "data:", "blob:")) else errors.append(r.url))
     page.route("**/*", lambda route: route.continue_() if route.request.url.startswith("file:") else route.abort())
     page.goto(path.as_uri())
     return page, errors

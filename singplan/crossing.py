@@ -136,15 +136,20 @@ def exit_candidates(ctx: MoveContext, u: float) -> list[np.ndarray]:
     return [c for c in sols if np.all(np.isfinite(c))]
 
 
-def path_slope(robot: Robot, poses: PoseFunction, tracked: TrackedPath, k: int, h: float = 1e-7) -> np.ndarray:
-    """dq/du [rad] of the exact IK branch through tracked sample ``k`` (central difference of
-    exact solutions at u +- h, one-sided at the ends of the move), so seams match the path's
-    true slope rather than a chord of samples."""
+def path_slope(robot: Robot, poses: PoseFunction, tracked: TrackedPath, k: int, h: float = 1e-6) -> np.ndarray:
+    """dq/du [rad] of the exact IK branch through tracked sample ``k``: ``J(q)^-1 dX/du``.
+
+    The path's velocity ``dX/du`` (TCP point and angular velocity in the base frame, as
+    :meth:`Robot.jacobian` uses) comes from a central difference of the path poses (one-sided
+    at the ends of the move); outside singular zones J is well conditioned, so seams match
+    the path's true slope rather than a chord of samples.
+    """
     u_k = float(tracked.u[k])
     lo, hi = max(0.0, u_k - h), min(1.0, u_k + h)
-    ref = JointMap(robot, poses, [JointPart("track", tracked.u, tracked.q)])
-    q = ref.evaluate(np.array([lo, hi]))
-    return (q[1] - q[0]) / (hi - lo)
+    T = poses(np.array([lo, hi]))
+    v = (T[1, :3, 3] - T[0, :3, 3]) / (hi - lo)
+    w = T[0, :3, :3] @ pin.log3(T[0, :3, :3].T @ T[1, :3, :3]) / (hi - lo)
+    return np.linalg.lstsq(robot.jacobian(tracked.q[k]), np.concatenate([v, w]), rcond=None)[0]  # square: J^-1
 
 
 def blend_crossing(ctx: MoveContext, zone: Zone, method: str, a: int, u_b: float, q_exit: np.ndarray,

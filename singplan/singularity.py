@@ -113,8 +113,8 @@ def _zone(kind: str, u: np.ndarray, d: np.ndarray, thr: float, start: int, end: 
     return Zone(kind, u_entry, u_exit, u_best, d_best, float(thr))
 
 
-def _zoom_min(f: Callable[[np.ndarray], np.ndarray], lo: float, hi: float, points: int = 65,
-              levels: int = 3) -> tuple[float, float]:
+def _zoom_min(f: Callable[[np.ndarray], np.ndarray], lo: float, hi: float, points: int = 129,
+              levels: int = 2) -> tuple[float, float]:
     """Minimum of f on [lo, hi]: evaluate a grid, zoom on the best cell, repeat (f is vectorised)."""
     best_u, best_d = lo, math.inf
     for _ in range(levels):

@@ -259,7 +259,7 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
         dist, labels = distances_along(robot, tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref),
-                           continued=crossings[-1].zone.kind if crossings else None)
+                           continued=crossings[-1].zone.kind if crossings else None, zoom=_zoom_grid(robot))
         ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, labels, task.singularity)
         zones_before = list(zones)
         result = _first_crossing(method, ctx, found, zones, u_from)
@@ -304,6 +304,11 @@ def _in_zone(robot: Robot, thresholds: np.ndarray) -> Callable[[np.ndarray], np.
             return np.any(np.abs(distances_batch(robot, q)) < thresholds, axis=1)
 
     return inside
+
+
+def _zoom_grid(robot: Robot) -> tuple[int, int]:
+    """Closest-point search grid: OPW arms' distances are vectorised, others cost per sample."""
+    return (129, 2) if robot.opw is not None else (17, 5)
 
 
 def _refiner(robot: Robot, ref: JointMap) -> DistanceFunction:
@@ -394,7 +399,7 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
         _check_tracked(robot, i, move, piece, tracked)
         dist, _ = distances_along(robot, tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
-        zones = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref))
+        zones = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref), zoom=_zoom_grid(robot))
         out.append(MoveZones(i, move.kind, piece.length_m, tuple(zones)))
         q, T = tracked.q[-1], piece.T_end
     return out

@@ -66,8 +66,12 @@ DistanceFunction = Callable[[np.ndarray, int], np.ndarray]  # (u (M,), kind inde
 
 
 def find_zones(u: np.ndarray, dist: np.ndarray, thresholds: np.ndarray,
-               abs_distance_at: DistanceFunction | None = None, continued: str | None = None) -> list[Zone]:
+               abs_distance_at: DistanceFunction | None = None, continued: str | None = None,
+               zoom: tuple[int, int] = (129, 2)) -> list[Zone]:
     """Zones from sampled distances; ``abs_distance_at(u, index)`` refines the closest point.
+
+    ``zoom``: (points, levels) of the closest-point search: many points in few rounds suits
+    a vectorised distance, few points in more rounds one evaluated sample by sample.
 
     ``continued``: the samples start inside a zone of this kind already measured (the rest of
     a crossed zone), so a zone of that kind open at the first sample is not refined again.
@@ -87,7 +91,7 @@ def find_zones(u: np.ndarray, dist: np.ndarray, thresholds: np.ndarray,
                 k += 1
             end = k - 1
             refine = None if kind == continued and start == 0 else abs_distance_at
-            zones.append(_zone(kind, u, d, thresholds[i], start, end, refine, i))
+            zones.append(_zone(kind, u, d, thresholds[i], start, end, refine, i, zoom))
     return sorted(zones, key=lambda z: z.u_entry)
 
 
@@ -100,21 +104,21 @@ def _crossing_u(u: np.ndarray, d: np.ndarray, thr: float, a: int, b: int) -> flo
 
 
 def _zone(kind: str, u: np.ndarray, d: np.ndarray, thr: float, start: int, end: int,
-          refine: DistanceFunction | None, index: int) -> Zone:
+          refine: DistanceFunction | None, index: int, zoom: tuple[int, int]) -> Zone:
     u_entry = 0.0 if start == 0 else _crossing_u(u, d, thr, start - 1, start)
     u_exit = 1.0 if end == len(u) - 1 else _crossing_u(u, d, thr, end, end + 1)
     k = start + int(np.argmin(d[start:end + 1]))
     u_best, d_best = float(u[k]), float(d[k])
     if refine is not None:
         lo, hi = float(u[max(k - 1, 0)]), float(u[min(k + 1, len(u) - 1)])
-        u_ref, d_ref = _zoom_min(lambda x: refine(x, index), lo, hi)
+        u_ref, d_ref = _zoom_min(lambda x: refine(x, index), lo, hi, *zoom)
         if d_ref < d_best:
             u_best, d_best = u_ref, d_ref
     return Zone(kind, u_entry, u_exit, u_best, d_best, float(thr))
 
 
-def _zoom_min(f: Callable[[np.ndarray], np.ndarray], lo: float, hi: float, points: int = 129,
-              levels: int = 2) -> tuple[float, float]:
+def _zoom_min(f: Callable[[np.ndarray], np.ndarray], lo: float, hi: float, points: int,
+              levels: int) -> tuple[float, float]:
     """Minimum of f on [lo, hi]: evaluate a grid, zoom on the best cell, repeat (f is vectorised)."""
     best_u, best_d = lo, math.inf
     for _ in range(levels):

@@ -195,18 +195,20 @@ def track(robot: Robot, poses: PoseFunction, u0: np.ndarray, q_start: np.ndarray
     cands = BranchCandidates(robot, poses) if cands is None else cands
     u = np.asarray(u0, dtype=float)
     q, steps = _select_all(cands, u, q_start, max_joint_step_rad)
+    held: np.ndarray | None = None  # (N - 1,) of the current samples, once computed
     for _ in range(max_passes):
         lost = np.nonzero(~np.isfinite(steps))[0]
         if lost.size:  # the path leaves the workspace: nothing to refine past that sample
             u, q, steps = u[:lost[0] + 1], q[:lost[0] + 1], steps[:lost[0] + 1]
-        free = ~_held_intervals(hold, q)
-        big = np.nonzero((steps[1:] > max_joint_step_rad) & (np.diff(u) > min_du) & free)[0]
+        held = _held_intervals(hold, q)
+        big = np.nonzero((steps[1:] > max_joint_step_rad) & (np.diff(u) > min_du) & ~held)[0]
         if big.size == 0 or len(u) > _MAX_SAMPLES:
             break
         u = np.sort(np.concatenate([u, _subdivide(u, big, steps[big + 1] / max_joint_step_rad)]))
         q, steps = _select_all(cands, u, q_start, max_joint_step_rad)
+        held = None
     large = ~np.isfinite(steps[1:]) | (steps[1:] > max_joint_step_rad)
-    held = _held_intervals(hold, q)
+    held = _held_intervals(hold, q) if held is None else held
     gaps, coarse = np.nonzero(large & ~held)[0], np.nonzero(large & held)[0]
     return TrackedPath(u=u, q=q, max_step_rad=float(np.max(steps[1:])) if len(u) > 1 else 0.0,
                        gap_index=int(gaps[0]) if gaps.size else -1,

@@ -226,4 +226,7 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
 
 def labels_from_distances(d: np.ndarray) -> list[str]:
     """Configuration labels of distance rows (N, 3): the sign of each distance."""
-    return [_label(float(w), float(s), float(e)).label for w, s, e in d]
+    shoulder = np.where(d[:, 1] >= 0, "F", "B")
+    elbow = np.where(d[:, 2] >= 0, "U", "D")
+    wrist = np.where(d[:, 0] >= 0, "N", "F")
+    return [f"{s} {e} {w}" for s, e, w in zip(shoulder.tolist(), elbow.tolist(), wrist.tolist(), strict=True)]

@@ -218,7 +218,7 @@ def _other_side(robot: Robot, options: list[np.ndarray], q: np.ndarray, kind: st
     if not options:
         return []
     i = _KIND_INDEX[kind]
-    sides = np.sign(distances_batch(robot, np.vstack([q, *options]))[:, i])  # (1 + M,)
+    sides = distances_batch(robot, np.vstack([q, *options]))[:, i] >= 0  # (1 + M,) as the labels read it
     return [c for c, side in zip(options, sides[1:], strict=True) if side != sides[0]]
 
 

@@ -215,7 +215,7 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
     q = np.atleast_2d(np.asarray(q, dtype=float))
     p = robot.opw
     if p is None:
-        return np.array([singularity_distances(robot, qk)[:3] for qk in q]).reshape(-1, 3)
+        return np.array([_signed_distances(*_frames(robot, qk)) for qk in q]).reshape(-1, 3)
     t = q * np.asarray(p.sign_corrections) - np.asarray(p.offsets_rad)
     psi = math.atan2(p.a2, p.c3)
     k = math.hypot(p.a2, p.c3)

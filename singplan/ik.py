@@ -28,7 +28,7 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.configuration import classify
-from singplan.ik_ur import UrParameters, ur_solutions
+from singplan.ik_ur import UrParameters, ur_batch
 from singplan.robot import OpwParameters, Robot
 
 TWO_PI = 2.0 * math.pi
@@ -297,9 +297,7 @@ def closed_form_branches(robot: Robot, T_base_tcp: np.ndarray, seeds: np.ndarray
         return opw_batch(p, T_flange, None if seeds_opw is None else seeds_opw[:, 3],
                          None if seeds_opw is None else seeds_opw[:, 0])
     if robot.family == "ur" and robot.tip == "tool0":
-        params = UrParameters.from_robot(robot)
-        rows = [None] * len(T_flange) if seeds is None else list(seeds)
-        return np.array([ur_solutions(params, T, s) for T, s in zip(T_flange, rows, strict=True)])
+        return ur_batch(UrParameters.from_robot(robot), T_flange, seeds)
     return np.full((len(T_flange), 0, robot.n_joints), np.nan)
 
 

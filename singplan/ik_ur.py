@@ -7,7 +7,8 @@ perpendicular to ``y1``; axis 6 (the tool z axis) is ``y`` of link 5.
 
 1. Wrist point ``P = p - d6 z_tool``, where axes 5 and 6 meet. Its lateral coordinate in
    frame 1 must equal ``d4``: ``r sin(phi - q1) = d4`` gives two q1 (front / back).
-2. Axis 6 seen from frame 1: ``y1 . z_tool = cos q5`` gives +-q5 (the two wrist branches).
+2. Axis 6 seen from frame 1: ``y1 . z_tool = cos q5`` (and ``|y1 x z_tool| = |sin q5|``) gives
+   +-q5 (the two wrist branches).
 3. ``R_1_tool Rx(pi/2) = Ry(a) Rz(q5) Ry(q6)`` with ``a = q2 + q3 + q4 + pi``: a YZY
    decomposition with a known middle angle gives ``a`` and ``q6``; at q5 = 0 ``a`` keeps
    the seed's value and q6 takes the rest.
@@ -49,69 +50,73 @@ class UrParameters:
                    d6=float(tip[1]))
 
 
-def _ry(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def _rz(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 _RX_HALF_PI = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+_SINGULAR_Q5 = 1e-9  # |sin q5| under which a (= q2 + q3 + q4 + pi) keeps the seed's value [rad]
 
 
 def ur_solutions(p: UrParameters, T_base_tool: np.ndarray, seed: np.ndarray | None = None) -> np.ndarray:
-    """All eight branches for one tool0 pose (4, 4); (8, 6) [rad], NaN rows where unreachable.
+    """All eight branches for one tool0 pose (4, 4); (8, 6) [rad], NaN rows where unreachable."""
+    return ur_batch(p, np.asarray(T_base_tool, dtype=float)[None], None if seed is None else np.asarray(seed)[None])[0]
+
+
+def ur_batch(p: UrParameters, T_base_tool: np.ndarray, seeds: np.ndarray | None = None) -> np.ndarray:
+    """All eight branches for N tool0 poses (N, 4, 4), vectorised; (N, 8, 6) [rad], NaN rows unreachable.
 
     Branch index bits: 4 = back shoulder, 2 = negative q5, 1 = second elbow solution.
+    ``seeds`` (N, 6) give q2 + q3 + q4 where q5 = 0 leaves it free (default 0).
+    Shapes below: S shoulder, W wrist and E elbow solutions, 2 each.
     """
-    R, pos = T_base_tool[:3, :3], T_base_tool[:3, 3]
-    z_tool = R[:, 2]
-    wrist = pos - p.d6 * z_tool
-    r = math.hypot(wrist[0], wrist[1])
-    phi = math.atan2(wrist[1], wrist[0])
-    out = np.full((8, 6), np.nan)
-    if r < abs(p.lateral):
-        return out
-    delta = math.asin(p.lateral / r)
-    seed_q = np.zeros(6) if seed is None else np.asarray(seed, dtype=float)
-    for shoulder, q1 in enumerate((phi - delta, phi - math.pi + delta)):
-        R1 = _rz(q1)
-        y1 = R1[:, 1]
-        M = R1.T @ R @ _RX_HALF_PI
-        cos5 = float(np.clip(y1 @ z_tool, -1.0, 1.0))
-        for wrist_branch, q5 in enumerate((math.acos(cos5), -math.acos(cos5))):
-            a, q6 = _wrist_yzy(M, q5, float(seed_q[1] + seed_q[2] + seed_q[3] + math.pi))
-            z5 = R1 @ np.array([math.sin(a), 0.0, math.cos(a)])
-            o4 = wrist - p.d5 * z5 - p.wrist_y * y1
-            for elbow, arm in enumerate(_planar(p, R1.T @ o4)):
-                if arm is None:
-                    continue
-                q2, q3 = arm
-                k = 4 * shoulder + 2 * wrist_branch + elbow
-                out[k] = (q1, q2, q3, a - math.pi - q2 - q3, q5, q6)
+    T = np.asarray(T_base_tool, dtype=float).reshape(-1, 4, 4)
+    n = T.shape[0]
+    R, z_tool = T[:, :3, :3], T[:, :3, 2]
+    wrist = T[:, :3, 3] - p.d6 * z_tool  # (N, 3)
+    r = np.hypot(wrist[:, 0], wrist[:, 1])
+    phi = np.arctan2(wrist[:, 1], wrist[:, 0])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        delta = np.arcsin(p.lateral / r)  # NaN where the wrist point is inside the lateral offset
+    q1 = np.stack([phi - delta, phi - math.pi + delta], axis=1)  # (N, S)
+    c1, s1 = np.cos(q1), np.sin(q1)
+    x1 = np.stack([c1, s1, np.zeros_like(c1)], axis=-1)  # (N, S, 3): axes of frame 1 in the base
+    y1 = np.stack([-s1, c1, np.zeros_like(c1)], axis=-1)
+    z1 = np.broadcast_to(np.array([0.0, 0.0, 1.0]), x1.shape)
+    R1T = np.stack([x1, y1, z1], axis=-2)  # (N, S, 3, 3) = Rz(q1)^T
+    M = R1T @ (R @ _RX_HALF_PI)[:, None]  # (N, S, 3, 3)
+    # |q5| from both its cosine and sine: acos alone loses half the digits near q5 = 0
+    angle5 = np.arctan2(np.linalg.norm(np.cross(y1, z_tool[:, None]), axis=-1), np.einsum("nsi,ni->ns", y1, z_tool))
+    q5 = np.stack([angle5, -angle5], axis=2)  # (N, S, W)
+    a_seed = (np.zeros(n) if seeds is None else np.asarray(seeds, dtype=float)[:, 1:4].sum(axis=1)) + math.pi
+    a, q6 = _wrist_yzy(M[:, :, None], q5, a_seed[:, None, None])  # (N, S, W)
+    z5 = np.sin(a)[..., None] * x1[:, :, None] + np.cos(a)[..., None] * z1[:, :, None]  # (N, S, W, 3)
+    o4 = wrist[:, None, None] - p.d5 * z5 - p.wrist_y * y1[:, :, None]
+    x = np.einsum("nswi,nsi->nsw", o4, x1)
+    z = o4[..., 2] - p.d1
+    q2, q3 = _planar(p, x, z)  # (N, S, W, E)
+    q4 = a[..., None] - math.pi - q2 - q3
+    wide = np.broadcast_to
+    out = np.stack([wide(q1[:, :, None, None], q2.shape), q2, q3, q4, wide(q5[..., None], q2.shape),
+                    wide(q6[..., None], q2.shape)], axis=-1).reshape(n, 8, 6)
+    out[np.any(np.isnan(out), axis=2)] = np.nan
     return math.pi - np.mod(math.pi - out, 2.0 * math.pi)
 
 
-def _wrist_yzy(M: np.ndarray, q5: float, a_seed: float) -> tuple[float, float]:
-    """(a, q6) with Ry(a) Rz(q5) Ry(q6) = M; a = a_seed where q5 = 0 leaves it free."""
-    s5 = math.sin(q5)
-    a = math.atan2(M[2, 1] * s5, -M[0, 1] * s5) if abs(s5) > 1e-12 else a_seed
-    N = _rz(-q5) @ _ry(-a) @ M
-    return a, math.atan2(N[0, 2], N[0, 0])
+def _wrist_yzy(M: np.ndarray, q5: np.ndarray, a_seed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(a, q6) with Ry(a) Rz(q5) Ry(q6) = M; a = a_seed where q5 = 0 leaves it free.
+
+    Only the first row of ``Rz(-q5) Ry(-a) M = Ry(q6)`` is formed for q6.
+    """
+    s5, c5 = np.sin(q5), np.cos(q5)
+    regular = np.abs(s5) > _SINGULAR_Q5  # below it, a from M's tiny entries is noise
+    a = np.where(regular, np.arctan2(M[..., 2, 1] * s5, -M[..., 0, 1] * s5), a_seed)
+    ca, sa = np.cos(a), np.sin(a)
+    row = [c5 * (ca * M[..., 0, j] - sa * M[..., 2, j]) + s5 * M[..., 1, j] for j in (0, 2)]
+    return a, np.arctan2(row[1], row[0])
 
 
-def _planar(p: UrParameters, o4_in_1: np.ndarray) -> list[tuple[float, float] | None]:
-    """Both (q2, q3) placing the wrist-1 point; None for an unreachable one."""
-    x = float(o4_in_1[0])
-    z = float(o4_in_1[2] - p.d1)
+def _planar(p: UrParameters, x: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Both (q2, q3) of the planar two-link arm placing the wrist-1 point at (x, z) in frame 1;
+    each (..., E), NaN where unreachable."""
     cos3 = (x * x + z * z - p.l2**2 - p.l3**2) / (2.0 * p.l2 * p.l3)
-    if abs(cos3) > 1.0 + 1e-12:
-        return [None, None]
-    out: list[tuple[float, float] | None] = []
-    for q3 in (math.acos(min(1.0, max(-1.0, cos3))), -math.acos(min(1.0, max(-1.0, cos3)))):
-        alpha = math.atan2(z, x) - math.atan2(-p.l3 * math.sin(q3), p.l2 + p.l3 * math.cos(q3))
-        out.append((-alpha, q3))
-    return out
+    cos3 = np.where(np.abs(cos3) <= 1.0 + 1e-12, np.clip(cos3, -1.0, 1.0), np.nan)
+    q3 = np.stack([np.arccos(cos3), -np.arccos(cos3)], axis=-1)
+    alpha = np.arctan2(z, x)[..., None] - np.arctan2(-p.l3 * np.sin(q3), p.l2 + p.l3 * np.cos(q3))
+    return -alpha, q3

@@ -165,13 +165,11 @@ def opw_batch(params: OpwParameters, T_base_flange: np.ndarray, q4_seed_opw: np.
     t4, t5, t6 = _wrist_solutions(R, t1, t2 + t3, q4s)
     signs = np.asarray(params.sign_corrections)
     offsets = np.asarray(params.offsets_rad)
-    q = np.empty((n, 8, 6))
-    for j, t in enumerate((t1, t2, t3, t4, t5, t6)):
-        q[:, :4, j] = t
+    plain = wrap_to_pi((np.stack([t1, t2, t3, t4, t5, t6], axis=-1) + offsets) * signs)  # (N, 4, 6)
+    q = np.concatenate([plain, plain], axis=1)
     # the flipped wrist (q4 + pi, -q5, q6 + pi) shares the arm joints
-    q[:, 4:] = q[:, :4] + np.array([0.0, 0.0, 0.0, math.pi, 0.0, math.pi])
-    q[:, 4:, 4] *= -1.0
-    q = wrap_to_pi((q + offsets) * signs)
+    q[:, 4:, 3::2] = wrap_to_pi(plain[:, :, 3::2] + math.pi)
+    q[:, 4:, 4] = wrap_to_pi((offsets[4] - t5) * signs[4])
     unreachable = np.isnan(t1) | np.isnan(t2) | np.isnan(t3)  # (N, 4): the whole branch goes
     q[:, :4][unreachable] = np.nan
     q[:, 4:][unreachable] = np.nan

@@ -65,8 +65,12 @@ class Result:
     note: str = ""
 
 
-def ur5_case(tilt_deg: float) -> Task:
-    """The issue's UR5 case: +-0.1 m through q_mid along normalise(tool z + 0.5 world z)."""
+def ur5_case(tilt_deg: float, nudge_deg: float = 0.0) -> Task:
+    """The issue's UR5 case: +-0.1 m through q_mid along normalise(tool z + 0.5 world z).
+
+    ``nudge_deg`` is added to the start's joint 5: a change far below any tolerance, to show
+    how much a method's result depends on the last digits where the path meets the singularity.
+    """
     robot = load_task_robot(parse_task({"robot": "ur5", "start": {"joints_deg": [0, -60, 90, 0, 30, 0]},
                                         "moves": [{"ptp": {"to": {"joints_deg": [0, -60, 90, 0, 30, 0]}}}]}))
     q_mid = np.array([0.3, -1.2, 1.5, -0.3, 0.0, 0.4])
@@ -78,8 +82,8 @@ def ur5_case(tilt_deg: float) -> Task:
         axis = np.cross(np.array([0.0, 0.0, 1.0]), R[:, 2])
         R = pin.AngleAxis(math.radians(tilt_deg), axis / np.linalg.norm(axis)).matrix() @ R
     start = pin.SE3(R, T.translation - 0.1 * d)
-    q0 = solve_all(robot, start, seed=q_mid).nearest(q_mid)
-    return parse_task({"robot": "ur5", "tip": "tool0", "start": {"joints_deg": list(np.degrees(q0))},
+    q0 = np.degrees(solve_all(robot, start, seed=q_mid).nearest(q_mid)) + np.array([0, 0, 0, 0, nudge_deg, 0])
+    return parse_task({"robot": "ur5", "tip": "tool0", "start": {"joints_deg": list(q0)},
                        "moves": [{"lin": {"to": {"xyz": list(T.translation + 0.1 * d),
                                                  "rpy_deg": list(np.degrees(pin.rpy.matrixToRpy(R)))},
                                           "speed": 0.25}}],
@@ -238,6 +242,7 @@ def cases(scenarios: Path) -> list[tuple[str, Task]]:
     out = [(p.stem, load_task(p)) for p in sorted(scenarios.glob("*_lin.yaml"))
            if "near_lin" in p.stem or "exact_lin" in p.stem]
     out.append(("ur5 S1 (through)", ur5_case(0.0)))
+    out.append(("ur5 S1, start joint 5 + 1e-9 deg", ur5_case(0.0, nudge_deg=1e-9)))
     out.append(("ur5 S2 (1 deg miss)", ur5_case(1.0)))
     return out
 

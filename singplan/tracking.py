@@ -2,10 +2,12 @@
 
 At every sample all IK branches are computed (vectorised for OPW arms); each candidate is
 moved to the 2*pi variant nearest the previous sample and the nearest candidate is kept.
-Where a step still moves some joint more than ``max_joint_step_rad`` the interval is halved,
-so that the fast wrist (or axis 1) swing of a near miss is resolved sample by sample instead
-of being jumped over. A step that stays large on an interval shorter than ``min_du`` is a
-real discontinuity of the inverse kinematics and is reported.
+Where a step still moves some joint more than ``max_joint_step_rad`` the interval is
+subdivided, so that the fast wrist (or axis 1) swing of a near miss is resolved sample by
+sample instead of being jumped over. A step that stays large on an interval shorter than
+``min_du`` is a real discontinuity of the inverse kinematics and is reported. Inside singular
+zones (``hold``) the refinement waits: a crossing method usually replaces that stretch, and
+the planner tracks it in full only when the method keeps it.
 """
 
 from __future__ import annotations

@@ -1,11 +1,12 @@
-"""Replay a trajectory in the browser: one self-contained HTML file built on meshcat's viewer.
+"""Replay a trajectory in the browser: a self-contained HTML page, or a live meshcat server.
 
-No meshcat server is started: a recorder stands in for meshcat's ZMQ window and keeps the
-scene commands (the robot's visual geometry through Pinocchio's MeshcatVisualizer, the
-programmed and executed TCP paths, markers at the crossings, and an animation of every link
-at the trajectory's real timing). The page inlines meshcat's viewer bundle and replays the
-commands in order, so it works offline in any current browser; the animation controls
-(play, pause, time scrub) are meshcat's own.
+The scene is the same in both: the robot's visual geometry through Pinocchio's
+MeshcatVisualizer, the programmed and executed TCP paths, markers at the crossings, and an
+animation of every link at the trajectory's real timing. For the page, no server is started:
+a recorder stands in for meshcat's ZMQ window and keeps the commands, and the template in
+:func:`viewer_dir` inlines meshcat's viewer bundle, replays them in order and adds the legend,
+the segment list, the crossing labels and the joint-speed strip, so it works offline in any
+current browser. :func:`serve_replay` sends the same commands to meshcat's own server.
 """
 
 from __future__ import annotations

@@ -70,6 +70,23 @@ def _line(points: np.ndarray, colour: int, width: float = 2.0) -> mg.Line:
 def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: np.ndarray, programmed: np.ndarray,
            speed: float = 1.0, loop: bool = False, play: bool = False) -> None:
     """Send the replay scene to ``vis``: robot, paths, crossing markers and the animation."""
+    viz, full = _robot_visuals(vis, robot)
+    viz.display(full(traj.q[0]))
+    vis["/Grid"].set_property("visible", False)  # the robot's base axes show the ground frame
+    vis["paths/programmed"].set_object(_line(programmed, 0x9E9E9E, 1.0))
+    _draw_segments(vis, traj, tcp)
+    step = max(1, round(ANIMATION_STEP_S / traj.period))
+    animation = meshcat.animation.Animation(default_framerate=speed / (step * traj.period))
+    for frame_index, k in enumerate(range(0, len(traj.t), step)):
+        with animation.at_frame(vis, frame_index) as frame:
+            viz.viewer = frame
+            viz.display(full(traj.q[k]))
+    viz.viewer = vis
+    vis.set_animation(animation, play=play, repetitions=_LOOP_REPETITIONS if loop else 1)
+
+
+def _robot_visuals(vis: meshcat.Visualizer, robot: Robot) -> tuple[MeshcatVisualizer, Any]:
+    """Pinocchio's meshcat visualiser of the robot's URDF visuals, and the chain -> model q map."""
     # package:// meshes resolve against every folder above the URDF (example-robot-data's layout)
     package_dirs = [str(p) for p in robot.urdf_path.parents]
     try:
@@ -79,10 +96,11 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: np.ndar
     viz = MeshcatVisualizer(model, collision, visual)
     viz.initViewer(viewer=vis)
     viz.loadViewerModel(rootNodeName="robot")
-    full = _full_configuration(model, robot)
-    viz.display(full(traj.q[0]))
-    vis["/Grid"].set_property("visible", False)  # the robot's base axes show the ground frame
-    vis["paths/programmed"].set_object(_line(programmed, 0x9E9E9E, 1.0))
+    return viz, _full_configuration(model, robot)
+
+
+def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: np.ndarray) -> None:
+    """The executed TCP path by segment kind (a line plus dots), and a marker at each crossing."""
     for n, seg in enumerate(traj.segments):
         k0, k1 = _sample_range(traj, seg)
         colour = SEGMENT_COLOURS.get(seg.kind, 0)
@@ -96,14 +114,6 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: np.ndar
             marker = vis[f"crossings/{n:03d}_{seg.singularity}_{seg.method}"]
             marker.set_object(mg.Sphere(0.012), mg.MeshLambertMaterial(color=0xF4B400, opacity=0.8))
             marker.set_transform(mtf.translation_matrix(tcp[(k0 + k1) // 2]))
-    step = max(1, round(ANIMATION_STEP_S / traj.period))
-    animation = meshcat.animation.Animation(default_framerate=speed / (step * traj.period))
-    for frame_index, k in enumerate(range(0, len(traj.t), step)):
-        with animation.at_frame(vis, frame_index) as frame:
-            viz.viewer = frame
-            viz.display(full(traj.q[k]))
-    viz.viewer = vis
-    vis.set_animation(animation, play=play, repetitions=_LOOP_REPETITIONS if loop else 1)
 
 
 _LOOP_REPETITIONS = 1_000_000  # meshcat's "loop": repeat the clip this many times

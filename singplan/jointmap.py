@@ -15,7 +15,6 @@ output sample lies on the path. It is stitched from parts:
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,9 +22,8 @@ import pinocchio as pin
 
 from singplan.ik import closed_form_branches, opw_arm_for_point, solve_newton
 from singplan.robot import Robot
-from singplan.tracking import PoseFunction
+from singplan.tracking import PoseFunction, nearest_shifted
 
-TWO_PI = 2.0 * math.pi
 _DAMPING = 1e-6  # Levenberg-Marquardt lambda^2 of the position re-solve [m^2]
 
 
@@ -123,11 +121,7 @@ class JointMap:
         cands = closed_form_branches(self.robot, T_tcp, q_ref)
         if cands.shape[1] == 0:
             return np.array([self._newton(T, s) for T, s in zip(T_tcp, q_ref, strict=True)])
-        shifted = cands + TWO_PI * np.round((q_ref[:, None, :] - cands) / TWO_PI)
-        dist = np.max(np.abs(shifted - q_ref[:, None, :]), axis=2)
-        dist = np.where(np.isnan(dist), np.inf, dist)
-        best = np.argmin(dist, axis=1)
-        return shifted[np.arange(len(u)), best]
+        return nearest_shifted(cands, q_ref)[0]
 
     def _newton(self, T: np.ndarray, seed: np.ndarray) -> np.ndarray:
         q = solve_newton(self.robot, pin.SE3(T[:3, :3], T[:3, 3]), seed)

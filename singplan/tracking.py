@@ -103,13 +103,25 @@ def nearest_candidate(candidates: np.ndarray, q_prev: np.ndarray) -> tuple[np.nd
 
 def _nearest(candidates: np.ndarray, q_prev: np.ndarray) -> tuple[np.ndarray, float, int]:
     """As :func:`nearest_candidate`, plus the candidate's row index (-1 when none)."""
-    finite = np.all(np.isfinite(candidates), axis=1)
-    if not finite.any():
+    if candidates.shape[0] == 0:
         return np.full_like(q_prev, np.nan), math.inf, -1
-    shifted = candidates + TWO_PI * np.round((q_prev - candidates) / TWO_PI)
-    dist = np.where(finite, np.max(np.abs(shifted - q_prev), axis=1), np.inf)
-    k = int(np.argmin(dist))
-    return shifted[k], float(dist[k]), k
+    best, dist, k = nearest_shifted(candidates, q_prev)
+    if not np.isfinite(dist):
+        return np.full_like(q_prev, np.nan), math.inf, -1
+    return best, float(dist), int(k)
+
+
+def nearest_shifted(candidates: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each reference (..., n), its candidates (..., B, n) moved by whole turns toward it:
+    the nearest (..., n), its max-norm distance (...) (inf where no row is finite) and its row (...)."""
+    ref = reference[..., None, :]
+    shifted = candidates + TWO_PI * np.round((ref - candidates) / TWO_PI)
+    with np.errstate(invalid="ignore"):
+        dist = np.max(np.abs(shifted - ref), axis=-1)
+    dist = np.where(np.isnan(dist), np.inf, dist)
+    k = np.argmin(dist, axis=-1)
+    best = np.take_along_axis(shifted, k[..., None, None], axis=-2)[..., 0, :]
+    return best, np.take_along_axis(dist, k[..., None], axis=-1)[..., 0], k
 
 
 def _unwrapped_rows(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -137,12 +149,7 @@ def _leaves_row(C: np.ndarray, Cu: np.ndarray, step: np.ndarray, free: np.ndarra
     large = np.isfinite(step) & (step > max_step)
     j, r = np.nonzero(large)
     if j.size:
-        prev = Cu[j - 1, r][:, None, :]  # (M, 1, n)
-        cand = C[j]  # (M, B, n)
-        shifted = cand + TWO_PI * np.round((prev - cand) / TWO_PI)
-        with np.errstate(invalid="ignore"):
-            dist = np.max(np.abs(shifted - prev), axis=2)
-        nearest = np.argmin(np.where(np.isnan(dist), np.inf, dist), axis=1)
+        nearest = nearest_shifted(C[j], Cu[j - 1, r])[2]  # (M,) row nearest each row's previous value
         leave[j, r] = (nearest != r) | free[j]
     leave[0] = True
     return leave

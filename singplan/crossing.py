@@ -136,48 +136,46 @@ def exit_candidates(ctx: MoveContext, u: float) -> list[np.ndarray]:
     return [c for c in sols if np.all(np.isfinite(c))]
 
 
-def path_slope(robot: Robot, poses: PoseFunction, tracked: TrackedPath, k: int, h: float = 1e-6) -> np.ndarray:
-    """dq/du [rad] of the exact IK branch through tracked sample ``k``: ``J(q)^-1 dX/du``.
+def path_slope(robot: Robot, poses: PoseFunction, u: float, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """dq/du [rad] of the exact IK branch through joints ``q`` at path parameter ``u``: ``J(q)^-1 dX/du``.
 
     The path's velocity ``dX/du`` (TCP point and angular velocity in the base frame, as
     :meth:`Robot.jacobian` uses) comes from a central difference of the path poses (one-sided
     at the ends of the move); outside singular zones J is well conditioned, so seams match
     the path's true slope rather than a chord of samples.
     """
-    u_k = float(tracked.u[k])
-    lo, hi = max(0.0, u_k - h), min(1.0, u_k + h)
+    lo, hi = max(0.0, u - h), min(1.0, u + h)
     T = poses(np.array([lo, hi]))
     v = (T[1, :3, 3] - T[0, :3, 3]) / (hi - lo)
     w = T[0, :3, :3] @ pin.log3(T[0, :3, :3].T @ T[1, :3, :3]) / (hi - lo)
-    return np.linalg.lstsq(robot.jacobian(tracked.q[k]), np.concatenate([v, w]), rcond=None)[0]  # square: J^-1
+    return np.linalg.lstsq(robot.jacobian(q), np.concatenate([v, w]), rcond=None)[0]  # square: J^-1
 
 
-def blend_crossing(ctx: MoveContext, zone: Zone, method: str, a: int, u_b: float, q_exit: np.ndarray,
-                   slope_exit: np.ndarray | None = None) -> Crossing:
-    """A Hermite blend from tracked sample ``a`` to ``q_exit`` at ``u_b``, position re-solved.
-
-    The entry slope is the tracked path's; the exit slope is the chord until the planner, once
-    the continuing path is tracked, replaces it by that path's slope and samples the blend
-    densely (:func:`refit`).
-    """
+def _seam_slopes(ctx: MoveContext, a: int, u_b: float, q_exit: np.ndarray) -> np.ndarray:
+    """dq/du (2, n) at a crossing's seams: the exact path's through tracked sample ``a`` and
+    through ``q_exit`` at ``u_b``, so joint velocities are continuous there; the chord where a
+    seam is the start of the tracked stretch or the end of the move."""
     u, q = ctx.tracked.u, ctx.tracked.q
-    slope_a = path_slope(ctx.robot, ctx.piece.poses, ctx.tracked, a) if a > 0 else (q_exit - q[a]) / (u_b - u[a])
-    slope_b = (q_exit - q[a]) / (u_b - u[a]) if slope_exit is None else slope_exit
-    ends = JointPart("blend", np.array([u[a], u_b]), np.array([q[a], q_exit]), np.array([slope_a, slope_b]))
-    return Crossing(zone, method, ends, q_exit)
+    chord = (q_exit - q[a]) / (u_b - u[a])
+    entry = path_slope(ctx.robot, ctx.piece.poses, float(u[a]), q[a]) if a > 0 else chord
+    exit_ = path_slope(ctx.robot, ctx.piece.poses, u_b, q_exit) if u_b < 1.0 - 1e-12 else chord
+    return np.array([entry, exit_])
 
 
-def refit(robot: Robot, poses: PoseFunction, part: JointPart, length_m: float,
-          slope_exit: np.ndarray | None = None) -> JointPart:
-    """Dense samples of a blend or axis part (optionally with a new exit slope), each exact in
-    what its method keeps (the position for a blend)."""
-    assert part.dq_du is not None
-    slopes = part.dq_du if slope_exit is None else np.array([part.dq_du[0], slope_exit])
-    ends = replace(part, u=np.array([part.u0, part.u1]), q=np.array([part.q[0], part.q[-1]]), dq_du=slopes)
-    count = max(9, math.ceil((part.u1 - part.u0) * length_m / _BLEND_STEP_M) + 1)
-    dense_u = np.linspace(part.u0, part.u1, count)
-    jmap = JointMap(robot, poses, [ends])
-    dense_q = jmap.fix_position(hermite(ends, dense_u), dense_u) if part.kind == "blend" else \
+def blend_crossing(ctx: MoveContext, zone: Zone, method: str, a: int, u_b: float, q_exit: np.ndarray) -> Crossing:
+    """A Hermite blend from tracked sample ``a`` to ``q_exit`` at ``u_b``, position re-solved."""
+    u, q = ctx.tracked.u, ctx.tracked.q
+    ends = JointPart("blend", np.array([u[a], u_b]), np.array([q[a], q_exit]), _seam_slopes(ctx, a, u_b, q_exit))
+    return Crossing(zone, method, sample_densely(ctx, ends), q_exit)
+
+
+def sample_densely(ctx: MoveContext, ends: JointPart) -> JointPart:
+    """A blend or axis part given by its two ends, sampled every ``_BLEND_STEP_M`` of path, each
+    sample exact in what its method keeps (the position for a blend)."""
+    count = max(9, math.ceil((ends.u1 - ends.u0) * ctx.piece.length_m / _BLEND_STEP_M) + 1)
+    dense_u = np.linspace(ends.u0, ends.u1, count)
+    jmap = JointMap(ctx.robot, ctx.piece.poses, [ends])
+    dense_q = jmap.fix_position(hermite(ends, dense_u), dense_u) if ends.kind == "blend" else \
         jmap.solve_axis(ends, dense_u)
     return replace(ends, u=dense_u, q=dense_q)
 
@@ -281,10 +279,9 @@ class Axis:
         if q_exit is None:
             return None
         fixed, exact = self._SETUP[zone.kind]
-        slope_a = path_slope(ctx.robot, ctx.piece.poses, ctx.tracked, a) if a > 0 else (q_exit - q[a]) / (u[b] - u[a])
-        slopes = np.array([slope_a, (q_exit - q[a]) / (u[b] - u[a])])
+        slopes = _seam_slopes(ctx, a, float(u[b]), q_exit)
         ends = JointPart("axis", np.array([u[a], u[b]]), np.array([q[a], q_exit]), slopes, fixed, exact)
-        part = refit(ctx.robot, ctx.piece.poses, ends, ctx.piece.length_m)
+        part = sample_densely(ctx, ends)
         return Crossing(zone, self.name, part, part.q[-1])
 
 

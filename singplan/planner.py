@@ -28,8 +28,6 @@ from singplan.crossing import (
     Exact,
     MoveContext,
     WristJoint,
-    path_slope,
-    refit,
 )
 from singplan.errors import JointLimitError, PlanningError, SingularityError, UnreachableError
 from singplan.ik import solve_all
@@ -245,28 +243,27 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
     crossings: list[Crossing] = []
     u_from, q_from = 0.0, q_start
     cands = BranchCandidates(robot, piece.poses)
-    hold: Callable[[np.ndarray], np.ndarray] | None = _in_zone(robot, thresholds)
+    in_zone = _ZoneTest(robot, thresholds)
+    full = False  # track singular zones in full (a method kept one that was left coarse)
     while True:
         # inside singular zones the in-branch swing is resolved only if the method keeps it
         tracked = track(robot, piece.poses, np.concatenate([[u_from], grid[grid > u_from + 1e-12]]), q_from,
-                        cands=cands, hold=hold)
+                        cands=cands, hold=None if full else in_zone)
         grid = np.union1d(grid, tracked.u)  # refined once: a re-track after a crossing starts from it
         _check_tracked(robot, i, move, piece, tracked)
-        if parts and parts[-1].kind in ("blend", "axis"):  # sample the crossing, C1 at its exit
-            slope = path_slope(robot, piece.poses, tracked, 0) if len(tracked.u) > 1 else None
-            parts[-1] = refit(robot, piece.poses, parts[-1], piece.length_m, slope)
+        if parts and parts[-1].kind in ("blend", "axis"):  # the crossing just made
             _check_limits(robot, i, move, piece, parts[-1].u, parts[-1].q, zones)
-        dist, labels = distances_along(robot, tracked.q)
+        dist = in_zone.distances(tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref),
                            continued=crossings[-1].zone.kind if crossings else None, zoom=_zoom_grid(robot))
-        ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, labels, task.singularity)
+        ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, labels_from_distances(dist), task.singularity)
         zones_before = list(zones)
         result = _first_crossing(method, ctx, found, zones, u_from)
         if tracked.coarse_from_u < (result.blend.u0 if result is not None else math.inf):
-            zones[:], hold = zones_before, None  # a kept zone was left coarse: track it in full
+            zones[:], full = zones_before, True  # a kept zone was left coarse: track it in full
             continue
-        hold = _in_zone(robot, thresholds)
+        full = False
         if result is None:
             parts.append(JointPart("track", tracked.u, tracked.q))
             _check_limits(robot, i, move, piece, tracked.u, tracked.q, zones)
@@ -297,13 +294,29 @@ def _first_crossing(method: CrossingMethod, ctx: MoveContext, found: list[Zone],
     return None
 
 
-def _in_zone(robot: Robot, thresholds: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """(N,) True for joint samples (N, n) inside a singular zone of any kind."""
-    def inside(q: np.ndarray) -> np.ndarray:
-        with np.errstate(invalid="ignore"):
-            return np.any(np.abs(distances_batch(robot, q)) < thresholds, axis=1)
+class _ZoneTest:
+    """Which joint samples lie in a singular zone of any kind (the tracker's ``hold``).
 
-    return inside
+    Keeps the signed distances of the last samples it was asked about, so the planner reads
+    the distances of the tracked path without computing them again (per sample on arms
+    without a closed form).
+    """
+
+    def __init__(self, robot: Robot, thresholds: np.ndarray) -> None:
+        self.robot = robot
+        self.thresholds = thresholds
+        self._q: np.ndarray | None = None
+        self._d = np.empty((0, 3))
+
+    def distances(self, q: np.ndarray) -> np.ndarray:
+        """Signed (wrist, shoulder, elbow) distances (N, 3) of joint samples q (N, n)."""
+        if q is not self._q:
+            self._q, self._d = q, distances_batch(self.robot, q)
+        return self._d
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        with np.errstate(invalid="ignore"):
+            return np.any(np.abs(self.distances(q)) < self.thresholds, axis=1)
 
 
 def _zoom_grid(robot: Robot) -> tuple[int, int]:

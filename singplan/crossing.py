@@ -31,7 +31,7 @@ from singplan.ik import closed_form_branches
 from singplan.jointmap import JointMap, JointPart, hermite
 from singplan.path import CartesianPiece
 from singplan.robot import Robot
-from singplan.singularity import Zone
+from singplan.singularity import KIND_INDEX, Zone
 from singplan.task import SingularitySettings
 from singplan.tracking import PoseFunction, TrackedPath, nearest_candidate
 
@@ -42,7 +42,6 @@ _EDGE_FACTOR = 50.0
 _EDGE_MIN = {"wrist": math.radians(0.05), "elbow": math.radians(0.05), "shoulder": 0.0005}
 _THROUGH_MAX_JUMP_RAD = math.radians(5.0)
 _BLEND_STEP_M = 0.001  # reference samples of a blend: every millimetre of path
-_KIND_INDEX = {"wrist": 0, "shoulder": 1, "elbow": 2}  # columns of the singular distances
 
 
 @dataclass(frozen=True)
@@ -55,7 +54,6 @@ class MoveContext:
     piece: CartesianPiece
     tracked: TrackedPath
     distances: np.ndarray  # (N, 3) signed (wrist, shoulder, elbow) at tracked.u
-    labels: list[str]
     settings: SingularitySettings
 
 
@@ -114,7 +112,7 @@ def through(ctx: MoveContext, zone: Zone, method: str) -> Crossing | None:
     branch of the other label just after it; the pose deviates there by about the miss.
     Returns None when no nearby solution of the other label exists.
     """
-    u, q, d = ctx.tracked.u, ctx.tracked.q, np.abs(ctx.distances[:, _KIND_INDEX[zone.kind]])
+    u, q, d = ctx.tracked.u, ctx.tracked.q, np.abs(ctx.distances[:, KIND_INDEX[zone.kind]])
     edge = max(_EDGE_FACTOR * zone.min_distance, _EDGE_MIN[zone.kind])
     before = np.nonzero((u < zone.u_closest) & (d >= edge))[0]
     after = np.nonzero((u > zone.u_closest) & (d >= edge))[0]
@@ -215,7 +213,7 @@ def _other_side(robot: Robot, options: list[np.ndarray], q: np.ndarray, kind: st
     that kind in the configuration label: the sign of its singular distance)."""
     if not options:
         return []
-    i = _KIND_INDEX[kind]
+    i = KIND_INDEX[kind]
     sides = distances_batch(robot, np.vstack([q, *options]))[:, i] >= 0  # (1 + M,) as the labels read it
     return [c for c, side in zip(options, sides[1:], strict=True) if side != sides[0]]
 
@@ -313,7 +311,7 @@ class Average:
         a, b = _zone_span(ctx, zone)
         if b - a < 2:
             return None
-        i = _KIND_INDEX[zone.kind]
+        i = KIND_INDEX[zone.kind]
         u, q = ctx.tracked.u[a:b + 1], ctx.tracked.q[a:b + 1].copy()
         core = np.abs(ctx.distances[a:b + 1, i]) < self._CORE * zone.threshold
         core[0] = core[-1] = False

@@ -42,6 +42,19 @@ def wrap_to_pi(angles: np.ndarray) -> np.ndarray:
     return np.where(wrapped <= -math.pi, wrapped + TWO_PI, wrapped)
 
 
+def nearest_shifted(candidates: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each reference (..., n), its candidates (..., B, n) moved by whole turns toward it:
+    the nearest (..., n), its max-norm distance (...) (inf where no row is finite) and its row (...)."""
+    ref = reference[..., None, :]
+    shifted = candidates + TWO_PI * np.round((ref - candidates) / TWO_PI)
+    with np.errstate(invalid="ignore"):
+        dist = np.max(np.abs(shifted - ref), axis=-1)
+    dist = np.where(np.isnan(dist), np.inf, dist)
+    k = np.argmin(dist, axis=-1)
+    best = np.take_along_axis(shifted, k[..., None, None], axis=-2)[..., 0, :]
+    return best, np.take_along_axis(dist, k[..., None], axis=-1)[..., 0], k
+
+
 @dataclass(frozen=True)
 class IkSolutions:
     """Every solution of one pose.
@@ -221,12 +234,8 @@ def opw_arm_for_point(params: OpwParameters, q_robot: np.ndarray, point_flange_m
     t1, t2, t3 = _arm_solutions(arm, np.asarray(targets_m, dtype=float), q_opw[:, 0])
     signs, offsets = np.asarray(params.sign_corrections[:3]), np.asarray(params.offsets_rad[:3])
     arms = (np.stack([t1, t2, t3], axis=-1) + offsets) * signs  # (N, 4, 3) robot coordinates
-    seed = q_robot[:, None, :3]
-    arms = arms + TWO_PI * np.round((seed - arms) / TWO_PI)
-    dist = np.max(np.abs(arms - seed), axis=2)
-    best = np.argmin(np.where(np.isnan(dist), np.inf, dist), axis=1)
     out = np.array(q_robot, dtype=float)
-    out[:, :3] = arms[np.arange(len(out)), best]
+    out[:, :3] = nearest_shifted(arms, out[:, :3])[0]
     return out
 
 

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from singplan.ik import closed_form_branches, opw_arm_for_point, solve_newton
+from singplan.ik import closed_form_branches, nearest_shifted, opw_arm_for_point, solve_newton
 from singplan.robot import Robot
-from singplan.tracking import PoseFunction, nearest_shifted
+from singplan.tracking import PoseFunction
 
 _DAMPING = 1e-6  # Levenberg-Marquardt lambda^2 of the position re-solve [m^2]
 

@@ -257,7 +257,7 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref),
                            continued=crossings[-1].zone.kind if crossings else None, zoom=_zoom_grid(robot))
-        ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, labels_from_distances(dist), task.singularity)
+        ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, task.singularity)
         zones_before = list(zones)
         result = _first_crossing(method, ctx, found, zones, u_from)
         if tracked.coarse_from_u < (result.blend.u0 if result is not None else math.inf):

@@ -20,7 +20,7 @@ from singplan.robot import Robot
 from singplan.task import ZoneThresholds
 
 KINDS = ("wrist", "shoulder", "elbow")
-_INDEX = {"wrist": 0, "shoulder": 1, "elbow": 2}
+KIND_INDEX = {kind: i for i, kind in enumerate(KINDS)}  # columns of the signed distances
 
 
 @dataclass(frozen=True)
@@ -78,7 +78,7 @@ def find_zones(u: np.ndarray, dist: np.ndarray, thresholds: np.ndarray,
     """
     zones = []
     for kind in KINDS:
-        i = _INDEX[kind]
+        i = KIND_INDEX[kind]
         d = np.abs(dist[:, i])
         inside = d < thresholds[i]
         k = 0

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from singplan.ik import closed_form_branches, solve_newton
+from singplan.ik import closed_form_branches, nearest_shifted, solve_newton
 from singplan.robot import Robot
 
 TWO_PI = 2.0 * math.pi
@@ -109,19 +109,6 @@ def _nearest(candidates: np.ndarray, q_prev: np.ndarray) -> tuple[np.ndarray, fl
     if not np.isfinite(dist):
         return np.full_like(q_prev, np.nan), math.inf, -1
     return best, float(dist), int(k)
-
-
-def nearest_shifted(candidates: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For each reference (..., n), its candidates (..., B, n) moved by whole turns toward it:
-    the nearest (..., n), its max-norm distance (...) (inf where no row is finite) and its row (...)."""
-    ref = reference[..., None, :]
-    shifted = candidates + TWO_PI * np.round((ref - candidates) / TWO_PI)
-    with np.errstate(invalid="ignore"):
-        dist = np.max(np.abs(shifted - ref), axis=-1)
-    dist = np.where(np.isnan(dist), np.inf, dist)
-    k = np.argmin(dist, axis=-1)
-    best = np.take_along_axis(shifted, k[..., None, None], axis=-2)[..., 0, :]
-    return best, np.take_along_axis(dist, k[..., None], axis=-1)[..., 0], k
 
 
 def _unwrapped_rows(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

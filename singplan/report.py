@@ -175,7 +175,7 @@ def report_html(traj: Trajectory, robot: Robot) -> str:
     sing = traj.task.get("singularity", {})
     zone = sing.get("zone", {})
     vmax = robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", 1.0))
-    tcp = np.array([robot.fk(q).translation for q in traj.q])  # (K, 3)
+    tcp = robot.tcp_positions(traj.q)  # (K, 3)
     step_m = np.linalg.norm(np.diff(tcp, axis=0), axis=1)  # (K - 1,)
     s_mm = np.concatenate([[0.0], np.cumsum(step_m)]) * 1e3  # (K,)
     figures = [

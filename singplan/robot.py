@@ -152,6 +152,10 @@ class Robot:
         pin.forwardKinematics(self.model, self.data, q)
         return pin.updateFramePlacement(self.model, self.data, self.tip_frame_id) * self.T_tip_tcp
 
+    def tcp_positions(self, q: np.ndarray) -> np.ndarray:
+        """TCP positions [m] in the base frame (N, 3) of joint samples ``q`` (N, n)."""
+        return np.array([self.fk(qk).translation for qk in q]).reshape(-1, 3)
+
     def fk_tip(self, q: np.ndarray) -> pin.SE3:
         """Tip-frame pose in the base frame (no tool)."""
         pin.forwardKinematics(self.model, self.data, q)

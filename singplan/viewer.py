@@ -156,7 +156,7 @@ def programmed_path(traj: Trajectory, robot: Robot, tcp: np.ndarray) -> np.ndarr
 
 def replay_html(traj: Trajectory, robot: Robot) -> str:
     """The replay page, a self-contained HTML document (the template and assets of :func:`viewer_dir`)."""
-    tcp = np.array([robot.fk(q).translation for q in traj.q])  # (K, 3)
+    tcp = robot.tcp_positions(traj.q)  # (K, 3)
     recorder = _Recorder()
     _scene(meshcat.Visualizer(window=recorder), traj, robot, tcp, programmed_path(traj, robot, tcp))
     assets = viewer_dir()
@@ -253,7 +253,7 @@ def serve_replay(traj: Trajectory, robot: Robot, speed: float = 1.0, loop: bool 
         vis = meshcat.Visualizer()
     live = LiveReplay(vis.url(), vis)
     try:
-        tcp = np.array([robot.fk(q).translation for q in traj.q])
+        tcp = robot.tcp_positions(traj.q)
         _scene(vis, traj, robot, tcp, programmed_path(traj, robot, tcp), speed=speed, loop=loop, play=True)
     except BaseException:
         live.close()

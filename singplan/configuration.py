@@ -34,6 +34,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from singplan.compiled import jit
 from singplan.errors import TaskError
 from singplan.robot import Robot
 
@@ -216,12 +217,23 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
     p = robot.opw
     if p is None:
         return np.array([_signed_distances(*_frames(robot, qk)) for qk in q]).reshape(-1, 3)
-    t = q * np.asarray(p.sign_corrections) - np.asarray(p.offsets_rad)
-    psi = math.atan2(p.a2, p.c3)
-    k = math.hypot(p.a2, p.c3)
-    wrap = np.pi - np.mod(np.pi - np.stack([t[:, 4], t[:, 2] + psi], axis=1), 2 * np.pi)
-    shoulder = p.a1 + p.c2 * np.sin(t[:, 1]) + k * np.sin(t[:, 1] + t[:, 2] + psi)
-    return np.stack([wrap[:, 0], shoulder, wrap[:, 1]], axis=1)
+    return _opw_distances(np.ascontiguousarray(q), np.asarray(p.sign_corrections, dtype=float),
+                          np.asarray(p.offsets_rad, dtype=float), p.a1, p.c2, math.hypot(p.a2, p.c3),
+                          math.atan2(p.a2, p.c3))
+
+
+@jit
+def _opw_distances(q: np.ndarray, signs: np.ndarray, offsets: np.ndarray, a1: float, c2: float, k: float,
+                   psi: float) -> np.ndarray:
+    """:func:`distances_batch` of an OPW arm: (q5, shoulder, q3 + psi), angles wrapped to (-pi, pi]."""
+    out = np.empty((q.shape[0], 3))
+    for i in range(q.shape[0]):
+        t2, t3, t5 = (q[i, 1] * signs[1] - offsets[1], q[i, 2] * signs[2] - offsets[2],
+                      q[i, 4] * signs[4] - offsets[4])
+        out[i, 0] = math.pi - (math.pi - t5) % (2.0 * math.pi)
+        out[i, 1] = a1 + c2 * math.sin(t2) + k * math.sin(t2 + t3 + psi)
+        out[i, 2] = math.pi - (math.pi - (t3 + psi)) % (2.0 * math.pi)
+    return out
 
 
 def labels_from_distances(d: np.ndarray) -> list[str]:

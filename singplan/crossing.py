@@ -146,7 +146,8 @@ def path_slope(robot: Robot, poses: PoseFunction, u: float, q: np.ndarray, h: fl
     T = poses(np.array([lo, hi]))
     v = (T[1, :3, 3] - T[0, :3, 3]) / (hi - lo)
     w = T[0, :3, :3] @ pin.log3(T[0, :3, :3].T @ T[1, :3, :3]) / (hi - lo)
-    return np.linalg.lstsq(robot.jacobian(q), np.concatenate([v, w]), rcond=None)[0]  # square: J^-1
+    J, x_u = robot.jacobian(q), np.concatenate([v, w])
+    return np.linalg.solve(J, x_u) if J.shape[1] == 6 else np.linalg.lstsq(J, x_u, rcond=None)[0]
 
 
 def _seam_slopes(ctx: MoveContext, a: int, u_b: float, q_exit: np.ndarray) -> np.ndarray:

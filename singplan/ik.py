@@ -27,13 +27,13 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from singplan import opw
+from singplan.compiled import jit
 from singplan.configuration import classify
 from singplan.ik_ur import UrParameters, ur_batch
 from singplan.robot import OpwParameters, Robot
 
 TWO_PI = 2.0 * math.pi
-_ACOS_SLACK = 1e-12  # tolerated overshoot of |cos| at a stretched elbow before the pose is unreachable
-_AXIS_EPS = 1e-12  # wrist centre this close to axis 1: q1 undefined, keep the seed's
 
 
 def wrap_to_pi(angles: np.ndarray) -> np.ndarray:
@@ -45,14 +45,33 @@ def wrap_to_pi(angles: np.ndarray) -> np.ndarray:
 def nearest_shifted(candidates: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For each reference (..., n), its candidates (..., B, n) moved by whole turns toward it:
     the nearest (..., n), its max-norm distance (...) (inf where no row is finite) and its row (...)."""
-    ref = reference[..., None, :]
-    shifted = candidates + TWO_PI * np.round((ref - candidates) / TWO_PI)
-    with np.errstate(invalid="ignore"):
-        dist = np.max(np.abs(shifted - ref), axis=-1)
-    dist = np.where(np.isnan(dist), np.inf, dist)
-    k = np.argmin(dist, axis=-1)
-    best = np.take_along_axis(shifted, k[..., None, None], axis=-2)[..., 0, :]
-    return best, np.take_along_axis(dist, k[..., None], axis=-1)[..., 0], k
+    lead, (b, n) = reference.shape[:-1], candidates.shape[-2:]
+    best, dist, k = _nearest_rows(np.ascontiguousarray(candidates, dtype=float).reshape(-1, b, n),
+                                  np.ascontiguousarray(reference, dtype=float).reshape(-1, n))
+    return best.reshape(*lead, n), dist.reshape(lead), k.reshape(lead)
+
+
+@jit
+def _nearest_rows(candidates: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`nearest_shifted` for candidates (M, B, n) and references (M, n); ties keep the first row."""
+    m, b, n = candidates.shape
+    best, dist, rows = np.empty((m, n)), np.full(m, np.inf), np.zeros(m, dtype=np.int64)
+    for i in range(m):
+        for r in range(b):
+            d = 0.0
+            for j in range(n):
+                c = candidates[i, r, j]
+                diff = abs(c + TWO_PI * np.rint((reference[i, j] - c) / TWO_PI) - reference[i, j])
+                if math.isnan(diff):
+                    d = np.inf
+                    break
+                d = max(d, diff)
+            if d < dist[i]:
+                dist[i], rows[i] = d, r
+        for j in range(n):
+            c = candidates[i, rows[i], j]
+            best[i, j] = c + TWO_PI * np.rint((reference[i, j] - c) / TWO_PI)
+    return best, dist, rows
 
 
 @dataclass(frozen=True)
@@ -78,82 +97,6 @@ class IkSolutions:
         return np.array(self.q[k])
 
 
-def _arm_solutions(p: OpwParameters | _ArmGeometry, c: np.ndarray, q1_seed: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The four (theta1, theta2, theta3) of the OPW arm for wrist centres ``c`` (N, 3), each (N, 4).
-
-    ``p``'s a2, b and c3 may be arrays (N,): one arm geometry per point (see :func:`opw_arm_for_point`).
-    """
-    cx, cy, cz = c[:, 0], c[:, 1], c[:, 2]
-    r2 = cx**2 + cy**2
-    with np.errstate(invalid="ignore"):
-        nx1 = np.sqrt(r2 - p.b**2) - p.a1
-    on_axis = r2 < _AXIS_EPS**2
-    tmp1 = np.where(on_axis, q1_seed, np.arctan2(cy, cx))
-    tmp2 = np.arctan2(p.b, nx1 + p.a1)
-    t1_i = tmp1 - tmp2
-    t1_ii = tmp1 + tmp2 - math.pi
-    tmp3 = cz - p.c1
-    s1_2 = nx1**2 + tmp3**2
-    tmp4 = nx1 + 2.0 * p.a1
-    s2_2 = tmp4**2 + tmp3**2
-    kappa_2 = p.a2**2 + p.c3**2
-    c2_2 = p.c2**2
-    s1, s2 = np.sqrt(s1_2), np.sqrt(s2_2)
-    acos_a = _safe_acos((s1_2 + c2_2 - kappa_2) / (2.0 * s1 * p.c2))
-    acos_b = _safe_acos((s2_2 + c2_2 - kappa_2) / (2.0 * s2 * p.c2))
-    t2_i = -acos_a + np.arctan2(nx1, tmp3)
-    t2_ii = acos_a + np.arctan2(nx1, tmp3)
-    t2_iii = -acos_b - np.arctan2(tmp4, tmp3)
-    t2_iv = acos_b - np.arctan2(tmp4, tmp3)
-    k = 2.0 * p.c2 * np.sqrt(kappa_2)
-    acos_c = _safe_acos((s1_2 - c2_2 - kappa_2) / k)
-    acos_d = _safe_acos((s2_2 - c2_2 - kappa_2) / k)
-    phi = np.arctan2(p.a2, p.c3)
-    t3_i, t3_ii = acos_c - phi, -acos_c - phi
-    t3_iii, t3_iv = acos_d - phi, -acos_d - phi
-    return (np.stack([t1_i, t1_i, t1_ii, t1_ii], axis=1),
-            np.stack([t2_i, t2_ii, t2_iii, t2_iv], axis=1),
-            np.stack([t3_i, t3_ii, t3_iii, t3_iv], axis=1))
-
-
-def _safe_acos(x: np.ndarray) -> np.ndarray:
-    """acos that clips round-off overshoot at a stretched arm, NaN when really out of reach."""
-    x = np.where(np.abs(x) <= 1.0 + _ACOS_SLACK, np.clip(x, -1.0, 1.0), np.nan)
-    return np.arccos(x)
-
-
-def _wrist_solutions(R: np.ndarray, t1: np.ndarray, t23: np.ndarray,
-                     q4_seed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(theta4, theta5, theta6) of the non-flipped wrist for each of the 4 arm solutions.
-
-    R: flange rotations (N, 3, 3); t1, t23: (N, 4); q4_seed: (N,) OPW q4 kept at a singularity.
-    Only the six entries of ``R_ce = (Rz(t1) Ry(t23))^T R`` that the angles need are formed,
-    and the sines and cosines of q4 and q5 come from those entries, not from trig calls.
-    """
-    s1, c1 = np.sin(t1), np.cos(t1)
-    s23, c23 = np.sin(t23), np.cos(t23)
-    r = [[R[:, i, j][:, None] for j in range(3)] for i in range(3)]  # each (N, 1)
-    # rows of R_0c^T: (c1 c23, s1 c23, -s23), (-s1, c1, 0), (c1 s23, s1 s23, c23)
-    xy0 = [c1 * r[0][j] + s1 * r[1][j] for j in (0, 2)]
-    e00 = c23 * xy0[0] - s23 * r[2][0]
-    e02 = c23 * xy0[1] - s23 * r[2][2]
-    e10 = -s1 * r[0][0] + c1 * r[1][0]
-    e12 = -s1 * r[0][2] + c1 * r[1][2]
-    e20 = s23 * xy0[0] + c23 * r[2][0]
-    e22 = s23 * xy0[1] + c23 * r[2][2]
-    sin5 = np.hypot(e02, e12)
-    regular = sin5 > 1e-12
-    t4 = np.where(regular, np.arctan2(e12, e02), q4_seed[:, None])
-    t5 = np.arctan2(sin5, e22)
-    safe = np.where(regular, sin5, 1.0)
-    s4 = np.where(regular, e12 / safe, np.sin(t4))
-    c4 = np.where(regular, e02 / safe, np.cos(t4))
-    # q6 from M = Ry(-t5) Rz(-t4) R_ce = Rz(t6): well conditioned even where sin5 -> 0
-    m00 = (e22 * (c4 * e00 + s4 * e10) - sin5 * e20) / np.hypot(sin5, e22)
-    m10 = -s4 * e00 + c4 * e10
-    return t4, t5, np.arctan2(m10, m00)
-
-
 def opw_batch(params: OpwParameters, T_base_flange: np.ndarray, q4_seed_opw: np.ndarray | None = None,
               q1_seed_opw: np.ndarray | None = None) -> np.ndarray:
     """All eight OPW branches for N flange poses, in robot joint coordinates.
@@ -168,45 +111,13 @@ def opw_batch(params: OpwParameters, T_base_flange: np.ndarray, q4_seed_opw: np.
         (N, 8, 6) joint values [rad] wrapped to (-pi, pi]; NaN rows for unreachable branches.
         Branches 0-3 are the four arm solutions with the OPW wrist, 4-7 the same arms flipped.
     """
-    T = np.asarray(T_base_flange, dtype=float).reshape(-1, 4, 4)
+    T = np.ascontiguousarray(T_base_flange, dtype=float).reshape(-1, 4, 4)
     n = T.shape[0]
-    R, p = T[:, :3, :3], T[:, :3, 3]
-    q4s = np.zeros(n) if q4_seed_opw is None else np.asarray(q4_seed_opw, dtype=float)
-    q1s = np.zeros(n) if q1_seed_opw is None else np.asarray(q1_seed_opw, dtype=float)
-    c = p - params.c4 * R[:, :, 2]
-    t1, t2, t3 = _arm_solutions(params, c, q1s)
-    t4, t5, t6 = _wrist_solutions(R, t1, t2 + t3, q4s)
-    signs = np.asarray(params.sign_corrections)
-    offsets = np.asarray(params.offsets_rad)
-    plain = wrap_to_pi((np.stack([t1, t2, t3, t4, t5, t6], axis=-1) + offsets) * signs)  # (N, 4, 6)
-    q = np.concatenate([plain, plain], axis=1)
-    # the flipped wrist (q4 + pi, -q5, q6 + pi) shares the arm joints
-    q[:, 4:, 3::2] = wrap_to_pi(plain[:, :, 3::2] + math.pi)
-    q[:, 4:, 4] = wrap_to_pi((offsets[4] - t5) * signs[4])
-    unreachable = np.isnan(t1) | np.isnan(t2) | np.isnan(t3)  # (N, 4): the whole branch goes
-    q[:, :4][unreachable] = np.nan
-    q[:, 4:][unreachable] = np.nan
-    return q
-
-
-@dataclass(frozen=True)
-class _ArmGeometry:
-    """The OPW arm parameters :func:`_arm_solutions` reads; a2, b, c3 (N,) may differ per point."""
-
-    a1: float
-    c1: float
-    c2: float
-    a2: np.ndarray  # (N,)
-    b: np.ndarray  # (N,)
-    c3: np.ndarray  # (N,)
-
-
-def _zyz(t4: np.ndarray, t5: np.ndarray, t6: np.ndarray) -> np.ndarray:
-    """Rz(t4) Ry(t5) Rz(t6), (N, 3, 3)."""
-    s4, c4, s5, c5, s6, c6 = np.sin(t4), np.cos(t4), np.sin(t5), np.cos(t5), np.sin(t6), np.cos(t6)
-    return np.stack([np.stack([c4 * c5 * c6 - s4 * s6, -c4 * c5 * s6 - s4 * c6, c4 * s5], axis=-1),
-                     np.stack([s4 * c5 * c6 + c4 * s6, -s4 * c5 * s6 + c4 * c6, s4 * s5], axis=-1),
-                     np.stack([-s5 * c6, s5 * s6, c5], axis=-1)], axis=-2)
+    q4s = np.zeros(n) if q4_seed_opw is None else np.ascontiguousarray(q4_seed_opw, dtype=float)
+    q1s = np.zeros(n) if q1_seed_opw is None else np.ascontiguousarray(q1_seed_opw, dtype=float)
+    p = params
+    return opw.branches(T, p.a1, p.a2, p.b, p.c1, p.c2, p.c3, p.c4, np.asarray(p.offsets_rad, dtype=float),
+                        np.asarray(p.sign_corrections, dtype=float), q4s, q1s)
 
 
 def opw_arm_for_point(params: OpwParameters, q_robot: np.ndarray, point_flange_m: np.ndarray,
@@ -228,12 +139,11 @@ def opw_arm_for_point(params: OpwParameters, q_robot: np.ndarray, point_flange_m
     Returns:
         (N, 6) joint values; rows whose point is out of reach are NaN.
     """
-    q_opw = _to_opw(params, q_robot)
-    w = _zyz(q_opw[:, 3], q_opw[:, 4], q_opw[:, 5]) @ (np.array([0.0, 0.0, params.c4]) + point_flange_m)
-    arm = _ArmGeometry(params.a1, params.c1, params.c2, params.a2 + w[:, 0], params.b + w[:, 1], params.c3 + w[:, 2])
-    t1, t2, t3 = _arm_solutions(arm, np.asarray(targets_m, dtype=float), q_opw[:, 0])
-    signs, offsets = np.asarray(params.sign_corrections[:3]), np.asarray(params.offsets_rad[:3])
-    arms = (np.stack([t1, t2, t3], axis=-1) + offsets) * signs  # (N, 4, 3) robot coordinates
+    p = params
+    point = np.array([0.0, 0.0, p.c4]) + point_flange_m
+    arms_opw = opw.arm_for_point(np.ascontiguousarray(_to_opw(p, q_robot)), point,
+                                 np.ascontiguousarray(targets_m, dtype=float), p.a1, p.a2, p.b, p.c1, p.c2, p.c3)
+    arms = (arms_opw + np.asarray(p.offsets_rad[:3])) * np.asarray(p.sign_corrections[:3])  # robot coordinates
     out = np.array(q_robot, dtype=float)
     out[:, :3] = nearest_shifted(arms, out[:, :3])[0]
     return out

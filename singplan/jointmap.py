@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from singplan.compiled import jit
 from singplan.ik import closed_form_branches, nearest_shifted, opw_arm_for_point, solve_newton
 from singplan.robot import Robot
 from singplan.tracking import PoseFunction
@@ -65,8 +66,20 @@ def hermite(part: JointPart, u: np.ndarray) -> np.ndarray:
 
 
 def interpolate(part: JointPart, u: np.ndarray) -> np.ndarray:
-    """Piecewise-linear interpolation of the part's reference samples, (N, n)."""
-    return np.stack([np.interp(u, part.u, part.q[:, j]) for j in range(part.q.shape[1])], axis=1)
+    """Piecewise-linear interpolation of the part's reference samples, (N, n); constant outside."""
+    return _interpolate_rows(part.u, np.ascontiguousarray(part.q), np.ascontiguousarray(u, dtype=float))
+
+
+@jit
+def _interpolate_rows(u_ref: np.ndarray, q_ref: np.ndarray, u: np.ndarray) -> np.ndarray:
+    out = np.empty((u.shape[0], q_ref.shape[1]))
+    last = u_ref.shape[0] - 1
+    for i in range(u.shape[0]):
+        k = min(max(np.searchsorted(u_ref, u[i], side="right") - 1, 0), max(last - 1, 0))
+        t = 0.0 if last == 0 else min(1.0, max(0.0, (u[i] - u_ref[k]) / (u_ref[k + 1] - u_ref[k])))
+        for j in range(q_ref.shape[1]):
+            out[i, j] = (1.0 - t) * q_ref[k, j] + t * q_ref[min(k + 1, last), j]
+    return out
 
 
 class JointMap:

@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import pinocchio as pin
 
+from singplan.compiled import jit
 from singplan.errors import TaskError
 
 AMBIGUOUS_ROTATION_RAD = math.pi - 1e-6
@@ -31,19 +33,53 @@ def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
     return float(np.linalg.norm(pin.log3(R_a.T @ R_b)))
 
 
+@jit
+def _rodrigues(wx: float, wy: float, wz: float, out: np.ndarray) -> None:
+    """``exp([w]x)`` into ``out`` (3, 3): ``I + sin(t) K + (1 - cos(t)) K^2``, K = [w / t]x, t = |w|."""
+    theta = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if theta < 1e-12:
+        out[:] = np.eye(3)
+        return
+    k = (wx / theta, wy / theta, wz / theta)
+    s, c = math.sin(theta), 1.0 - math.cos(theta)
+    out[0, 0], out[1, 1], out[2, 2] = 1.0 + c * (k[0] * k[0] - 1.0), 1.0 + c * (k[1] * k[1] - 1.0), \
+        1.0 + c * (k[2] * k[2] - 1.0)
+    out[0, 1], out[1, 0] = c * k[0] * k[1] - s * k[2], c * k[0] * k[1] + s * k[2]
+    out[0, 2], out[2, 0] = c * k[0] * k[2] + s * k[1], c * k[0] * k[2] - s * k[1]
+    out[1, 2], out[2, 1] = c * k[1] * k[2] - s * k[0], c * k[1] * k[2] + s * k[0]
+
+
+@jit
 def exp_so3(omega: np.ndarray) -> np.ndarray:
     """Rodrigues' formula for rotation vectors (N, 3) -> rotation matrices (N, 3, 3)."""
-    theta = np.linalg.norm(omega, axis=1)
-    small = theta < 1e-12
-    safe = np.where(small, 1.0, theta)
-    k = omega / safe[:, None]
-    K = np.zeros((len(omega), 3, 3))
-    K[:, 0, 1], K[:, 0, 2] = -k[:, 2], k[:, 1]
-    K[:, 1, 0], K[:, 1, 2] = k[:, 2], -k[:, 0]
-    K[:, 2, 0], K[:, 2, 1] = -k[:, 1], k[:, 0]
-    s = np.where(small, 0.0, np.sin(theta))[:, None, None]
-    c = np.where(small, 0.0, 1.0 - np.cos(theta))[:, None, None]
-    return np.eye(3)[None] + s * K + c * (K @ K)
+    out = np.empty((omega.shape[0], 3, 3))
+    for i in range(omega.shape[0]):
+        _rodrigues(omega[i, 0], omega[i, 1], omega[i, 2], out[i])
+    return out
+
+
+@jit
+def _poses(u: np.ndarray, R_a: np.ndarray, omega: np.ndarray, p_a: np.ndarray, p_b: np.ndarray,
+           center: np.ndarray, arc_axis: np.ndarray, circ: bool) -> np.ndarray:
+    """Homogeneous poses (N, 4, 4): ``R_a exp(u omega)`` and the line ``p_a -> p_b`` or, for a
+    circle, ``center + exp(u arc_axis) (p_a - center)``."""
+    T = np.zeros((u.shape[0], 4, 4))
+    E = np.empty((3, 3))
+    for i in range(u.shape[0]):
+        _rodrigues(u[i] * omega[0], u[i] * omega[1], u[i] * omega[2], E)
+        for r in range(3):  # 3 x 3 products written out: numba's matmul allocates and calls BLAS
+            for c in range(3):
+                T[i, r, c] = R_a[r, 0] * E[0, c] + R_a[r, 1] * E[1, c] + R_a[r, 2] * E[2, c]
+        if circ:
+            _rodrigues(u[i] * arc_axis[0], u[i] * arc_axis[1], u[i] * arc_axis[2], E)
+            for r in range(3):
+                T[i, r, 3] = center[r] + E[r, 0] * (p_a[0] - center[0]) + E[r, 1] * (p_a[1] - center[1]) \
+                    + E[r, 2] * (p_a[2] - center[2])
+        else:
+            for r in range(3):
+                T[i, r, 3] = p_a[r] + u[i] * (p_b[r] - p_a[r])
+        T[i, 3, 3] = 1.0
+    return T
 
 
 @dataclass(frozen=True)
@@ -64,29 +100,27 @@ class CartesianPiece:
     radius: float = 0.0
     arc_rad: float = 0.0
 
+    @cached_property
+    def rotation_vector(self) -> np.ndarray:
+        """``log(R_start^T R_end)`` (3,): the slerp's whole turn in the start frame [rad]."""
+        return np.asarray(pin.log3(self.T_start.rotation.T @ self.T_end.rotation))
+
     def positions(self, u: np.ndarray) -> np.ndarray:
         """TCP positions (N, 3) [m] at parameters u (N,)."""
-        pa, pb = self.T_start.translation, self.T_end.translation
-        if self.kind == "lin":
-            return pa[None] + np.asarray(u)[:, None] * (pb - pa)[None]
-        assert self.center is not None and self.normal is not None
-        R = exp_so3(np.asarray(u)[:, None] * self.arc_rad * self.normal[None])
-        return self.center[None] + R @ (pa - self.center)
+        return self.poses(u)[:, :3, 3]
 
     def rotations(self, u: np.ndarray) -> np.ndarray:
         """TCP orientations (N, 3, 3): slerp from start to end."""
-        Ra = self.T_start.rotation
-        omega = np.asarray(pin.log3(Ra.T @ self.T_end.rotation))
-        return Ra[None] @ exp_so3(np.asarray(u)[:, None] * omega[None])
+        return self.poses(u)[:, :3, :3]
 
     def poses(self, u: np.ndarray) -> np.ndarray:
         """Homogeneous TCP poses (N, 4, 4)."""
-        u = np.asarray(u, dtype=float)
-        T = np.zeros((len(u), 4, 4))
-        T[:, :3, :3] = self.rotations(u)
-        T[:, :3, 3] = self.positions(u)
-        T[:, 3, 3] = 1.0
-        return T
+        circ = self.kind == "circ"
+        center = self.center if self.center is not None else np.zeros(3)
+        arc_axis = self.arc_rad * self.normal if self.normal is not None else np.zeros(3)
+        return _poses(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(self.T_start.rotation),
+                      self.rotation_vector, np.asarray(self.T_start.translation), np.asarray(self.T_end.translation),
+                      center, arc_axis, circ)
 
     def pose(self, u: float) -> pin.SE3:
         T = self.poses(np.array([u]))[0]

@@ -80,16 +80,9 @@ def find_zones(u: np.ndarray, dist: np.ndarray, thresholds: np.ndarray,
     for kind in KINDS:
         i = KIND_INDEX[kind]
         d = np.abs(dist[:, i])
-        inside = d < thresholds[i]
-        k = 0
-        while k < len(u):
-            if not inside[k]:
-                k += 1
-                continue
-            start = k
-            while k < len(u) and inside[k]:
-                k += 1
-            end = k - 1
+        edges = np.diff(np.concatenate([[0], (d < thresholds[i]).astype(np.int8), [0]]))
+        for start, stop in zip(np.nonzero(edges == 1)[0].tolist(), np.nonzero(edges == -1)[0].tolist(), strict=True):
+            end = stop - 1
             refine = None if kind == continued and start == 0 else abs_distance_at
             zones.append(_zone(kind, u, d, thresholds[i], start, end, refine, i, zoom))
     return sorted(zones, key=lambda z: z.u_entry)

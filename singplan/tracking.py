@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from singplan.compiled import jit
 from singplan.ik import closed_form_branches, nearest_shifted, solve_newton
 from singplan.robot import Robot
 
@@ -58,16 +59,15 @@ class BranchCandidates:
         self.free = np.empty(0, dtype=bool)  # (M,) a branch sits on a singularity: some joints are free
 
     def fill(self, u: np.ndarray) -> None:
-        """Solve the parameters of ``u`` not solved yet."""
-        todo = np.setdiff1d(u, self.u)
+        """Solve the parameters of ``u`` (sorted, distinct) not solved yet."""
+        todo = u[self.u[np.minimum(np.searchsorted(self.u, u), len(self.u) - 1)] != u] if len(self.u) else u
         if todo.size == 0:
             return
         sols = closed_form_branches(self.robot, self.poses(todo))
-        u_all = np.concatenate([self.u, todo])
-        order = np.argsort(u_all, kind="stable")
-        self.u = u_all[order]
-        self.sols = np.concatenate([self.sols, sols])[order] if self.sols.size else sols[order]
-        self.free = np.concatenate([self.free, self._has_free_joints(sols)])[order]
+        at = np.searchsorted(self.u, todo)
+        self.sols = np.insert(self.sols, at, sols, axis=0) if len(self.u) else sols
+        self.u = np.insert(self.u, at, todo)
+        self.free = np.insert(self.free, at, self._has_free_joints(sols))
 
     def at(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Branches (N, B, n) and free-joint flags (N,) of already solved parameters."""
@@ -111,69 +111,94 @@ def _nearest(candidates: np.ndarray, q_prev: np.ndarray) -> tuple[np.ndarray, fl
     return best, float(dist), int(k)
 
 
-def _unwrapped_rows(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each branch row unwrapped along the samples, and its max joint step before each sample.
-
-    C: (N, B, n) candidates. Returns Cu (N, B, n), equal to C up to whole turns per joint and
-    continuous from sample to sample, and step (N, B) (step[0] = 0; inf where a row is NaN).
-    """
-    turns = np.nan_to_num(np.round((C[:-1] - C[1:]) / TWO_PI))  # a NaN sample does not shift the rest
-    Cu = C.copy()
-    Cu[1:] += TWO_PI * np.cumsum(turns, axis=0)
-    step = np.zeros(C.shape[:2])
-    with np.errstate(invalid="ignore"):
-        step[1:] = np.max(np.abs(np.diff(Cu, axis=0)), axis=2)
-    return Cu, np.where(np.isnan(step), np.inf, step)
-
-
-def _leaves_row(C: np.ndarray, Cu: np.ndarray, step: np.ndarray, free: np.ndarray, max_step: float) -> np.ndarray:
-    """(N, B) True where following a row must stop and the nearest candidate be searched again.
-
-    A row is left where its step is large and some other row is nearer the row's previous
-    value, where it is NaN, or where a large step meets a sample with free joints.
-    """
-    leave = ~np.isfinite(step)
-    large = np.isfinite(step) & (step > max_step)
-    j, r = np.nonzero(large)
-    if j.size:
-        nearest = nearest_shifted(C[j], Cu[j - 1, r])[2]  # (M,) row nearest each row's previous value
-        leave[j, r] = (nearest != r) | free[j]
-    leave[0] = True
-    return leave
-
-
 def _select(cands: BranchCandidates, u: np.ndarray, q0: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray]:
     """Follow the nearest candidate from q0; returns q (N, n) and the step before each sample.
 
-    A branch row, once chosen, is followed (unwrapped) up to the next sample where another
-    candidate is nearer; only there, and at samples with free joints, is the search repeated,
-    so the loop runs once per branch change, not once per sample.
+    :func:`_follow` does the work; it hands back the samples with free joints whose rows all
+    step too far, where the pose is solved again with the previous joints as the seed.
     """
     C, free = cands.at(u)  # (N, B, n), (N,)
-    Cu, step = _unwrapped_rows(C)
-    leave = _leaves_row(C, Cu, step, free, max_step)
     q = np.empty((len(u), len(q0)))
     steps = np.zeros(len(u))
-    k, q_prev = 0, q0
-    while k < len(u):
+    k, row = 0, -1
+    while True:
+        k = int(_follow(C, free, np.ascontiguousarray(q0, dtype=float), row, k, max_step, q, steps))
+        if k >= len(u):
+            return q, steps
+        q_prev = q[k - 1] if k > 0 else q0
         best, dist, row = _nearest(C[k], q_prev)
-        if dist > max_step and free[k]:  # free joints take the previous values
-            best2, dist2, _ = _nearest(cands.exact(float(u[k]), q_prev), q_prev)
-            if dist2 < dist:
-                best, dist, row = best2, dist2, -1
+        best2, dist2, _ = _nearest(cands.exact(float(u[k]), q_prev), q_prev)
+        if dist2 < dist:
+            best, dist, row = best2, dist2, -1
         q[k], steps[k] = best, dist
         if not np.all(np.isfinite(best)):
             q[k + 1:], steps[k + 1:] = np.nan, np.inf
-            break
+            return q, steps
         k += 1
-        if row >= 0 and k < len(u):
-            stops = np.nonzero(leave[k:, row])[0]
-            end = k + (int(stops[0]) if stops.size else len(u) - k)
-            q[k:end] = Cu[k:end, row] + (best - Cu[k - 1, row])
-            steps[k:end] = step[k:end, row]
-            k = end
-        q_prev = q[k - 1]
-    return q, steps
+
+
+@jit
+def _follow(C: np.ndarray, free: np.ndarray, q0: np.ndarray, row: int, start: int, max_step: float,
+            q: np.ndarray, steps: np.ndarray) -> int:
+    """Fill q[start:] and steps[start:] from candidates C (N, B, n), each moved by whole turns next to
+    the previous sample (``q0`` before sample 0); ``row`` is the candidate row q[start - 1] came
+    from (-1: none).
+
+    The current row is followed while its step is small, or while it is large but still the
+    nearest row at a sample without free joints; elsewhere the nearest row is searched
+    again. Returns the first sample whose nearest row steps more than ``max_step`` and whose
+    joints are free (the caller solves it with a seed), or N. A sample with no finite row
+    ends the path: it and the rest become NaN, their steps inf. (Chains without a closed
+    form have no rows and free joints everywhere: every sample goes to the caller.)
+    """
+    n_samples = C.shape[0]
+    for k in range(start, n_samples):
+        prev = q[k - 1] if k > 0 else q0
+        if row >= 0:
+            step = _row_step(C[k, row], prev)
+            if step <= max_step or (math.isfinite(step) and not free[k] and _nearest_row(C[k], prev)[0] == row):
+                _put(C[k, row], prev, q[k])
+                steps[k] = step
+                continue
+        row, step = _nearest_row(C[k], prev)
+        if step > max_step and free[k]:
+            return k
+        if not math.isfinite(step):
+            q[k:] = np.nan
+            steps[k:] = np.inf
+            return n_samples
+        _put(C[k, row], prev, q[k])
+        steps[k] = step
+    return n_samples
+
+
+@jit
+def _row_step(c: np.ndarray, prev: np.ndarray) -> float:
+    """Max-norm joint step from ``prev`` to the candidate row ``c`` moved by whole turns (inf if NaN)."""
+    d = 0.0
+    for j in range(c.shape[0]):
+        diff = abs(c[j] + TWO_PI * np.rint((prev[j] - c[j]) / TWO_PI) - prev[j])
+        if math.isnan(diff):
+            return np.inf
+        d = max(d, diff)
+    return d
+
+
+@jit
+def _nearest_row(rows: np.ndarray, prev: np.ndarray) -> tuple[int, float]:
+    """The row (B, n) nearest ``prev`` by :func:`_row_step`, and its step; ties keep the first."""
+    best, best_step = 0, np.inf
+    for r in range(rows.shape[0]):
+        step = _row_step(rows[r], prev)
+        if step < best_step:
+            best, best_step = r, step
+    return best, best_step
+
+
+@jit
+def _put(c: np.ndarray, prev: np.ndarray, out: np.ndarray) -> None:
+    for j in range(c.shape[0]):
+        out[j] = c[j] + TWO_PI * np.rint((prev[j] - c[j]) / TWO_PI)
 
 
 def track(robot: Robot, poses: PoseFunction, u0: np.ndarray, q_start: np.ndarray,

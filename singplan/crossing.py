@@ -33,7 +33,7 @@ from singplan.path import CartesianPiece
 from singplan.robot import Robot
 from singplan.singularity import KIND_INDEX, Zone
 from singplan.task import SingularitySettings
-from singplan.tracking import PoseFunction, TrackedPath, nearest_candidate
+from singplan.tracking import TrackedPath, nearest_candidate
 
 EXACT_ORIENTATION_TOL_RAD = math.radians(0.01)
 # a through-crossing blends where the in-branch swing has not started: |distance| above
@@ -134,19 +134,14 @@ def exit_candidates(ctx: MoveContext, u: float) -> list[np.ndarray]:
     return [c for c in sols if np.all(np.isfinite(c))]
 
 
-def path_slope(robot: Robot, poses: PoseFunction, u: float, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
+def path_slope(robot: Robot, piece: CartesianPiece, u: float, q: np.ndarray) -> np.ndarray:
     """dq/du [rad] of the exact IK branch through joints ``q`` at path parameter ``u``: ``J(q)^-1 dX/du``.
 
-    The path's velocity ``dX/du`` (TCP point and angular velocity in the base frame, as
-    :meth:`Robot.jacobian` uses) comes from a central difference of the path poses (one-sided
-    at the ends of the move); outside singular zones J is well conditioned, so seams match
+    ``dX/du`` is the path's velocity (:meth:`CartesianPiece.velocity`, in the frame
+    :meth:`Robot.jacobian` uses); outside singular zones J is well conditioned, so seams match
     the path's true slope rather than a chord of samples.
     """
-    lo, hi = max(0.0, u - h), min(1.0, u + h)
-    T = poses(np.array([lo, hi]))
-    v = (T[1, :3, 3] - T[0, :3, 3]) / (hi - lo)
-    w = T[0, :3, :3] @ pin.log3(T[0, :3, :3].T @ T[1, :3, :3]) / (hi - lo)
-    J, x_u = robot.jacobian(q), np.concatenate([v, w])
+    J, x_u = robot.jacobian(q), piece.velocity(u)
     return np.linalg.solve(J, x_u) if J.shape[1] == 6 else np.linalg.lstsq(J, x_u, rcond=None)[0]
 
 
@@ -156,8 +151,8 @@ def _seam_slopes(ctx: MoveContext, a: int, u_b: float, q_exit: np.ndarray) -> np
     seam is the start of the tracked stretch or the end of the move."""
     u, q = ctx.tracked.u, ctx.tracked.q
     chord = (q_exit - q[a]) / (u_b - u[a])
-    entry = path_slope(ctx.robot, ctx.piece.poses, float(u[a]), q[a]) if a > 0 else chord
-    exit_ = path_slope(ctx.robot, ctx.piece.poses, u_b, q_exit) if u_b < 1.0 - 1e-12 else chord
+    entry = path_slope(ctx.robot, ctx.piece, float(u[a]), q[a]) if a > 0 else chord
+    exit_ = path_slope(ctx.robot, ctx.piece, u_b, q_exit) if u_b < 1.0 - 1e-12 else chord
     return np.array([entry, exit_])
 
 

@@ -122,6 +122,16 @@ class CartesianPiece:
                       self.rotation_vector, np.asarray(self.T_start.translation), np.asarray(self.T_end.translation),
                       center, arc_axis, circ)
 
+    def velocity(self, u: float) -> np.ndarray:
+        """dX/du (6,): the TCP point's velocity [m] and the tool's angular velocity [rad] in the
+        base frame, per unit of u. The slerp turns at the constant rate ``R(u) omega = R_start omega``."""
+        w = self.T_start.rotation @ self.rotation_vector
+        if self.kind == "lin":
+            return np.concatenate([self.T_end.translation - self.T_start.translation, w])
+        assert self.center is not None and self.normal is not None
+        radial = self.poses(np.array([u]))[0, :3, 3] - self.center
+        return np.concatenate([np.cross(self.arc_rad * self.normal, radial), w])
+
     def pose(self, u: float) -> pin.SE3:
         T = self.poses(np.array([u]))[0]
         return pin.SE3(T[:3, :3], T[:3, 3])

@@ -256,7 +256,7 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
         dist = in_zone.distances(tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref),
-                           continued=crossings[-1].zone.kind if crossings else None, zoom=_zoom_grid(robot))
+                           continued=crossings[-1].zone.kind if crossings else None)
         ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, task.singularity)
         zones_before = list(zones)
         result = _first_crossing(method, ctx, found, zones, u_from)
@@ -315,13 +315,7 @@ class _ZoneTest:
         return self._d
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
-        with np.errstate(invalid="ignore"):
-            return np.any(np.abs(self.distances(q)) < self.thresholds, axis=1)
-
-
-def _zoom_grid(robot: Robot) -> tuple[int, int]:
-    """Closest-point search grid: OPW arms' distances are vectorised, others cost per sample."""
-    return (129, 2) if robot.opw is not None else (17, 5)
+        return np.any(np.abs(self.distances(q)) < self.thresholds, axis=1)  # NaN rows compare False
 
 
 def _refiner(robot: Robot, ref: JointMap) -> DistanceFunction:
@@ -412,7 +406,7 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
         _check_tracked(robot, i, move, piece, tracked)
         dist, _ = distances_along(robot, tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
-        zones = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref), zoom=_zoom_grid(robot))
+        zones = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref))
         out.append(MoveZones(i, move.kind, piece.length_m, tuple(zones)))
         q, T = tracked.q[-1], piece.T_end
     return out

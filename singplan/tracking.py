@@ -82,8 +82,7 @@ class BranchCandidates:
         if self.robot.opw is not None:
             p = self.robot.opw
             q5 = q5 * p.sign_corrections[4] - p.offsets_rad[4]
-        with np.errstate(invalid="ignore"):
-            return np.any(np.abs(np.sin(q5)) < 1e-9, axis=1)
+        return np.any(np.abs(np.sin(q5)) < 1e-9, axis=1)  # NaN rows compare False
 
     def exact(self, u: float, seed: np.ndarray) -> np.ndarray:
         """Branches of one pose, solved with ``seed`` for the free joints at a singularity."""

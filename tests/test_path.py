@@ -45,6 +45,18 @@ def test_lin_is_a_straight_line_at_constant_rotation_rate() -> None:
     np.testing.assert_allclose(angles, u * piece.rotation_rad, atol=1e-12)
 
 
+@pytest.mark.parametrize("kind", ["lin", "circ"])
+def test_velocity_is_the_central_difference_of_the_poses(kind: str) -> None:
+    a, b = se3([0.5, 0.1, 0.8], [170, 10, 0]), se3([0.8, -0.2, 0.6], [150, 30, 40])
+    piece = make_lin(a, b, "m") if kind == "lin" else make_circ(a, np.array([0.7, 0.05, 0.75]), b, "m")
+    h = 1e-6
+    for u in (0.1, 0.37, 0.9):
+        T0, T1 = piece.poses(np.array([u - h, u + h]))
+        v = (T1[:3, 3] - T0[:3, 3]) / (2 * h)
+        w = T0[:3, :3] @ pin.log3(T0[:3, :3].T @ T1[:3, :3]) / (2 * h)
+        np.testing.assert_allclose(piece.velocity(u), np.concatenate([v, w]), atol=1e-7)
+
+
 def test_circ_passes_through_via_on_its_circle() -> None:
     a, via, b = np.array([1.0, 0.0, 0.5]), np.array([0.9, 0.3, 0.55]), np.array([0.6, 0.4, 0.6])
     piece = make_circ(se3(list(a), [180, 0, 0]), via, se3(list(b), [170, 0, 20]), "moves[0].circ")

@@ -36,6 +36,7 @@ import pinocchio as pin
 
 from singplan.compiled import jit
 from singplan.errors import TaskError
+from singplan.path import cross3
 from singplan.robot import Robot
 
 SHOULDER_LABELS = ("F", "B")
@@ -108,11 +109,6 @@ def _axes_and_origins(robot: Robot, q: np.ndarray) -> tuple[list[np.ndarray], li
     return origins, axes
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """3-vector cross product (np.cross costs ten times more on single vectors)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
 def _closest_point_on_first(p1: np.ndarray, d1: np.ndarray, p2: np.ndarray, d2: np.ndarray) -> np.ndarray:
     """Point of line (p1, d1) closest to line (p2, d2); p1 when they are parallel."""
     w = p1 - p2
@@ -137,7 +133,7 @@ def _reference(robot: Robot) -> _Reference:
     elbow_joint = 4 if robot.family == "ur" else 0
     sign4 = 1.0 if float(axes[3] @ (wrist - origins[2])) >= 0 else -1.0
     sign6 = 1.0 if float(axes[5] @ (tool0 - wrist)) >= 0 else -1.0
-    normal = _cross(up, forward)
+    normal = cross3(up, forward)
     sign5 = 1.0
     for ref in (normal, up, forward):
         dot = float(axes[4] @ ref)
@@ -163,14 +159,14 @@ def _frames(robot: Robot, q: np.ndarray) -> tuple[_Reference, _Frames]:
 def _signed_distances(ref: _Reference, fr: _Frames) -> tuple[float, float, float]:
     o, z = fr.origins, fr.axes
     shoulder = float((fr.wrist - o[0]) @ fr.forward)
-    n = _cross(ref.up, fr.forward)
+    n = cross3(ref.up, fr.forward)
     elbow_point = fr.wrist if ref.elbow_joint == 0 else o[ref.elbow_joint - 1]
     upper, fore = o[2] - o[1], elbow_point - o[2]
     upper = upper - float(upper @ n) * n
     fore = fore - float(fore @ n) * n
-    elbow = float(np.arctan2(_cross(upper, fore) @ n, upper @ fore))
+    elbow = float(np.arctan2(cross3(upper, fore) @ n, upper @ fore))
     z4, z5, z6 = ref.sign4 * z[3], ref.sign5 * z[4], ref.sign6 * z[5]
-    wrist = float(np.arctan2(_cross(z4, z6) @ z5, z4 @ z6))
+    wrist = float(np.arctan2(cross3(z4, z6) @ z5, z4 @ z6))
     return wrist, shoulder, elbow
 
 

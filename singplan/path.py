@@ -28,6 +28,11 @@ def rpy_deg_to_rotation(rpy_deg: tuple[float, float, float] | np.ndarray) -> np.
     return np.asarray(pin.rpy.rpyToMatrix(float(r), float(p), float(y)))
 
 
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """3-vector cross product (np.cross costs ten times more on single vectors)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
     """Angle [rad] of the rotation from R_a to R_b."""
     return float(np.linalg.norm(pin.log3(R_a.T @ R_b)))
@@ -130,7 +135,7 @@ class CartesianPiece:
             return np.concatenate([self.T_end.translation - self.T_start.translation, w])
         assert self.center is not None and self.normal is not None
         radial = self.poses(np.array([u]))[0, :3, 3] - self.center
-        return np.concatenate([np.cross(self.arc_rad * self.normal, radial), w])
+        return np.concatenate([cross3(self.arc_rad * self.normal, radial), w])
 
     def pose(self, u: float) -> pin.SE3:
         T = self.poses(np.array([u]))[0]
@@ -158,16 +163,16 @@ def make_circ(T_start: pin.SE3, via: np.ndarray, T_end: pin.SE3, field: str) -> 
     angle = _checked_rotation(T_start, T_end, field)
     pa, pb = T_start.translation, T_end.translation
     u, v = via - pa, pb - pa
-    normal = np.cross(u, v)
+    normal = cross3(u, v)
     n2 = float(normal @ normal)
     scale = max(float(u @ u), float(v @ v), 1e-30)
     if n2 < 1e-12 * scale * scale or min(np.linalg.norm(u), np.linalg.norm(v), np.linalg.norm(pb - via)) < 1e-6:
         raise TaskError(f"{field}.via", "start, via and end are collinear or coincide: no unique circle")
-    center = pa + (float(v @ v) * np.cross(normal, u) + float(u @ u) * np.cross(v, normal)) / (2.0 * n2)
+    center = pa + (float(v @ v) * cross3(normal, u) + float(u @ u) * cross3(v, normal)) / (2.0 * n2)
     normal = normal / math.sqrt(n2)
     radius = float(np.linalg.norm(pa - center))
     a, b = pa - center, pb - center
-    arc = math.atan2(float(np.cross(a, b) @ normal), float(a @ b))
+    arc = math.atan2(float(cross3(a, b) @ normal), float(a @ b))
     arc = arc if arc >= 0 else arc + 2.0 * math.pi
     return CartesianPiece("circ", T_start, T_end, radius * arc, angle, center, normal, radius, arc)
 

@@ -64,10 +64,10 @@ class BranchCandidates:
         if todo.size == 0:
             return
         sols = closed_form_branches(self.robot, self.poses(todo))
-        at = np.searchsorted(self.u, todo)
-        self.sols = np.insert(self.sols, at, sols, axis=0) if len(self.u) else sols
-        self.u = np.insert(self.u, at, todo)
-        self.free = np.insert(self.free, at, self._has_free_joints(sols))
+        order = np.argsort(np.concatenate([self.u, todo]), kind="stable")
+        self.sols = np.concatenate([self.sols, sols])[order] if len(self.u) else sols
+        self.u = np.concatenate([self.u, todo])[order]
+        self.free = np.concatenate([self.free, self._has_free_joints(sols)])[order]
 
     def at(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Branches (N, B, n) and free-joint flags (N,) of already solved parameters."""

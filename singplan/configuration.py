@@ -213,8 +213,7 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
     p = robot.opw
     if p is None:
         return np.array([_signed_distances(*_frames(robot, qk)) for qk in q]).reshape(-1, 3)
-    return _opw_distances(np.ascontiguousarray(q), np.asarray(p.sign_corrections, dtype=float),
-                          np.asarray(p.offsets_rad, dtype=float), p.a1, p.c2, math.hypot(p.a2, p.c3),
+    return _opw_distances(np.ascontiguousarray(q), p.signs, p.offsets, p.a1, p.c2, math.hypot(p.a2, p.c3),
                           math.atan2(p.a2, p.c3))
 
 

@@ -116,8 +116,7 @@ def opw_batch(params: OpwParameters, T_base_flange: np.ndarray, q4_seed_opw: np.
     q4s = np.zeros(n) if q4_seed_opw is None else np.ascontiguousarray(q4_seed_opw, dtype=float)
     q1s = np.zeros(n) if q1_seed_opw is None else np.ascontiguousarray(q1_seed_opw, dtype=float)
     p = params
-    return opw.branches(T, p.a1, p.a2, p.b, p.c1, p.c2, p.c3, p.c4, np.asarray(p.offsets_rad, dtype=float),
-                        np.asarray(p.sign_corrections, dtype=float), q4s, q1s)
+    return opw.branches(T, p.a1, p.a2, p.b, p.c1, p.c2, p.c3, p.c4, p.offsets, p.signs, q4s, q1s)
 
 
 def opw_arm_for_point(params: OpwParameters, q_robot: np.ndarray, point_flange_m: np.ndarray,
@@ -143,14 +142,14 @@ def opw_arm_for_point(params: OpwParameters, q_robot: np.ndarray, point_flange_m
     point = np.array([0.0, 0.0, p.c4]) + point_flange_m
     arms_opw = opw.arm_for_point(np.ascontiguousarray(_to_opw(p, q_robot)), point,
                                  np.ascontiguousarray(targets_m, dtype=float), p.a1, p.a2, p.b, p.c1, p.c2, p.c3)
-    arms = (arms_opw + np.asarray(p.offsets_rad[:3])) * np.asarray(p.sign_corrections[:3])  # robot coordinates
+    arms = (arms_opw + p.offsets[:3]) * p.signs[:3]  # robot coordinates
     out = np.array(q_robot, dtype=float)
     out[:, :3] = nearest_shifted(arms, out[:, :3])[0]
     return out
 
 
 def _to_opw(params: OpwParameters, q_robot: np.ndarray) -> np.ndarray:
-    return q_robot * np.asarray(params.sign_corrections) - np.asarray(params.offsets_rad)
+    return q_robot * params.signs - params.offsets
 
 
 def _shift_variants(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> list[np.ndarray]:
@@ -207,7 +206,7 @@ def closed_form_branches(robot: Robot, T_base_tcp: np.ndarray, seeds: np.ndarray
     B = 8 for OPW and UR arms, 0 for chains with no closed form. ``seeds`` (N, n) give the
     free joints at a singularity (the seed's q4 at q5 = 0, its q1 on axis 1).
     """
-    T_flange = np.asarray(T_base_tcp, dtype=float).reshape(-1, 4, 4) @ robot.T_tip_tcp.inverse().homogeneous
+    T_flange = np.asarray(T_base_tcp, dtype=float).reshape(-1, 4, 4) @ robot.T_tcp_tip_h
     if robot.opw is not None:
         p = robot.opw
         seeds_opw = None if seeds is None else _to_opw(p, np.asarray(seeds, dtype=float).reshape(len(T_flange), -1))

@@ -10,7 +10,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, cached_property
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +48,16 @@ class OpwParameters:
     c4: float
     offsets_rad: tuple[float, ...]
     sign_corrections: tuple[float, ...]
+
+    @cached_property
+    def offsets(self) -> np.ndarray:
+        """``offsets_rad`` as an array (6,), for the vectorised joint conversions."""
+        return np.array(self.offsets_rad, dtype=float)
+
+    @cached_property
+    def signs(self) -> np.ndarray:
+        """``sign_corrections`` as an array (6,)."""
+        return np.array(self.sign_corrections, dtype=float)
 
 
 @dataclass(frozen=True)
@@ -121,6 +131,7 @@ class Robot:
         self.tip = tip
         self.tip_frame_id = model.getFrameId(tip)
         self.T_tip_tcp = T_tip_tcp
+        self.T_tcp_tip_h = T_tip_tcp.inverse().homogeneous  # (4, 4): TCP poses -> tip poses, many at a time
         self.entry = entry
         self.joint_names = tuple(model.names[i] for i in range(1, model.njoints))
         self.lower_rad = np.array(model.lowerPositionLimit, dtype=float)

@@ -19,6 +19,7 @@ from typing import TextIO
 import numpy as np
 import pinocchio as pin
 
+from singplan.compiled import kernels_cached
 from singplan.configuration import singularity_distances
 from singplan.errors import InputError, SingplanError
 from singplan.ik import solve_all
@@ -114,6 +115,9 @@ def _progress_printer(err: TextIO, quiet: bool) -> Callable[[int, int], None] | 
 
 def cmd_plan(args: argparse.Namespace, out: TextIO) -> int:
     task = load_task(args.task)
+    if not args.quiet and not kernels_cached():
+        sys.stderr.write("singplan: first run after an install: compiling the planner's kernels "
+                         "(about 10 s on two cores; cached on disk afterwards)\n")
     traj = plan(task, method=args.method, progress=_progress_printer(sys.stderr, args.quiet))
     robot = load_task_robot(task)
     extra = {} if args.no_report else {"report.html": report_html(traj, robot)}

@@ -101,7 +101,7 @@ def branches(T: np.ndarray, a1: float, a2: float, b: float, c1: float, c2: float
     the flipped wrist (q4 + pi, -q5, q6 + pi). NaN rows: the arm cannot reach the wrist centre.
     """
     n = T.shape[0]
-    out = np.empty((n, 8, 6))
+    out = np.full((n, 8, 6), np.nan)
     arms = np.empty((4, 3))
     for i in range(n):
         R = T[i, :3, :3]
@@ -110,17 +110,18 @@ def branches(T: np.ndarray, a1: float, a2: float, b: float, c1: float, c2: float
         for j in range(4):
             t1, t2, t3 = arms[j, 0], arms[j, 1], arms[j, 2]
             if math.isnan(t1) or math.isnan(t2) or math.isnan(t3):
-                out[i, j, :] = math.nan
-                out[i, j + 4, :] = math.nan
-                continue
+                continue  # both wrists of this arm stay NaN
             t4, t5, t6 = _wrist(R, t1, t2 + t3, q4_seed[i])
-            plain = (t1, t2, t3, t4, t5, t6)
-            for k in range(6):
-                out[i, j, k] = wrap((plain[k] + offsets[k]) * signs[k])
-            out[i, j + 4, :3] = out[i, j, :3]
-            out[i, j + 4, 3] = wrap(out[i, j, 3] + math.pi)
-            out[i, j + 4, 4] = wrap((offsets[4] - t5) * signs[4])
-            out[i, j + 4, 5] = wrap(out[i, j, 5] + math.pi)
+            row, flip = out[i, j], out[i, j + 4]
+            row[0] = flip[0] = wrap((t1 + offsets[0]) * signs[0])
+            row[1] = flip[1] = wrap((t2 + offsets[1]) * signs[1])
+            row[2] = flip[2] = wrap((t3 + offsets[2]) * signs[2])
+            row[3] = wrap((t4 + offsets[3]) * signs[3])
+            row[4] = wrap((t5 + offsets[4]) * signs[4])
+            row[5] = wrap((t6 + offsets[5]) * signs[5])
+            flip[3] = wrap(row[3] + math.pi)
+            flip[4] = wrap((offsets[4] - t5) * signs[4])
+            flip[5] = wrap(row[5] + math.pi)
     return out
 
 

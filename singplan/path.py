@@ -42,16 +42,20 @@ def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
 def _rodrigues(wx: float, wy: float, wz: float, out: np.ndarray) -> None:
     """``exp([w]x)`` into ``out`` (3, 3): ``I + sin(t) K + (1 - cos(t)) K^2``, K = [w / t]x, t = |w|."""
     theta = math.sqrt(wx * wx + wy * wy + wz * wz)
-    if theta < 1e-12:
-        out[:] = np.eye(3)
-        return
-    k = (wx / theta, wy / theta, wz / theta)
-    s, c = math.sin(theta), 1.0 - math.cos(theta)
-    out[0, 0], out[1, 1], out[2, 2] = 1.0 + c * (k[0] * k[0] - 1.0), 1.0 + c * (k[1] * k[1] - 1.0), \
-        1.0 + c * (k[2] * k[2] - 1.0)
-    out[0, 1], out[1, 0] = c * k[0] * k[1] - s * k[2], c * k[0] * k[1] + s * k[2]
-    out[0, 2], out[2, 0] = c * k[0] * k[2] + s * k[1], c * k[0] * k[2] - s * k[1]
-    out[1, 2], out[2, 1] = c * k[1] * k[2] - s * k[0], c * k[1] * k[2] + s * k[0]
+    s, c = 0.0, 0.0  # below 1e-12 rad: the identity
+    kx, ky, kz = 0.0, 0.0, 0.0
+    if theta >= 1e-12:
+        kx, ky, kz = wx / theta, wy / theta, wz / theta
+        s, c = math.sin(theta), 1.0 - math.cos(theta)
+    out[0, 0] = 1.0 + c * (kx * kx - 1.0)
+    out[1, 1] = 1.0 + c * (ky * ky - 1.0)
+    out[2, 2] = 1.0 + c * (kz * kz - 1.0)
+    out[0, 1] = c * kx * ky - s * kz
+    out[1, 0] = c * kx * ky + s * kz
+    out[0, 2] = c * kx * kz + s * ky
+    out[2, 0] = c * kx * kz - s * ky
+    out[1, 2] = c * ky * kz - s * kx
+    out[2, 1] = c * ky * kz + s * kx
 
 
 @jit

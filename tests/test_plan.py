@@ -216,3 +216,21 @@ def test_replay_serve_runs_a_live_meshcat_server_on_loopback_until_stopped(tmp_p
     assert proc.returncode == 0 and "stopped" in out
     with pytest.raises(OSError):  # the meshcat server went with it
         urllib.request.urlopen(url, timeout=5)
+
+
+def test_the_first_run_says_it_compiles_and_later_runs_use_the_disk_cache(tmp_path: Path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}  # an empty cache, as after an install
+
+    def plan_once(out: str) -> str:
+        run = subprocess.run([sys.executable, "-m", "singplan", "plan", str(DEMO), "-o", str(tmp_path / out),
+                              "--no-report", "--no-replay"], env=env, capture_output=True, text=True, timeout=300)
+        assert run.returncode == 0, run.stderr
+        return run.stderr
+
+    assert "compiling the planner's kernels" in plan_once("first")
+    assert any((tmp_path / "cache").rglob("*.nbi"))
+    assert "compiling" not in plan_once("second")

@@ -24,4 +24,5 @@ def kernels_cached() -> bool:
     """Whether numba's disk cache already holds singplan's kernels (judged by the OPW solver's)."""
     from singplan import opw  # here, not at the top: opw itself imports this module
 
-    return any(Path(opw.branches.stats.cache_path).glob("opw.branches-*.nbi"))
+    folder = opw.branches.stats.cache_path  # None when numba found no writable cache folder
+    return folder is not None and any(Path(folder).glob("opw.branches-*.nbi"))

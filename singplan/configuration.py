@@ -36,6 +36,7 @@ import pinocchio as pin
 
 from singplan.compiled import jit
 from singplan.errors import TaskError
+from singplan.ik_ur import UrParameters
 from singplan.path import cross3
 from singplan.robot import Robot
 
@@ -207,10 +208,16 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
     distance is the wrist centre's forward coordinate in the arm plane,
     ``a1 + c2 sin q2 + k sin(q2 + q3 + psi)`` with ``k = hypot(a2, c3)``, ``psi = atan2(a2, c3)``,
     and the elbow distance is ``q3 + psi``, the angle from the upper arm to the forearm.
-    These equal the frame-based definitions above (tested); other arms use those, per sample.
+    For UR arms (the ur_description layout of :mod:`singplan.ik_ur`) they are ``-q5``, the
+    wrist point's forward coordinate in frame 1, ``l2 cos q2 + l3 cos(q2 + q3) - d5 sin(q2 + q3 + q4)``,
+    and ``q3``. These equal the frame-based definitions above (tested); other arms use those,
+    per sample.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     p = robot.opw
+    if p is None and robot.family == "ur":
+        ur = UrParameters.from_robot(robot)
+        return _ur_distances(np.ascontiguousarray(q), ur.l2, ur.l3, ur.d5)
     if p is None:
         return np.array([_signed_distances(*_frames(robot, qk)) for qk in q]).reshape(-1, 3)
     return _opw_distances(np.ascontiguousarray(q), p.signs, p.offsets, p.a1, p.c2, math.hypot(p.a2, p.c3),
@@ -237,3 +244,15 @@ def labels_from_distances(d: np.ndarray) -> list[str]:
     elbow = np.where(d[:, 2] >= 0, "U", "D")
     wrist = np.where(d[:, 0] >= 0, "N", "F")
     return [f"{s} {e} {w}" for s, e, w in zip(shoulder.tolist(), elbow.tolist(), wrist.tolist(), strict=True)]
+
+
+@jit
+def _ur_distances(q: np.ndarray, l2: float, l3: float, d5: float) -> np.ndarray:
+    """:func:`distances_batch` of a UR arm: (-q5, shoulder, q3), angles wrapped to (-pi, pi]."""
+    out = np.empty((q.shape[0], 3))
+    for i in range(q.shape[0]):
+        out[i, 0] = math.pi - (math.pi + q[i, 4]) % (2.0 * math.pi)
+        q2, q23 = q[i, 1], q[i, 1] + q[i, 2]
+        out[i, 1] = l2 * math.cos(q2) + l3 * math.cos(q23) - d5 * math.sin(q23 + q[i, 3])
+        out[i, 2] = math.pi - (math.pi - q[i, 2]) % (2.0 * math.pi)
+    return out

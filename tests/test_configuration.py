@@ -83,8 +83,8 @@ def test_labels_flip_exactly_where_distances_change_sign_and_the_jacobian_drops_
                 assert sigma < 1e-6, f"{part} label flips at s={root} where sigma_min={sigma}"
 
 
-@pytest.mark.parametrize("name", OPW_NAMES)
-def test_closed_form_opw_distances_equal_the_frame_based_ones(name: str) -> None:
+@pytest.mark.parametrize("name", [*OPW_NAMES, "ur5"])
+def test_closed_form_distances_equal_the_frame_based_ones(name: str) -> None:
     robot = _ROBOTS[name]
     rng = np.random.default_rng(7)
     q = rng.uniform(np.maximum(robot.lower_rad, -np.pi), np.minimum(robot.upper_rad, np.pi), size=(300, 6))

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from singplan.compiled import jit
 from singplan.robot import Robot
 
 
@@ -40,14 +41,17 @@ class UrParameters:
     wrist_y: float  # lateral offset of wrist 2 from wrist 1
     d5: float  # wrist 2 -> wrist 3 along axis 5
     d6: float  # wrist 3 -> tool0 along axis 6
+    elbow_y: float = 0.0  # lateral offset of the elbow joint from the shoulder lift joint
+    shoulder_turn: float = 0.0  # the shoulder lift joint's placement: a turn about its axis y [rad]
 
     @classmethod
     def from_robot(cls, robot: Robot) -> UrParameters:
         jp = [robot.model.jointPlacements[i].translation for i in range(1, 7)]
         tip = robot.model.frames[robot.tip_frame_id].placement.translation
+        R2 = robot.model.jointPlacements[2].rotation
         return cls(d1=float(jp[0][2]), shoulder_y=float(jp[1][1]), lateral=float(jp[1][1] + jp[2][1] + jp[4][1]),
                    l2=float(jp[2][2]), l3=float(jp[3][2]), wrist_y=float(jp[4][1]), d5=float(jp[5][2]),
-                   d6=float(tip[1]))
+                   d6=float(tip[1]), elbow_y=float(jp[2][1]), shoulder_turn=math.atan2(R2[0, 2], R2[0, 0]))
 
 
 _RX_HALF_PI = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
@@ -120,3 +124,62 @@ def _planar(p: UrParameters, x: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, 
     q3 = np.stack([np.arccos(cos3), -np.arccos(cos3)], axis=-1)
     alpha = np.arctan2(z, x)[..., None] - np.arctan2(-p.l3 * np.sin(q3), p.l2 + p.l3 * np.cos(q3))
     return -alpha, q3
+
+
+def ur_arm_for_point(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.ndarray:
+    """Joints 1-3 that put the TCP at ``targets_m`` (N, 3) [m], joints 4-6 of ``q`` (N, 6) held.
+
+    With q4..q6 fixed, the TCP is a fixed point ``x`` of the elbow link (joint 3's frame,
+    found with Pinocchio at ``q``). Axes 2 and 3 are parallel to y of frame 1, so ``x``'s
+    lateral coordinate in frame 1 is fixed: as for the wrist point of :func:`ur_batch`, it gives
+    two q1. In frame 1's x-z plane the upper arm (0, l2) and the elbow link's (x_x, x_z) form
+    a two-link arm: ``|A + Ry(t3) X| = |P|`` gives two ``t3``, then ``t2`` turns the sum onto P.
+    Of the four solutions the one nearest ``q``'s joints 1-3 is kept; NaN rows are out of reach.
+    """
+    from singplan.ik import nearest_shifted  # ik imports this module
+
+    p = UrParameters.from_robot(robot)
+    point = np.array([_tcp_in_joint3(robot, qk) for qk in q]).reshape(-1, 3)
+    arms = _arm_for_point(point, np.ascontiguousarray(targets_m, dtype=float), p.d1, p.shoulder_y + p.elbow_y,
+                          p.l2, p.shoulder_turn)
+    out = np.array(q, dtype=float)
+    out[:, :3] = nearest_shifted(arms, out[:, :3])[0]
+    return out
+
+
+def _tcp_in_joint3(robot: Robot, q: np.ndarray) -> np.ndarray:
+    T_base_tcp = robot.fk(q)  # also places joint 3 in robot.data
+    return np.asarray(robot.data.oMi[3].actInv(T_base_tcp.translation))
+
+
+@jit
+def _arm_for_point(point: np.ndarray, targets: np.ndarray, d1: float, lateral: float, l2: float,
+                   shoulder_turn: float) -> np.ndarray:
+    """(q1, q2, q3) (N, 4, 3) placing ``point`` (N, 3, in joint 3's frame) at ``targets`` (N, 3)."""
+    out = np.full((point.shape[0], 4, 3), np.nan)
+    for i in range(point.shape[0]):
+        tx, ty, tz = targets[i, 0], targets[i, 1], targets[i, 2] - d1
+        xx, xz = point[i, 0], point[i, 2]
+        r = math.hypot(tx, ty)
+        side = lateral + point[i, 1]
+        if not abs(side) <= r:
+            continue  # the point's lateral offset cannot reach the target
+        phi, delta = math.atan2(ty, tx), math.asin(side / r)
+        # |A + Ry(t3) X|^2 = |P|^2, A = (0, l2): A.(Ry(t3) X) = l2 (xz cos t3 - xx sin t3) = k
+        reach = math.hypot(xx, xz) * l2
+        psi = math.atan2(-xx, xz)
+        for s in range(2):
+            q1 = phi - delta if s == 0 else phi - math.pi + delta
+            px, pz = math.cos(q1) * tx + math.sin(q1) * ty, tz
+            k = 0.5 * (px * px + pz * pz - l2 * l2 - xx * xx - xz * xz)
+            if not abs(k) <= reach * (1.0 + 1e-12) or reach == 0.0:
+                continue
+            swing = math.acos(min(1.0, max(-1.0, k / reach)))
+            for e in range(2):
+                t3 = psi + swing if e == 0 else psi - swing
+                vx = xx * math.cos(t3) + xz * math.sin(t3)
+                vz = l2 - xx * math.sin(t3) + xz * math.cos(t3)
+                out[i, 2 * s + e, 0] = q1
+                out[i, 2 * s + e, 1] = math.atan2(vz, vx) - math.atan2(pz, px) - shoulder_turn
+                out[i, 2 * s + e, 2] = t3
+    return out

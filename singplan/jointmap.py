@@ -22,6 +22,7 @@ import pinocchio as pin
 
 from singplan.compiled import jit
 from singplan.ik import closed_form_branches, nearest_shifted, opw_arm_for_point, solve_newton
+from singplan.ik_ur import ur_arm_for_point
 from singplan.robot import Robot
 from singplan.tracking import PoseFunction
 
@@ -145,14 +146,18 @@ class JointMap:
     def fix_position(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Re-solve joints 1-3 so the TCP position is exact.
 
-        OPW arms: the closed form of :func:`singplan.ik.opw_arm_for_point` (the solution nearest
-        ``q``); other chains, or where the point is out of the arm's reach: damped Newton from ``q``.
+        OPW and UR arms: the closed forms of :func:`singplan.ik.opw_arm_for_point` and
+        :func:`singplan.ik_ur.ur_arm_for_point` (the solution nearest ``q``); other chains, or
+        where the point is out of the arm's reach: damped Newton from ``q``.
         """
         assert self.poses is not None
         targets = self.poses(u)[:, :3, 3]
         if self.robot.opw is not None:
             out = opw_arm_for_point(self.robot.opw, q, self.robot.T_tip_tcp.translation, targets)
             lost = np.isnan(out[:, 0])  # the point is out of the arm's reach: the nearest Newton can do
+        elif self.robot.family == "ur":
+            out = ur_arm_for_point(self.robot, q, targets)
+            lost = np.isnan(out[:, 0])
         else:
             out, lost = q.copy(), np.ones(len(u), dtype=bool)
         for k in np.nonzero(lost)[0]:

@@ -7,7 +7,7 @@ import pinocchio as pin
 
 from singplan.configuration import classify
 from singplan.ik import solve_all
-from singplan.ik_ur import UrParameters, ur_solutions
+from singplan.ik_ur import UrParameters, ur_arm_for_point, ur_solutions
 
 from .conftest import random_q
 
@@ -50,3 +50,18 @@ def test_ur5_exact_wrist_singular_pose_round_trips(robots) -> None:
     for q_sol in sols.q:
         assert pose_error(robot.fk(q_sol), target) < 1e-9
     assert any(np.allclose(s, q_mid, atol=1e-9) for s in sols.q)
+
+
+def test_ur5_flange_point_solve_reaches_the_target_with_the_wrist_held(robots, rng) -> None:
+    robot = robots["ur5"].with_tool(pin.SE3(np.eye(3), np.array([0.02, -0.01, 0.12])))
+    q = np.array(random_q(robot, rng, 200))
+    exact = ur_arm_for_point(robot, q, np.array([robot.fk(qk).translation for qk in q]))
+    np.testing.assert_allclose(exact, q, atol=1e-9)  # the seed's own solution is the nearest
+    moved = q.copy()
+    moved[:, :3] += rng.uniform(-0.05, 0.05, size=(len(q), 3))  # targets of nearby arm joints
+    targets = np.array([robot.fk(qk).translation for qk in moved])
+    out = ur_arm_for_point(robot, q, targets)
+    assert np.all(np.isfinite(out))  # each target has a solution: the moved joints
+    for qk, target in zip(out, targets, strict=True):
+        assert np.linalg.norm(robot.fk(qk).translation - target) < 1e-9
+    np.testing.assert_array_equal(out[:, 3:], q[:, 3:])

@@ -131,9 +131,7 @@ def geometry_table(rows: list[tuple[str, float, int]], method: str) -> str:
     lines = [f"Geometric part (IK tracking, detection, `{method}` crossing) of the first move, per joint-path "
              "sample (target of issue 4: <= 20 us) and per move: the best of 20 runs, taken in 5 rounds over all "
              "scenarios. The per-sample loops are compiled (numba, docs/kinematics.md); what remains is mostly a "
-             "per-move cost of Python calls (about 1 ms), so the figure per sample falls as moves get longer. "
-             "The UR5's closed-form IK (ik_ur.ur_batch) is still vectorised numpy, about 0.6 ms a call, "
-             "which its closest-point search calls four times.", "",
+             "per-move cost of Python calls (about 1 ms), so the figure per sample falls as moves get longer.", "",
              "| scenario | us / sample | samples | ms / move |", "|---|---:|---:|---:|"]
     lines += [f"| {name} | {us:.0f} | {n} | {us * n / 1e3:.1f} |" for name, us, n in rows]
     return "\n".join(lines)

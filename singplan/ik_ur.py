@@ -54,7 +54,6 @@ class UrParameters:
                    d6=float(tip[1]), elbow_y=float(jp[2][1]), shoulder_turn=math.atan2(R2[0, 2], R2[0, 0]))
 
 
-_RX_HALF_PI = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 _SINGULAR_Q5 = 1e-9  # |sin q5| under which a (= q2 + q3 + q4 + pi) keeps the seed's value [rad]
 
 
@@ -64,66 +63,63 @@ def ur_solutions(p: UrParameters, T_base_tool: np.ndarray, seed: np.ndarray | No
 
 
 def ur_batch(p: UrParameters, T_base_tool: np.ndarray, seeds: np.ndarray | None = None) -> np.ndarray:
-    """All eight branches for N tool0 poses (N, 4, 4), vectorised; (N, 8, 6) [rad], NaN rows unreachable.
+    """All eight branches for N tool0 poses (N, 4, 4); (N, 8, 6) [rad] in (-pi, pi], NaN rows unreachable.
 
     Branch index bits: 4 = back shoulder, 2 = negative q5, 1 = second elbow solution.
     ``seeds`` (N, 6) give q2 + q3 + q4 where q5 = 0 leaves it free (default 0).
-    Shapes below: S shoulder, W wrist and E elbow solutions, 2 each.
     """
-    T = np.asarray(T_base_tool, dtype=float).reshape(-1, 4, 4)
-    n = T.shape[0]
-    R, z_tool = T[:, :3, :3], T[:, :3, 2]
-    wrist = T[:, :3, 3] - p.d6 * z_tool  # (N, 3)
-    r = np.hypot(wrist[:, 0], wrist[:, 1])
-    phi = np.arctan2(wrist[:, 1], wrist[:, 0])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        delta = np.arcsin(p.lateral / r)  # NaN where the wrist point is inside the lateral offset
-    q1 = np.stack([phi - delta, phi - math.pi + delta], axis=1)  # (N, S)
-    c1, s1 = np.cos(q1), np.sin(q1)
-    x1 = np.stack([c1, s1, np.zeros_like(c1)], axis=-1)  # (N, S, 3): axes of frame 1 in the base
-    y1 = np.stack([-s1, c1, np.zeros_like(c1)], axis=-1)
-    z1 = np.broadcast_to(np.array([0.0, 0.0, 1.0]), x1.shape)
-    R1T = np.stack([x1, y1, z1], axis=-2)  # (N, S, 3, 3) = Rz(q1)^T
-    M = R1T @ (R @ _RX_HALF_PI)[:, None]  # (N, S, 3, 3)
-    # |q5| from both its cosine and sine: acos alone loses half the digits near q5 = 0
-    angle5 = np.arctan2(np.linalg.norm(np.cross(y1, z_tool[:, None]), axis=-1), np.einsum("nsi,ni->ns", y1, z_tool))
-    q5 = np.stack([angle5, -angle5], axis=2)  # (N, S, W)
-    a_seed = (np.zeros(n) if seeds is None else np.asarray(seeds, dtype=float)[:, 1:4].sum(axis=1)) + math.pi
-    a, q6 = _wrist_yzy(M[:, :, None], q5, a_seed[:, None, None])  # (N, S, W)
-    z5 = np.sin(a)[..., None] * x1[:, :, None] + np.cos(a)[..., None] * z1[:, :, None]  # (N, S, W, 3)
-    o4 = wrist[:, None, None] - p.d5 * z5 - p.wrist_y * y1[:, :, None]
-    x = np.einsum("nswi,nsi->nsw", o4, x1)
-    z = o4[..., 2] - p.d1
-    q2, q3 = _planar(p, x, z)  # (N, S, W, E)
-    q4 = a[..., None] - math.pi - q2 - q3
-    wide = np.broadcast_to
-    out = np.stack([wide(q1[:, :, None, None], q2.shape), q2, q3, q4, wide(q5[..., None], q2.shape),
-                    wide(q6[..., None], q2.shape)], axis=-1).reshape(n, 8, 6)
-    out[np.any(np.isnan(out), axis=2)] = np.nan
-    return math.pi - np.mod(math.pi - out, 2.0 * math.pi)
+    T = np.ascontiguousarray(T_base_tool, dtype=float).reshape(-1, 4, 4)
+    a_seed = (np.zeros(len(T)) if seeds is None else np.asarray(seeds, dtype=float)[:, 1:4].sum(axis=1)) + math.pi
+    return _branches(T, a_seed, p.d1, p.lateral, p.l2, p.l3, p.wrist_y, p.d5, p.d6)
 
 
-def _wrist_yzy(M: np.ndarray, q5: np.ndarray, a_seed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(a, q6) with Ry(a) Rz(q5) Ry(q6) = M; a = a_seed where q5 = 0 leaves it free.
-
-    Only the first row of ``Rz(-q5) Ry(-a) M = Ry(q6)`` is formed for q6.
-    """
-    s5, c5 = np.sin(q5), np.cos(q5)
-    regular = np.abs(s5) > _SINGULAR_Q5  # below it, a from M's tiny entries is noise
-    a = np.where(regular, np.arctan2(M[..., 2, 1] * s5, -M[..., 0, 1] * s5), a_seed)
-    ca, sa = np.cos(a), np.sin(a)
-    row = [c5 * (ca * M[..., 0, j] - sa * M[..., 2, j]) + s5 * M[..., 1, j] for j in (0, 2)]
-    return a, np.arctan2(row[1], row[0])
-
-
-def _planar(p: UrParameters, x: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Both (q2, q3) of the planar two-link arm placing the wrist-1 point at (x, z) in frame 1;
-    each (..., E), NaN where unreachable."""
-    cos3 = (x * x + z * z - p.l2**2 - p.l3**2) / (2.0 * p.l2 * p.l3)
-    cos3 = np.where(np.abs(cos3) <= 1.0 + 1e-12, np.clip(cos3, -1.0, 1.0), np.nan)
-    q3 = np.stack([np.arccos(cos3), -np.arccos(cos3)], axis=-1)
-    alpha = np.arctan2(z, x)[..., None] - np.arctan2(-p.l3 * np.sin(q3), p.l2 + p.l3 * np.cos(q3))
-    return -alpha, q3
+@jit
+def _branches(T: np.ndarray, a_seed: np.ndarray, d1: float, lateral: float, l2: float, l3: float, wrist_y: float,
+              d5: float, d6: float) -> np.ndarray:
+    """The four steps of the module docstring, pose by pose; (N, 8, 6)."""
+    out = np.full((T.shape[0], 8, 6), np.nan)
+    m = np.empty((3, 3))
+    for i in range(T.shape[0]):
+        zx, zy, zz = T[i, 0, 2], T[i, 1, 2], T[i, 2, 2]
+        px, py, pz = T[i, 0, 3] - d6 * zx, T[i, 1, 3] - d6 * zy, T[i, 2, 3] - d6 * zz  # wrist point
+        r = math.hypot(px, py)
+        if not abs(lateral) <= r:
+            continue  # the wrist point is inside the lateral offset
+        phi, delta = math.atan2(py, px), math.asin(lateral / r)
+        for s in range(2):
+            q1 = phi - delta if s == 0 else phi - math.pi + delta
+            c1, s1 = math.cos(q1), math.sin(q1)
+            for col in range(3):  # M = Rz(q1)^T R Rx(pi/2): rows x1, y1, z1 against R's columns 0, 2, -1
+                k, sign = (0, 1.0) if col == 0 else ((2, 1.0) if col == 1 else (1, -1.0))
+                m[0, col] = sign * (c1 * T[i, 0, k] + s1 * T[i, 1, k])
+                m[1, col] = sign * (-s1 * T[i, 0, k] + c1 * T[i, 1, k])
+                m[2, col] = sign * T[i, 2, k]
+            # |q5| from both its cosine and sine: acos alone loses half the digits near q5 = 0
+            cross = math.sqrt((c1 * zz) ** 2 + (s1 * zz) ** 2 + (-s1 * zy - c1 * zx) ** 2)
+            angle5 = math.atan2(cross, -s1 * zx + c1 * zy)
+            for w in range(2):
+                q5 = angle5 if w == 0 else -angle5
+                s5, c5 = math.sin(q5), math.cos(q5)
+                a = math.atan2(m[2, 1] * s5, -m[0, 1] * s5) if abs(s5) > _SINGULAR_Q5 else a_seed[i]
+                ca, sa = math.cos(a), math.sin(a)
+                row0 = c5 * (ca * m[0, 0] - sa * m[2, 0]) + s5 * m[1, 0]
+                row2 = c5 * (ca * m[0, 2] - sa * m[2, 2]) + s5 * m[1, 2]
+                q6 = math.atan2(row2, row0)
+                # wrist-1 point o4 = P - d5 z5 - wrist_y y1, z5 = sin(a) x1 + cos(a) z1, in frame 1's x-z plane
+                x = c1 * px + s1 * py - d5 * sa
+                z = pz - d5 * ca - d1
+                cos3 = (x * x + z * z - l2 * l2 - l3 * l3) / (2.0 * l2 * l3)
+                if not abs(cos3) <= 1.0 + 1e-12:
+                    continue
+                for e in range(2):
+                    q3 = math.acos(min(1.0, max(-1.0, cos3))) * (1.0 if e == 0 else -1.0)
+                    q2 = math.atan2(-l3 * math.sin(q3), l2 + l3 * math.cos(q3)) - math.atan2(z, x)
+                    row = out[i, 4 * s + 2 * w + e]
+                    row[0], row[1], row[2] = q1, q2, q3
+                    row[3], row[4], row[5] = a - math.pi - q2 - q3, q5, q6
+                    for j in range(6):
+                        row[j] = math.pi - (math.pi - row[j]) % (2.0 * math.pi)
+    return out
 
 
 def ur_arm_for_point(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.ndarray:

@@ -131,7 +131,7 @@ def through(ctx: MoveContext, zone: Zone, method: str) -> Crossing | None:
 def exit_candidates(ctx: MoveContext, u: float) -> list[np.ndarray]:
     """Every IK branch of the path pose at ``u``."""
     sols = closed_form_branches(ctx.robot, ctx.piece.poses(np.array([u])))[0]
-    return [c for c in sols if np.all(np.isfinite(c))]
+    return list(sols[np.all(np.isfinite(sols), axis=1)])
 
 
 def path_slope(robot: Robot, piece: CartesianPiece, u: float, q: np.ndarray) -> np.ndarray:

@@ -59,11 +59,21 @@ class JointPart:
 def hermite(part: JointPart, u: np.ndarray) -> np.ndarray:
     """Cubic Hermite interpolation of a blend part's end values and slopes, (N, n)."""
     assert part.dq_du is not None
-    h = part.u1 - part.u0
-    t = ((u - part.u0) / h)[:, None]
-    h00, h10 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t
-    h01, h11 = -2 * t**3 + 3 * t**2, t**3 - t**2
-    return h00 * part.q[0] + h10 * h * part.dq_du[0] + h01 * part.q[-1] + h11 * h * part.dq_du[1]
+    return _hermite(part.u0, part.u1, np.ascontiguousarray(part.q[0]), np.ascontiguousarray(part.q[-1]),
+                    np.ascontiguousarray(part.dq_du), np.ascontiguousarray(u, dtype=float))
+
+
+@jit
+def _hermite(u0: float, u1: float, q0: np.ndarray, q1: np.ndarray, dq_du: np.ndarray, u: np.ndarray) -> np.ndarray:
+    h = u1 - u0
+    out = np.empty((u.shape[0], q0.shape[0]))
+    for i in range(u.shape[0]):
+        t = (u[i] - u0) / h
+        h00, h10 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t
+        h01, h11 = -2 * t**3 + 3 * t**2, t**3 - t**2
+        for j in range(q0.shape[0]):
+            out[i, j] = h00 * q0[j] + h10 * h * dq_du[0, j] + h01 * q1[j] + h11 * h * dq_du[1, j]
+    return out
 
 
 def interpolate(part: JointPart, u: np.ndarray) -> np.ndarray:

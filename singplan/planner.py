@@ -249,7 +249,8 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
         # inside singular zones the in-branch swing is resolved only if the method keeps it
         tracked = track(robot, piece.poses, np.concatenate([[u_from], grid[grid > u_from + 1e-12]]), q_from,
                         cands=cands, hold=None if full else in_zone)
-        grid = np.union1d(grid, tracked.u)  # refined once: a re-track after a crossing starts from it
+        # the grid as refined: a re-track after a crossing starts from it (tracked.u starts at u_from)
+        grid = np.concatenate([grid[grid < u_from], tracked.u])
         _check_tracked(robot, i, move, piece, tracked)
         if parts and parts[-1].kind in ("blend", "axis"):  # the crossing just made
             _check_limits(robot, i, move, piece, parts[-1].u, parts[-1].q, zones)

@@ -59,15 +59,6 @@ def _rodrigues(wx: float, wy: float, wz: float, out: np.ndarray) -> None:
 
 
 @jit
-def exp_so3(omega: np.ndarray) -> np.ndarray:
-    """Rodrigues' formula for rotation vectors (N, 3) -> rotation matrices (N, 3, 3)."""
-    out = np.empty((omega.shape[0], 3, 3))
-    for i in range(omega.shape[0]):
-        _rodrigues(omega[i, 0], omega[i, 1], omega[i, 2], out[i])
-    return out
-
-
-@jit
 def _poses(u: np.ndarray, R_a: np.ndarray, omega: np.ndarray, p_a: np.ndarray, p_b: np.ndarray,
            center: np.ndarray, arc_axis: np.ndarray, circ: bool) -> np.ndarray:
     """Homogeneous poses (N, 4, 4): ``R_a exp(u omega)`` and the line ``p_a -> p_b`` or, for a

@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 
 from singplan.errors import TaskError
-from singplan.path import exp_so3, make_circ, make_lin, rotation_angle, rpy_deg_to_rotation
+from singplan.path import make_circ, make_lin, rotation_angle, rpy_deg_to_rotation
 
 
 def se3(xyz: list[float], rpy_deg: list[float]) -> pin.SE3:
@@ -24,11 +24,16 @@ def test_rpy_convention_is_urdf_fixed_axes() -> None:
     np.testing.assert_allclose(rpy_deg_to_rotation([10, 20, 30]), Rz @ Ry @ Rx, atol=1e-15)
 
 
-def test_exp_so3_matches_pinocchio(rng) -> None:
-    omega = rng.normal(size=(50, 3))
-    omega[0] = 0.0
-    for w, R in zip(omega, exp_so3(omega), strict=True):
-        np.testing.assert_allclose(R, pin.exp3(w), atol=1e-14)
+def test_slerp_rotations_match_pinocchio_exp3(rng) -> None:
+    for k in range(20):
+        a = se3([0.5, 0.1, 0.8], list(rng.uniform(-170, 170, size=3)))
+        b = a if k == 0 else se3([0.6, 0.0, 0.7], list(rng.uniform(-170, 170, size=3)))  # k = 0: no turn
+        if rotation_angle(a.rotation, b.rotation) > 3.0:
+            continue
+        piece = make_lin(a, b, "m")
+        u = rng.uniform(0, 1, size=5)
+        for uk, R in zip(u, piece.rotations(u), strict=True):
+            np.testing.assert_allclose(R, a.rotation @ pin.exp3(uk * piece.rotation_vector), atol=1e-14)
 
 
 def test_lin_is_a_straight_line_at_constant_rotation_rate() -> None:

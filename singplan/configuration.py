@@ -203,7 +203,7 @@ def label_and_distances(robot: Robot, q: np.ndarray) -> tuple[Configuration, Sin
 def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
     """Signed (wrist [rad], shoulder [m], elbow [rad]) distances of many samples q (N, n).
 
-    For OPW arms this is closed form and vectorised, from the OPW joint angles: the wrist
+    For OPW arms this is closed form, one compiled loop, from the OPW joint angles: the wrist
     distance is q5 (axes 4 and 6 meet at the wrist centre at that angle), the shoulder
     distance is the wrist centre's forward coordinate in the arm plane,
     ``a1 + c2 sin q2 + k sin(q2 + q3 + psi)`` with ``k = hypot(a2, c3)``, ``psi = atan2(a2, c3)``,

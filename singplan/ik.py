@@ -1,6 +1,6 @@
 """Inverse kinematics: all branches of a TCP pose.
 
-Two solvers share one API (:func:`solve_all`, :func:`solve_near`):
+Three solvers share one API (:func:`solve_all`, :func:`closed_form_branches`):
 
 * **OPW closed form** for ortho-parallel arms with a spherical wrist, after Brandstoetter,
   Angerer and Hofbaur, "An analytical solution of the inverse kinematics problem of
@@ -8,9 +8,11 @@ Two solvers share one API (:func:`solve_all`, :func:`solve_near`):
   The arm part gives four (q1, q2, q3) solutions from the wrist centre
   ``c = p - c4 * z_flange``; for each, the wrist rotation ``R_ce = R_0c^T R`` is a ZYZ
   rotation ``Rz(q4) Ry(q5) Rz(q6)`` whose two decompositions (q5 and -q5) give eight
-  branches. :func:`opw_batch` evaluates all eight for N poses at once, vectorised.
+  branches. :func:`opw_batch` evaluates all eight for N poses at once (a compiled loop,
+  :mod:`singplan.opw`).
+* **UR closed form** (:mod:`singplan.ik_ur`) for the ur_description layout, eight branches.
 * **Numeric** (Pinocchio, damped Newton on the SE(3) log error) for any other chain, seeded
-  once per branch; used for the UR5 and for URDFs given by path.
+  once per branch (e.g. URDFs given by path).
 
 At an exactly wrist-singular pose (q5 = 0) only q4 + q6 is determined. singplan keeps q4
 at the seed's value (0 without a seed) and gives the rest to q6, so no branch is lost and

@@ -360,7 +360,7 @@ def _check_limits(robot: Robot, i: int, move: Move, piece: CartesianPiece, u: np
 def _check_config(robot: Robot, i: int, move: Move, q: np.ndarray) -> None:
     if move.config == "auto":
         return
-    labels = labels_from_distances(distances_batch(robot, q))  # vectorised for OPW arms
+    labels = labels_from_distances(distances_batch(robot, q))  # closed form for OPW and UR arms
     first, last = labels[0], labels[-1]
     if move.config == "keep":
         if any(label != first for label in labels):

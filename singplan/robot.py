@@ -51,7 +51,7 @@ class OpwParameters:
 
     @cached_property
     def offsets(self) -> np.ndarray:
-        """``offsets_rad`` as an array (6,), for the vectorised joint conversions."""
+        """``offsets_rad`` as an array (6,), for the joint conversions of many samples."""
         return np.array(self.offsets_rad, dtype=float)
 
     @cached_property

@@ -1,7 +1,7 @@
 """Inverse kinematics along a sampled path, following one continuous solution.
 
-At every sample all IK branches are computed (vectorised for OPW arms); each candidate is
-moved to the 2*pi variant nearest the previous sample and the nearest candidate is kept.
+At every sample all IK branches are computed (closed form for OPW and UR arms); each
+candidate is moved to the 2*pi variant nearest the previous sample and the nearest is kept.
 Where a step still moves some joint more than ``max_joint_step_rad`` the interval is
 subdivided, so that the fast wrist (or axis 1) swing of a near miss is resolved sample by
 sample instead of being jumped over. A step that stays large on an interval shorter than

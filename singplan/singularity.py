@@ -75,15 +75,17 @@ def find_zones(u: np.ndarray, dist: np.ndarray, thresholds: np.ndarray,
     ``continued``: the samples start inside a zone of this kind already measured (the rest of
     a crossed zone), so a zone of that kind open at the first sample is not refined again.
     """
+    d = np.abs(dist)  # (N, 3)
+    inside = np.zeros((len(u) + 2, 3), dtype=np.int8)
+    inside[1:-1] = d < thresholds
+    edges = np.diff(inside, axis=0)  # +1 where a run of samples inside starts, -1 after it ends
+    start_k, start_i = np.nonzero(edges == 1)
+    stop_k, stop_i = np.nonzero(edges == -1)
     zones = []
-    for kind in KINDS:
-        i = KIND_INDEX[kind]
-        d = np.abs(dist[:, i])
-        edges = np.diff(np.concatenate([[0], (d < thresholds[i]).astype(np.int8), [0]]))
-        for start, stop in zip(np.nonzero(edges == 1)[0].tolist(), np.nonzero(edges == -1)[0].tolist(), strict=True):
-            end = stop - 1
+    for i, kind in enumerate(KINDS):
+        for start, stop in zip(start_k[start_i == i].tolist(), stop_k[stop_i == i].tolist(), strict=True):
             refine = None if kind == continued and start == 0 else abs_distance_at
-            zones.append(_zone(kind, u, d, thresholds[i], start, end, refine, i))
+            zones.append(_zone(kind, u, d[:, i], thresholds[i], start, stop - 1, refine, i))
     return sorted(zones, key=lambda z: z.u_entry)
 
 

@@ -36,7 +36,7 @@ import pinocchio as pin
 
 from singplan.compiled import jit
 from singplan.errors import TaskError
-from singplan.ik_ur import UrParameters
+from singplan.ik_ur import ur_parameters
 from singplan.path import cross3
 from singplan.robot import Robot
 
@@ -216,7 +216,7 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
     q = np.atleast_2d(np.asarray(q, dtype=float))
     p = robot.opw
     if p is None and robot.family == "ur":
-        ur = UrParameters.from_robot(robot)
+        ur = ur_parameters(robot)
         return _ur_distances(np.ascontiguousarray(q), ur.l2, ur.l3, ur.d5)
     if p is None:
         return np.array([_signed_distances(*_frames(robot, qk)) for qk in q]).reshape(-1, 3)

@@ -32,7 +32,7 @@ import pinocchio as pin
 from singplan import opw
 from singplan.compiled import jit
 from singplan.configuration import classify
-from singplan.ik_ur import UrParameters, ur_batch
+from singplan.ik_ur import ur_batch, ur_parameters
 from singplan.robot import OpwParameters, Robot
 
 TWO_PI = 2.0 * math.pi
@@ -215,7 +215,7 @@ def closed_form_branches(robot: Robot, T_base_tcp: np.ndarray, seeds: np.ndarray
         return opw_batch(p, T_flange, None if seeds_opw is None else seeds_opw[:, 3],
                          None if seeds_opw is None else seeds_opw[:, 0])
     if robot.family == "ur" and robot.tip == "tool0":
-        return ur_batch(UrParameters.from_robot(robot), T_flange, seeds)
+        return ur_batch(ur_parameters(robot), T_flange, seeds)
     return np.full((len(T_flange), 0, robot.n_joints), np.nan)
 
 

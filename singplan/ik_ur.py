@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -54,6 +55,12 @@ class UrParameters:
                    d6=float(tip[1]), elbow_y=float(jp[2][1]), shoulder_turn=math.atan2(R2[0, 2], R2[0, 0]))
 
 
+@lru_cache(maxsize=64)
+def ur_parameters(robot: Robot) -> UrParameters:
+    """:meth:`UrParameters.from_robot`, read once per robot (the solvers ask on every call)."""
+    return UrParameters.from_robot(robot)
+
+
 _SINGULAR_Q5 = 1e-9  # |sin q5| under which a (= q2 + q3 + q4 + pi) keeps the seed's value [rad]
 
 
@@ -74,6 +81,17 @@ def ur_batch(p: UrParameters, T_base_tool: np.ndarray, seeds: np.ndarray | None 
 
 
 @jit
+def _shoulder(x: float, y: float, lateral: float) -> tuple[float, float]:
+    """The two q1 (front, back) that put a point at (x, y) in the base at ``lateral`` on y1:
+    ``r sin(phi - q1) = lateral``; NaN when the point lies inside that offset."""
+    r = math.hypot(x, y)
+    if not abs(lateral) <= r:
+        return math.nan, math.nan
+    phi, delta = math.atan2(y, x), math.asin(lateral / r)
+    return phi - delta, phi - math.pi + delta
+
+
+@jit
 def _branches(T: np.ndarray, a_seed: np.ndarray, d1: float, lateral: float, l2: float, l3: float, wrist_y: float,
               d5: float, d6: float) -> np.ndarray:
     """The four steps of the module docstring, pose by pose; (N, 8, 6)."""
@@ -82,12 +100,11 @@ def _branches(T: np.ndarray, a_seed: np.ndarray, d1: float, lateral: float, l2: 
     for i in range(T.shape[0]):
         zx, zy, zz = T[i, 0, 2], T[i, 1, 2], T[i, 2, 2]
         px, py, pz = T[i, 0, 3] - d6 * zx, T[i, 1, 3] - d6 * zy, T[i, 2, 3] - d6 * zz  # wrist point
-        r = math.hypot(px, py)
-        if not abs(lateral) <= r:
+        front, back = _shoulder(px, py, lateral)
+        if math.isnan(front):
             continue  # the wrist point is inside the lateral offset
-        phi, delta = math.atan2(py, px), math.asin(lateral / r)
         for s in range(2):
-            q1 = phi - delta if s == 0 else phi - math.pi + delta
+            q1 = front if s == 0 else back
             c1, s1 = math.cos(q1), math.sin(q1)
             for col in range(3):  # M = Rz(q1)^T R Rx(pi/2): rows x1, y1, z1 against R's columns 0, 2, -1
                 k, sign = (0, 1.0) if col == 0 else ((2, 1.0) if col == 1 else (1, -1.0))
@@ -134,7 +151,7 @@ def ur_arm_for_point(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.n
     """
     from singplan.ik import nearest_shifted  # ik imports this module
 
-    p = UrParameters.from_robot(robot)
+    p = ur_parameters(robot)
     point = np.array([_tcp_in_joint3(robot, qk) for qk in q]).reshape(-1, 3)
     arms = _arm_for_point(point, np.ascontiguousarray(targets_m, dtype=float), p.d1, p.shoulder_y + p.elbow_y,
                           p.l2, p.shoulder_turn)
@@ -156,16 +173,14 @@ def _arm_for_point(point: np.ndarray, targets: np.ndarray, d1: float, lateral: f
     for i in range(point.shape[0]):
         tx, ty, tz = targets[i, 0], targets[i, 1], targets[i, 2] - d1
         xx, xz = point[i, 0], point[i, 2]
-        r = math.hypot(tx, ty)
-        side = lateral + point[i, 1]
-        if not abs(side) <= r:
+        front, back = _shoulder(tx, ty, lateral + point[i, 1])
+        if math.isnan(front):
             continue  # the point's lateral offset cannot reach the target
-        phi, delta = math.atan2(ty, tx), math.asin(side / r)
         # |A + Ry(t3) X|^2 = |P|^2, A = (0, l2): A.(Ry(t3) X) = l2 (xz cos t3 - xx sin t3) = k
         reach = math.hypot(xx, xz) * l2
         psi = math.atan2(-xx, xz)
         for s in range(2):
-            q1 = phi - delta if s == 0 else phi - math.pi + delta
+            q1 = front if s == 0 else back
             px, pz = math.cos(q1) * tx + math.sin(q1) * ty, tz
             k = 0.5 * (px * px + pz * pz - l2 * l2 - xx * xx - xz * xz)
             if not abs(k) <= reach * (1.0 + 1e-12) or reach == 0.0:

@@ -113,14 +113,17 @@ class CartesianPiece:
         """TCP orientations (N, 3, 3): slerp from start to end."""
         return self.poses(u)[:, :3, :3]
 
-    def poses(self, u: np.ndarray) -> np.ndarray:
-        """Homogeneous TCP poses (N, 4, 4)."""
-        circ = self.kind == "circ"
+    @cached_property
+    def _pose_arguments(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool]:
+        """What :func:`_poses` needs besides u, formed once per piece."""
         center = self.center if self.center is not None else np.zeros(3)
         arc_axis = self.arc_rad * self.normal if self.normal is not None else np.zeros(3)
-        return _poses(np.ascontiguousarray(u, dtype=float), np.ascontiguousarray(self.T_start.rotation),
-                      self.rotation_vector, np.asarray(self.T_start.translation), np.asarray(self.T_end.translation),
-                      center, arc_axis, circ)
+        return (np.ascontiguousarray(self.T_start.rotation), self.rotation_vector, np.array(self.T_start.translation),
+                np.array(self.T_end.translation), center, arc_axis, self.kind == "circ")
+
+    def poses(self, u: np.ndarray) -> np.ndarray:
+        """Homogeneous TCP poses (N, 4, 4)."""
+        return _poses(np.ascontiguousarray(u, dtype=float), *self._pose_arguments)
 
     def velocity(self, u: float) -> np.ndarray:
         """dX/du (6,): the TCP point's velocity [m] and the tool's angular velocity [rad] in the

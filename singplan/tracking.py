@@ -143,19 +143,19 @@ def _follow(C: np.ndarray, free: np.ndarray, q0: np.ndarray, row: int, start: in
     the previous sample (``q0`` before sample 0); ``row`` is the candidate row q[start - 1] came
     from (-1: none).
 
-    The current row is followed while its step is small, or while it is large but still the
-    nearest row at a sample without free joints; elsewhere the nearest row is searched
-    again. Returns the first sample whose nearest row steps more than ``max_step`` and whose
-    joints are free (the caller solves it with a seed), or N. A sample with no finite row
-    ends the path: it and the rest become NaN, their steps inf. (Chains without a closed
-    form have no rows and free joints everywhere: every sample goes to the caller.)
+    The current row is followed while its step is small; elsewhere the nearest row is
+    searched again (it may be the same row). Returns the first sample whose nearest row
+    steps more than ``max_step`` and whose joints are free (the caller solves it with a
+    seed), or N. A sample with no finite row ends the path: it and the rest become NaN, their
+    steps inf. (Chains without a closed form have no rows and free joints everywhere: every
+    sample goes to the caller.)
     """
     n_samples = C.shape[0]
     for k in range(start, n_samples):
         prev = q[k - 1] if k > 0 else q0
         if row >= 0:
             step = _row_step(C[k, row], prev)
-            if step <= max_step or (math.isfinite(step) and not free[k] and _nearest_row(C[k], prev)[0] == row):
+            if step <= max_step:
                 _put(C[k, row], prev, q[k])
                 steps[k] = step
                 continue

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import logging
 import math
+import os
+import tempfile
 from dataclasses import dataclass
 from functools import cache, cached_property
 from pathlib import Path
@@ -23,6 +25,11 @@ from singplan.errors import RobotModelError, UnknownNameError
 logger = logging.getLogger(__name__)
 
 DEFAULT_ACCELERATION_RAD_S2 = 10.0
+SUPPORTED_JOINT_COUNTS = (6, 7)  # actuated revolute joints from the root to the tip (5-axis arms: later)
+MAX_URDF_BYTES = 32 * 1024 * 1024
+VELOCITY_LIMIT_RAD_S = (1e-3, 1e3)  # a joint slower than 0.001 rad/s would make durations overflow
+MAX_JOINT_SPAN_RAD = 8 * math.pi  # 4 turns: the IK lists every 2*pi variant inside the range
+MAX_REACH_M = 1000.0  # any joint or the tip farther from the base is a unit error (mm for m)
 _PACKAGE_DIR = Path(__file__).resolve().parent
 
 
@@ -215,12 +222,58 @@ def _chain_joint_ids(model: pin.Model, frame_id: int) -> list[int]:
 
 
 def _load_model(urdf_path: Path) -> pin.Model:
-    if not urdf_path.is_file():
-        raise RobotModelError(str(urdf_path), "no such URDF file")
+    _check_urdf_file(urdf_path)
+    with tempfile.TemporaryFile() as messages:
+        try:
+            model = _build_quietly(urdf_path, messages.fileno())
+        except (RuntimeError, ValueError) as exc:
+            messages.seek(0)
+            reason = _urdfdom_reason(messages.read(8192).decode("utf-8", "replace")) or str(exc)
+            raise RobotModelError(str(urdf_path), f"cannot be read as URDF: {reason}") from None
+    if not any(f.type == pin.FrameType.BODY for f in model.frames):
+        raise RobotModelError(str(urdf_path), "has no links")
+    return model
+
+
+def _check_urdf_file(urdf_path: Path) -> None:
+    """A readable regular file within the size cap."""
+    try:
+        if urdf_path.is_dir():
+            raise RobotModelError(str(urdf_path), "is a directory, not a URDF file")
+        if not urdf_path.is_file():
+            raise RobotModelError(str(urdf_path), "no such URDF file")
+        size = urdf_path.stat().st_size
+        with urdf_path.open("rb") as f:
+            f.read(1)
+    except OSError as exc:
+        raise RobotModelError(str(urdf_path), f"cannot be read ({exc.strerror or exc})") from None
+    if size > MAX_URDF_BYTES:
+        raise RobotModelError(str(urdf_path), f"{size} bytes is over the {MAX_URDF_BYTES}-byte cap for a URDF")
+
+
+def _build_quietly(urdf_path: Path, sink_fd: int) -> pin.Model:
+    """``pin.buildModelFromUrdf`` with urdfdom's messages (written to fd 2) sent to ``sink_fd``.
+
+    urdfdom explains a rejected file only on stderr; keeping its lines lets the error name
+    the joint and the value.
+    """
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr to redirect
+        return pin.buildModelFromUrdf(str(urdf_path))
+    os.dup2(sink_fd, 2)
     try:
         return pin.buildModelFromUrdf(str(urdf_path))
-    except (RuntimeError, ValueError) as exc:
-        raise RobotModelError(str(urdf_path), f"cannot be read as URDF ({exc})") from None
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def _urdfdom_reason(messages: str) -> str:
+    """urdfdom's first two error lines: the problem, then usually the joint or link it is in."""
+    errors = [line.strip().removeprefix("Error:").strip()[:160] for line in messages.splitlines()
+              if line.strip().startswith("Error:")]
+    return "; ".join(errors[:2])
 
 
 def _reduce_to_chain(model: pin.Model, tip: str, urdf_path: Path) -> pin.Model:
@@ -228,14 +281,67 @@ def _reduce_to_chain(model: pin.Model, tip: str, urdf_path: Path) -> pin.Model:
     frames = [f.name for f in model.frames]
     if not model.existFrame(tip):
         raise UnknownNameError("tip frame", tip, frames, where=str(urdf_path))
-    chain = set(_chain_joint_ids(model, model.getFrameId(tip)))
+    chain = sorted(_chain_joint_ids(model, model.getFrameId(tip)))
+    _check_chain(model, chain, tip, urdf_path)
     others = [j for j in range(1, model.njoints) if j not in chain]
-    for j in chain:
-        if model.joints[j].nq != 1:
-            raise RobotModelError(str(urdf_path), f"joint {model.names[j]!r} is not revolute or prismatic")
     if not others:
         return model
     return pin.buildReducedModel(model, others, pin.neutral(model))
+
+
+def _check_chain(model: pin.Model, chain: list[int], tip: str, urdf_path: Path) -> None:
+    """Every chain joint revolute, and a supported number of them.
+
+    Continuous joints are refused rather than given invented limits: Pinocchio represents them
+    by (cos, sin) pairs, and planning needs a position range to choose among 2*pi variants.
+    """
+    for j in chain:
+        kind = model.joints[j].shortname().removeprefix("JointModel")
+        name = model.names[j]
+        if kind.startswith("RUB"):
+            raise RobotModelError(str(urdf_path), f"joint {name!r} is continuous; singplan needs position limits: "
+                                                  "declare it revolute with <limit lower=... upper=...>")
+        if kind in ("PX", "PY", "PZ", "PrismaticUnaligned"):
+            raise RobotModelError(str(urdf_path), f"joint {name!r} is prismatic; singplan plans revolute arms")
+        if kind not in ("RX", "RY", "RZ", "RevoluteUnaligned"):
+            raise RobotModelError(str(urdf_path), f"joint {name!r} is a {kind} joint; singplan needs revolute joints")
+    if len(chain) not in SUPPORTED_JOINT_COUNTS:
+        counts = " or ".join(str(n) for n in SUPPORTED_JOINT_COUNTS)
+        raise RobotModelError(str(urdf_path), f"{len(chain)} revolute joints from {_root_link(model)} to {tip}; "
+                                              f"singplan plans arms with {counts}")
+
+
+def _root_link(model: pin.Model) -> str:
+    return next((f.name for f in model.frames if f.type == pin.FrameType.BODY), "the root")
+
+
+def _check_limits(model: pin.Model, urdf_path: Path) -> None:
+    """Finite position limits, lower < upper, within 4 turns; a usable velocity limit."""
+    v_low, v_high = VELOCITY_LIMIT_RAD_S
+    for j in range(model.nq):
+        name = model.names[j + 1]
+        lower, upper = float(model.lowerPositionLimit[j]), float(model.upperPositionLimit[j])
+        velocity = float(model.velocityLimit[j])
+        if not (math.isfinite(lower) and math.isfinite(upper) and lower < upper):
+            raise RobotModelError(str(urdf_path), f"joint {name!r} has position limits [{lower:g}, {upper:g}] rad; "
+                                                  "they must be finite with lower < upper")
+        if max(abs(lower), abs(upper), upper - lower) > MAX_JOINT_SPAN_RAD:
+            raise RobotModelError(str(urdf_path), f"joint {name!r} has position limits [{lower:g}, {upper:g}] rad; "
+                                                  f"at most {MAX_JOINT_SPAN_RAD:.4g} rad (4 turns) is supported")
+        if not v_low <= velocity <= v_high:
+            raise RobotModelError(str(urdf_path), f"joint {name!r} has velocity limit {velocity:g} rad/s; it must be "
+                                                  f"between {v_low:g} and {v_high:g}")
+
+
+def _check_forward_kinematics(robot: Robot) -> None:
+    """Finite joint and tip coordinates within MAX_REACH_M at the zero, lower, upper and mid joints."""
+    lo, hi = robot.lower_rad, robot.upper_rad
+    for q in (np.clip(np.zeros(robot.n_joints), lo, hi), lo, hi, (lo + hi) / 2):
+        points = [T.translation for T in robot.joint_placements(q)] + [robot.fk_tip(q).translation]
+        farthest = float(np.max(np.abs(points)))  # a coordinate, not a norm: no overflow on 1e308
+        if not farthest <= MAX_REACH_M:  # also catches NaN
+            raise RobotModelError(str(robot.urdf_path), f"forward kinematics puts a joint or the tip {farthest:g} m "
+                                                        f"from the base (at most {MAX_REACH_M:g} m; units in mm?)")
 
 
 def load_robot(name_or_urdf: str | Path, tip: str | None = None, tool: pin.SE3 | None = None) -> Robot:
@@ -246,9 +352,15 @@ def load_robot(name_or_urdf: str | Path, tip: str | None = None, tool: pin.SE3 |
         tip: frame the tool hangs on; default the registry's tip, or the URDF's last frame.
         tool: ``T_tip_tcp``; default identity.
 
+    The chain from the URDF's root link to the tip must have :data:`SUPPORTED_JOINT_COUNTS`
+    revolute joints, each with finite position limits (lower < upper, at most 4 turns) and a
+    velocity limit in :data:`VELOCITY_LIMIT_RAD_S`; continuous, prismatic and other joints on
+    the chain are refused (joints off the chain, e.g. gripper fingers, are locked).
+
     Raises:
         UnknownNameError: unknown robot name (lists the valid ones) or unknown tip frame.
-        RobotModelError: the URDF is missing or unreadable.
+        RobotModelError: the URDF is missing, unreadable, over :data:`MAX_URDF_BYTES`, or lacks
+            what planning needs (named joint and reason).
     """
     registry = bundled_robots()
     text = str(name_or_urdf)
@@ -259,5 +371,8 @@ def load_robot(name_or_urdf: str | Path, tip: str | None = None, tool: pin.SE3 |
     model = _load_model(urdf_path)
     tip_name = tip or (entry.tip if entry is not None else model.frames[len(model.frames) - 1].name)
     model = _reduce_to_chain(model, tip_name, urdf_path)
+    _check_limits(model, urdf_path)
     name = entry.name if entry is not None else urdf_path.stem
-    return Robot(name, urdf_path, model, tip_name, tool if tool is not None else pin.SE3.Identity(), entry)
+    robot = Robot(name, urdf_path, model, tip_name, tool if tool is not None else pin.SE3.Identity(), entry)
+    _check_forward_kinematics(robot)
+    return robot

@@ -4,16 +4,40 @@
 mapping built in Python. Every problem raises :class:`~singplan.errors.TaskError` naming the
 field path (``moves[2].lin.to.xyz: expected 3 numbers, got 2``). Checks that need the robot
 (joint counts, joint limits) live in :func:`check_against_robot`.
+
+Every number has a range, checked before it is used, so no later arithmetic (durations,
+sample counts) can overflow:
+
+=====================================  ===================  ==========================
+field                                  range                unit
+=====================================  ===================  ==========================
+xyz, via.xyz                           -100 .. 100          m
+tool.xyz                               -10 .. 10            m
+rpy_deg, tool.rpy_deg                  -720 .. 720          deg
+joints_deg                             -3600 .. 3600        deg (and the URDF limits)
+lin/circ speed                         0.0001 .. 10         m/s
+ptp velocity_scale, limits.velocity_   0.001 .. 1           fraction of the URDF limits
+limits.acceleration                    0.01 .. 10000        rad/s^2
+singularity.position_tolerance_mm      0.0001 .. 1000       mm
+singularity.orientation_tolerance_deg  0.001 .. 180         deg
+singularity.zone wrist/elbow_deg       0.001 .. 90          deg
+singularity.zone.shoulder_mm           0.001 .. 1000        mm
+output.period                          0.0001 .. 1          s
+=====================================  ===================  ==========================
+
+Names (robot, tip) are at most :data:`MAX_NAME_CHARS` characters without control
+characters (URDF paths :data:`MAX_PATH_CHARS`); messages quote long values shortened.
 """
 
 from __future__ import annotations
 
 import difflib
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import yaml
 
@@ -24,10 +48,39 @@ from singplan.robot import Robot
 MAX_MOVES = 10_000
 MAX_OUTPUT_SAMPLES = 10_000_000
 MAX_FILE_BYTES = 8 * 1024 * 1024
+MAX_DEPTH = 64  # nesting levels of the YAML document
+MAX_YAML_NODES = 500_000  # 10 000 moves need < 300 000; building 1 M nodes takes ~10 s and ~400 MB
+MAX_SCALAR_CHARS = 10_000
+MAX_NAME_CHARS = 256
+MAX_PATH_CHARS = 4096
+MAX_JOINTS = 64
 METHODS = ("auto", "wrist-joint", "axis", "exact", "dls", "average", "ptp", "stop")
-MAX_COORDINATE_M = 100.0
-MAX_SPEED_M_S = 10.0
 DEFAULT_SPEED_M_S = 0.25
+_LONG_INTEGER = re.compile(r"[-+]?[0-9][0-9_:]{399,}")  # more digits than any float can hold
+
+
+class Range(NamedTuple):
+    """Closed range of a numeric field; ``low > 0`` also reads as "must be positive"."""
+
+    low: float
+    high: float
+    unit: str
+
+
+COORDINATE_M = Range(-100.0, 100.0, "m")
+TOOL_OFFSET_M = Range(-10.0, 10.0, "m")
+ANGLE_DEG = Range(-720.0, 720.0, "deg")
+JOINT_DEG = Range(-3600.0, 3600.0, "deg")
+SPEED_M_S = Range(1e-4, 10.0, "m/s")
+VELOCITY_SCALE = Range(1e-3, 1.0, "")
+ACCELERATION_RAD_S2 = Range(1e-2, 1e4, "rad/s^2")
+POSITION_TOLERANCE_MM = Range(1e-4, 1000.0, "mm")
+ORIENTATION_TOLERANCE_DEG = Range(1e-3, 180.0, "deg")
+ZONE_ANGLE_DEG = Range(1e-3, 90.0, "deg")
+ZONE_SHOULDER_MM = Range(1e-3, 1000.0, "mm")
+PERIOD_S = Range(1e-4, 1.0, "s")
+MAX_COORDINATE_M = COORDINATE_M.high
+MAX_SPEED_M_S = SPEED_M_S.high
 
 
 @dataclass(frozen=True)
@@ -146,33 +199,142 @@ def _move_mapping(move: Move) -> dict[str, Any]:
 # -- reading ---------------------------------------------------------------------------------
 
 
-class _NoAliasLoader(yaml.SafeLoader):
-    """SafeLoader that refuses anchors/aliases: no billion-laughs expansion, tasks need none."""
+class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+    """The safe loader (libyaml's when installed); reached only after :func:`_scan` passed.
 
-    def compose_node(self, parent: Any, index: Any) -> Any:
-        if self.check_event(yaml.AliasEvent):
-            event = self.peek_event()
-            raise TaskError("", f"YAML aliases are not allowed in a task (line {event.start_mark.line + 1})")
-        return super().compose_node(parent, index)
+    It also reads ``1e-3`` and ``2E5`` as numbers (YAML 1.2, JSON), which YAML 1.1 leaves as
+    strings; a user writing them means numbers.
+    """
+
+
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float",
+                              re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"), list("-+0123456789"))
+
+
+@dataclass
+class _Open:
+    """A mapping or sequence the event scan is inside of."""
+
+    path: str
+    is_mapping: bool
+    key_lines: dict[str, int] = field(default_factory=dict)  # mapping: key -> line it was given on
+    count: int = 0  # sequence: items so far; mapping: keys and values so far
+    key: str = ""  # mapping: the key whose value comes next
 
 
 def load_task(path: str | Path) -> Task:
-    """Read and validate a task file (YAML v1)."""
+    """Read and validate a task file (YAML v1).
+
+    The YAML event stream is scanned first (iteratively, so no input can exhaust the stack):
+    nesting deeper than :data:`MAX_DEPTH`, more than :data:`MAX_YAML_NODES` nodes, aliases,
+    merge keys, keys given twice in one mapping, huge scalars and more than one document are
+    refused with the key path and line before PyYAML builds anything.
+    """
     p = Path(path)
-    if not p.is_file():
-        raise TaskError("", f"{p}: no such task file")
-    if p.stat().st_size > MAX_FILE_BYTES:
-        raise TaskError("", f"{p}: {p.stat().st_size} bytes is over the {MAX_FILE_BYTES}-byte cap for a task file")
+    text = _read_text(p)
     try:
-        doc = yaml.load(p.read_text(encoding="utf-8"), Loader=_NoAliasLoader)  # a SafeLoader subclass
+        _scan(text, p.name)
+        doc = yaml.load(text, Loader=_Loader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise TaskError("", f"{p.name}: not valid YAML{where}: {problem}") from None
-    except UnicodeDecodeError:
-        raise TaskError("", f"{p.name}: not a UTF-8 text file") from None
+        raise TaskError("", f"{_short(p.name)}: not valid YAML{where}: {_short(str(problem))}") from None
+    except (ValueError, OverflowError) as exc:  # a scalar PyYAML itself cannot convert
+        raise TaskError("", f"{_short(p.name)}: a value cannot be read: {_short(str(exc))}") from None
+    if not isinstance(doc, Mapping):
+        raise TaskError("", f"{_short(p.name)}: the task must be a mapping of keys (robot, start, moves, ...), "
+                            f"got {_describe(doc)}")
     return parse_task(doc, base_dir=p.parent)
+
+
+def _read_text(p: Path) -> str:
+    """The file's text, refusing what is not a readable UTF-8 file within the size cap."""
+    name = _short(str(p))
+    try:
+        if p.is_dir():
+            raise TaskError("", f"{name}: is a directory, not a task file")
+        if not p.exists():
+            raise TaskError("", f"{name}: no such task file")
+        if not p.is_file():
+            raise TaskError("", f"{name}: not a regular file")
+        with p.open("rb") as f:
+            data = f.read(MAX_FILE_BYTES + 1)  # bounded even if the file grows meanwhile
+    except PermissionError:
+        raise TaskError("", f"{name}: cannot be read (permission denied)") from None
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        raise TaskError("", f"{name}: cannot be read ({_short(getattr(exc, 'strerror', None) or str(exc))})") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise TaskError("", f"{name}: over the {MAX_FILE_BYTES}-byte cap for a task file")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise TaskError("", f"{name}: not a UTF-8 text file (byte {exc.start} is invalid)") from None
+    if not text.strip():
+        raise TaskError("", f"{name}: the task file is empty; it needs at least robot, start and moves")
+    return text
+
+
+def _scan(text: str, name: str) -> None:
+    """Refuse what the YAML event stream shows is unsafe or ambiguous (see :func:`load_task`)."""
+    stack: list[_Open] = []
+    documents = nodes = 0
+    for event in yaml.parse(text, Loader=_Loader):
+        if isinstance(event, yaml.DocumentStartEvent):
+            documents += 1
+            if documents > 1:
+                raise TaskError("", f"{_short(name)}: holds more than one YAML document (the second starts at "
+                                    f"line {event.start_mark.line + 1}); a task file holds one")
+        elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            stack.pop()
+        elif isinstance(event, yaml.NodeEvent):
+            nodes += 1
+            line = event.start_mark.line + 1
+            if nodes > MAX_YAML_NODES:
+                raise TaskError("", f"{_short(name)}: more than {MAX_YAML_NODES} YAML nodes (at line {line})")
+            where = _place(stack, event, line)
+            if where is not None:
+                _check_node(stack, event, where, line)
+
+
+def _place(stack: list[_Open], event: Any, line: int) -> str | None:
+    """The key path of a value node; None (after checking it) when the node is a mapping key."""
+    if not stack:
+        return ""
+    top = stack[-1]
+    top.count += 1
+    if not top.is_mapping:
+        return f"{top.path}[{top.count - 1}]"
+    if top.count % 2 == 0:
+        return _join(top.path, _key_text(top.key))
+    if not isinstance(event, yaml.ScalarEvent):
+        raise TaskError(top.path, f"a key must be a plain name, not a list, mapping or alias (line {line})")
+    key_path = _join(top.path, _key_text(event.value))
+    if event.value == "<<" and event.implicit[0]:
+        raise TaskError(key_path, f"YAML merge keys are not allowed in a task (line {line})")
+    if event.value in top.key_lines:
+        raise TaskError(key_path, f"given twice in one mapping (lines {top.key_lines[event.value]} and {line}); "
+                                  "a key may appear once")
+    if len(event.value) > MAX_SCALAR_CHARS:
+        raise TaskError(key_path, f"a key of {len(event.value)} characters (line {line})")
+    top.key_lines[event.value] = line
+    top.key = event.value
+    return None
+
+
+def _check_node(stack: list[_Open], event: Any, where: str, line: int) -> None:
+    if isinstance(event, yaml.AliasEvent):
+        raise TaskError(where, f"YAML aliases are not allowed in a task (line {line})")
+    if isinstance(event, yaml.ScalarEvent):
+        if event.implicit[0] and _LONG_INTEGER.fullmatch(event.value):
+            raise TaskError(where, f"number too large ({len(event.value)} characters, line {line})")
+        if len(event.value) > MAX_SCALAR_CHARS:
+            raise TaskError(where, f"a value of {len(event.value)} characters is over the cap of "
+                                   f"{MAX_SCALAR_CHARS} (line {line})")
+        return
+    if len(stack) >= MAX_DEPTH:
+        raise TaskError(_short(where, 120), f"nesting deeper than {MAX_DEPTH} levels (line {line})")
+    stack.append(_Open(where, isinstance(event, yaml.MappingStartEvent)))
 
 
 def parse_task(doc: Any, base_dir: Path | None = None) -> Task:
@@ -185,19 +347,18 @@ def parse_task(doc: Any, base_dir: Path | None = None) -> Task:
                 optional=("tip", "tool", "singularity", "limits", "output"))
     robot = _robot_ref(doc["robot"], base_dir)
     tip = _string("tip", doc["tip"]) if doc.get("tip") is not None else None
-    tool = doc.get("tool") or {}
-    _check_mapping("tool", tool)
+    tool = _optional_mapping(doc, "tool", "")
     _check_keys("tool", tool, optional=("xyz", "rpy_deg"))
     start_joints, start_pose, start_config = _start(doc["start"])
     moves = _moves(doc["moves"])
     return Task(
         robot=robot, moves=moves, start_joints_deg=start_joints, start_pose=start_pose, start_config=start_config,
         tip=tip,
-        tool_xyz=_vector("tool.xyz", tool.get("xyz", (0, 0, 0)), 3, bound=10.0),  # type: ignore[arg-type]
-        tool_rpy_deg=_vector("tool.rpy_deg", tool.get("rpy_deg", (0, 0, 0)), 3, bound=720.0),  # type: ignore[arg-type]
-        singularity=_singularity(doc.get("singularity") or {}),
-        limits=_limits(doc.get("limits") or {}),
-        period_s=_output_period(doc.get("output") or {}),
+        tool_xyz=_vector("tool.xyz", tool.get("xyz", (0, 0, 0)), 3, TOOL_OFFSET_M),  # type: ignore[arg-type]
+        tool_rpy_deg=_vector("tool.rpy_deg", tool.get("rpy_deg", (0, 0, 0)), 3, ANGLE_DEG),  # type: ignore[arg-type]
+        singularity=_singularity(_optional_mapping(doc, "singularity", "")),
+        limits=_limits(_optional_mapping(doc, "limits", "")),
+        period_s=_output_period(_optional_mapping(doc, "output", "")),
     )
 
 
@@ -208,9 +369,31 @@ def _join(prefix: str, key: str) -> str:
     return f"{prefix}.{key}" if prefix else key
 
 
+def _short(text: str, limit: int = 80) -> str:
+    """``text`` cut to ``limit`` characters for a message."""
+    return text if len(text) <= limit else f"{text[:limit - 3]}..."
+
+
+def _key_text(key: Any) -> str:
+    """A key as it appears in a field path: plain when it is a short printable name."""
+    text = str(key)
+    if isinstance(key, str) and text.isprintable() and 0 < len(text) <= 64:
+        return text
+    return _short(repr(key), 40)
+
+
 def _check_mapping(where: str, value: Any) -> None:
     if not isinstance(value, Mapping):
         raise TaskError(where, f"expected a mapping, got {_describe(value)}")
+
+
+def _optional_mapping(parent: Mapping[str, Any], key: str, where: str) -> Mapping[str, Any]:
+    """An optional sub-mapping; absent or null is empty, any other non-mapping is bad input."""
+    value = parent.get(key)
+    if value is None:
+        return {}
+    _check_mapping(_join(where, key), value)
+    return value
 
 
 def _check_keys(where: str, value: Mapping[str, Any], required: Sequence[str] = (),
@@ -218,9 +401,9 @@ def _check_keys(where: str, value: Mapping[str, Any], required: Sequence[str] = 
     allowed = (*required, *optional)
     for key in value:
         if key not in allowed:
-            close = difflib.get_close_matches(str(key), allowed, n=1)
+            close = difflib.get_close_matches(str(key)[:MAX_NAME_CHARS], allowed, n=1)
             hint = f"; did you mean {close[0]!r}?" if close else f"; allowed: {', '.join(allowed)}"
-            raise TaskError(_join(where, str(key)), f"unknown key{hint}")
+            raise TaskError(_join(where, _key_text(key)), f"unknown key{hint}")
     for key in required:
         if key not in value or value[key] is None:
             raise TaskError(_join(where, key), "missing (required)")
@@ -229,37 +412,47 @@ def _check_keys(where: str, value: Mapping[str, Any], required: Sequence[str] = 
 def _describe(value: Any) -> str:
     if value is None:
         return "nothing"
-    text = repr(value)
-    return f"{type(value).__name__} {text[:40]}{'...' if len(text) > 40 else ''}"
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 10**40:
+        return f"an integer of {len(str(abs(value))) if abs(value) < 10**4000 else 'over 4000'} digits"
+    text = repr(value) if not isinstance(value, (list, tuple, dict)) or len(value) <= 20 else f"{len(value)} items"
+    return f"{type(value).__name__} {_short(text, 43)}"
 
 
-def _number(where: str, value: Any, *, positive: bool = False, low: float | None = None,
-            high: float | None = None) -> float:
+def _number(where: str, value: Any, bounds: Range) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise TaskError(where, f"expected a number, got {_describe(value)}")
+    if isinstance(value, int) and abs(value) > 1e300:  # exact comparison: no float() overflow
+        raise TaskError(where, f"number too large ({_describe(value)}); at most {bounds.high:g} {bounds.unit}")
     x = float(value)
+    unit = f" {bounds.unit}" if bounds.unit else ""
     if not math.isfinite(x):
         raise TaskError(where, f"must be finite, got {x}")
-    if positive and x <= 0:
+    if bounds.low > 0 and x <= 0:
         raise TaskError(where, f"must be positive, got {x:g}")
-    if low is not None and x < low:
-        raise TaskError(where, f"must be at least {low:g}, got {x:g}")
-    if high is not None and x > high:
-        raise TaskError(where, f"must be at most {high:g}, got {x:g}")
+    if x < bounds.low:
+        raise TaskError(where, f"must be at least {bounds.low:g}{unit}, got {x:g}")
+    if x > bounds.high:
+        raise TaskError(where, f"must be at most {bounds.high:g}{unit}, got {x:g}")
     return x
 
 
-def _vector(where: str, value: Any, n: int, bound: float) -> tuple[float, ...]:
+def _vector(where: str, value: Any, n: int, bounds: Range) -> tuple[float, ...]:
     if not isinstance(value, Sequence) or isinstance(value, (str, bytes)):
         raise TaskError(where, f"expected {n} numbers, got {_describe(value)}")
     if len(value) != n:
         raise TaskError(where, f"expected {n} numbers, got {len(value)}")
-    return tuple(_number(f"{where}[{i}]", v, low=-bound, high=bound) for i, v in enumerate(value))
+    return tuple(_number(f"{where}[{i}]", v, bounds) for i, v in enumerate(value))
 
 
-def _string(where: str, value: Any) -> str:
+def _string(where: str, value: Any, max_chars: int = MAX_NAME_CHARS) -> str:
+    """A non-empty single-line string of at most ``max_chars`` characters, stripped."""
     if not isinstance(value, str) or not value.strip():
         raise TaskError(where, f"expected a non-empty string, got {_describe(value)}")
+    if len(value) > max_chars:
+        raise TaskError(where, f"{len(value)} characters is over the cap of {max_chars}: {_short(repr(value), 43)}")
+    bad = next((c for c in value if not c.isprintable()), None)
+    if bad is not None:
+        raise TaskError(where, f"contains the control character U+{ord(bad):04X}: {_short(repr(value), 43)}")
     return value.strip()
 
 
@@ -268,37 +461,46 @@ def _check_choice(where: str, value: Any, choices: Sequence[str]) -> str:
     if text not in choices:
         close = difflib.get_close_matches(text, choices, n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise TaskError(where, f"unknown value {text!r}{hint}; valid: {', '.join(choices)}")
+        raise TaskError(where, f"unknown value {_short(repr(text), 43)}{hint}; valid: {', '.join(choices)}")
     return text
 
 
 def _robot_ref(value: Any, base_dir: Path | None) -> str:
-    name = _string("robot", value)
-    if name.lower().endswith(".urdf"):
-        path = Path(name).expanduser()
-        if not path.is_absolute() and base_dir is not None:
-            path = base_dir / path
+    """A bundled robot name as given, or the absolute path of an existing ``.urdf`` file."""
+    name = _string("robot", value, max_chars=MAX_PATH_CHARS)
+    if not name.lower().endswith(".urdf"):
+        if "/" in name or "\\" in name or "." in name:
+            raise TaskError("robot", f"{_short(repr(name))} is not a bundled robot name, and a URDF path must "
+                                     "end in .urdf")
+        return name
+    path = Path(name).expanduser()
+    if not path.is_absolute() and base_dir is not None:
+        path = base_dir / path
+    try:
+        if path.is_dir():
+            raise TaskError("robot", f"{_short(str(path))} is a directory, not a URDF file")
         if not path.is_file():
-            raise TaskError("robot", f"URDF file {path} does not exist")
+            raise TaskError("robot", f"URDF file {_short(str(path))} does not exist")
         return str(path.resolve())
-    return name
+    except OSError as exc:  # e.g. a name too long for the file system
+        raise TaskError("robot", f"URDF file {_short(str(path))} cannot be read ({exc.strerror})") from None
 
 
 def _pose(where: str, value: Any, need_rpy: bool = False) -> PoseSpec:
     _check_mapping(where, value)
     _check_keys(where, value, required=("xyz", *(("rpy_deg",) if need_rpy else ())), optional=("rpy_deg",))
-    xyz = _vector(f"{where}.xyz", value["xyz"], 3, bound=MAX_COORDINATE_M)
+    xyz = _vector(f"{where}.xyz", value["xyz"], 3, COORDINATE_M)
     rpy = value.get("rpy_deg")
-    rpy_t = _vector(f"{where}.rpy_deg", rpy, 3, bound=720.0) if rpy is not None else None
+    rpy_t = _vector(f"{where}.rpy_deg", rpy, 3, ANGLE_DEG) if rpy is not None else None
     return PoseSpec(xyz, rpy_t)  # type: ignore[arg-type]
 
 
 def _joints(where: str, value: Any) -> tuple[float, ...]:
     if not isinstance(value, Sequence) or isinstance(value, (str, bytes)) or not value:
         raise TaskError(where, f"expected a list of joint values [deg], got {_describe(value)}")
-    if len(value) > 64:
+    if len(value) > MAX_JOINTS:
         raise TaskError(where, f"{len(value)} joint values is more than any arm has")
-    return tuple(_number(f"{where}[{i}]", v, low=-3600.0, high=3600.0) for i, v in enumerate(value))
+    return tuple(_number(f"{where}[{i}]", v, JOINT_DEG) for i, v in enumerate(value))
 
 
 def _config(where: str, value: Any) -> str:
@@ -337,7 +539,8 @@ def _moves(value: Any) -> tuple[Move, ...]:
 def _move(where: str, value: Any) -> Move:
     _check_mapping(where, value)
     if len(value) != 1:
-        raise TaskError(where, f"expected one of lin, circ, ptp as the only key, got {list(value)}")
+        keys = ", ".join(_key_text(k) for k in list(value)[:5]) + (", ..." if len(value) > 5 else "")
+        raise TaskError(where, f"expected one of lin, circ, ptp as the only key, got {len(value)} keys: {keys}")
     kind = str(next(iter(value)))
     _check_choice(f"{where} kind", kind, ("lin", "circ", "ptp"))
     where = f"{where}.{kind}"
@@ -359,61 +562,57 @@ def _move(where: str, value: Any) -> Move:
     if kind == "ptp":
         return Move(kind, to=target, velocity_scale=_scale(f"{where}.velocity_scale", spec.get("velocity_scale", 1.0)),
                     config=config)
-    speed = _number(f"{where}.speed", spec.get("speed", DEFAULT_SPEED_M_S), positive=True, high=MAX_SPEED_M_S)
+    speed = _number(f"{where}.speed", spec.get("speed", DEFAULT_SPEED_M_S), SPEED_M_S)
     via = None
     if kind == "circ":
         via_spec = spec["via"]
         _check_mapping(f"{where}.via", via_spec)
         _check_keys(f"{where}.via", via_spec, required=("xyz",))
-        via = _vector(f"{where}.via.xyz", via_spec["xyz"], 3, bound=MAX_COORDINATE_M)
+        via = _vector(f"{where}.via.xyz", via_spec["xyz"], 3, COORDINATE_M)
     return Move(kind, to=target, via_xyz=via, speed_m_s=speed, config=config)  # type: ignore[arg-type]
 
 
 def _scale(where: str, value: Any) -> float:
-    return _number(where, value, positive=True, high=1.0)
+    return _number(where, value, VELOCITY_SCALE)
 
 
 def _singularity(value: Any) -> SingularitySettings:
-    _check_mapping("singularity", value)
     _check_keys("singularity", value,
                 optional=("method", "orientation_tolerance_deg", "position_tolerance_mm", "zone"))
-    zone = value.get("zone") or {}
-    _check_mapping("singularity.zone", zone)
+    zone = _optional_mapping(value, "zone", "singularity")
     _check_keys("singularity.zone", zone, optional=("wrist_deg", "shoulder_mm", "elbow_deg"))
     defaults = ZoneThresholds()
     return SingularitySettings(
         method=_check_choice("singularity.method", value.get("method", "auto"), METHODS),
         orientation_tolerance_deg=_number("singularity.orientation_tolerance_deg",
-                                          value.get("orientation_tolerance_deg", 5.0), positive=True, high=180.0),
+                                          value.get("orientation_tolerance_deg", 5.0), ORIENTATION_TOLERANCE_DEG),
         position_tolerance_mm=_number("singularity.position_tolerance_mm", value.get("position_tolerance_mm", 0.01),
-                                      positive=True, high=1000.0),
+                                      POSITION_TOLERANCE_MM),
         zone=ZoneThresholds(
             wrist_deg=_number("singularity.zone.wrist_deg", zone.get("wrist_deg", defaults.wrist_deg),
-                              positive=True, high=90.0),
+                              ZONE_ANGLE_DEG),
             shoulder_mm=_number("singularity.zone.shoulder_mm", zone.get("shoulder_mm", defaults.shoulder_mm),
-                                positive=True, high=1000.0),
+                                ZONE_SHOULDER_MM),
             elbow_deg=_number("singularity.zone.elbow_deg", zone.get("elbow_deg", defaults.elbow_deg),
-                              positive=True, high=90.0)))
+                              ZONE_ANGLE_DEG)))
 
 
 def _limits(value: Any) -> Limits:
-    _check_mapping("limits", value)
     _check_keys("limits", value, optional=("velocity_scale", "acceleration"))
     acc = value.get("acceleration", 10.0)
     if isinstance(acc, Sequence) and not isinstance(acc, (str, bytes)):
-        if not acc or len(acc) > 64:
-            raise TaskError("limits.acceleration", "expected a number or one number per joint")
-        accel = tuple(_number(f"limits.acceleration[{i}]", a, positive=True, high=1e4) for i, a in enumerate(acc))
+        if not acc or len(acc) > MAX_JOINTS:
+            raise TaskError("limits.acceleration", f"expected a number or one number per joint, got {len(acc)}")
+        accel = tuple(_number(f"limits.acceleration[{i}]", a, ACCELERATION_RAD_S2) for i, a in enumerate(acc))
     else:
-        accel = (_number("limits.acceleration", acc, positive=True, high=1e4),)
+        accel = (_number("limits.acceleration", acc, ACCELERATION_RAD_S2),)
     return Limits(velocity_scale=_scale("limits.velocity_scale", value.get("velocity_scale", 1.0)),
                   acceleration_rad_s2=accel)
 
 
 def _output_period(value: Any) -> float:
-    _check_mapping("output", value)
     _check_keys("output", value, optional=("period",))
-    return _number("output.period", value.get("period", 0.004), positive=True, low=1e-4, high=1.0)
+    return _number("output.period", value.get("period", 0.004), PERIOD_S)
 
 
 # -- robot-dependent checks ------------------------------------------------------------------

@@ -233,24 +233,26 @@ def load_task(path: str | Path) -> Task:
     p = Path(path)
     text = _read_text(p)
     try:
-        _scan(text, p.name)
+        _scan(text, _path_text(p.name))
         doc = yaml.load(text, Loader=_Loader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise TaskError("", f"{_short(p.name)}: not valid YAML{where}: {_short(str(problem))}") from None
+        raise TaskError("", f"{_path_text(p.name)}: not valid YAML{where}: {_short(str(problem))}") from None
     except (ValueError, OverflowError) as exc:  # a scalar PyYAML itself cannot convert
-        raise TaskError("", f"{_short(p.name)}: a value cannot be read: {_short(str(exc))}") from None
+        raise TaskError("", f"{_path_text(p.name)}: a value cannot be read: {_short(str(exc))}") from None
+    if doc is None:
+        raise TaskError("", f"{_path_text(p.name)}: the task file is empty; it needs at least robot, start and moves")
     if not isinstance(doc, Mapping):
-        raise TaskError("", f"{_short(p.name)}: the task must be a mapping of keys (robot, start, moves, ...), "
+        raise TaskError("", f"{_path_text(p.name)}: the task must be a mapping of keys (robot, start, moves, ...), "
                             f"got {_describe(doc)}")
     return parse_task(doc, base_dir=p.parent)
 
 
 def _read_text(p: Path) -> str:
     """The file's text, refusing what is not a readable UTF-8 file within the size cap."""
-    name = _short(str(p))
+    name = _path_text(str(p))
     try:
         if p.is_dir():
             raise TaskError("", f"{name}: is a directory, not a task file")
@@ -283,7 +285,7 @@ def _scan(text: str, name: str) -> None:
         if isinstance(event, yaml.DocumentStartEvent):
             documents += 1
             if documents > 1:
-                raise TaskError("", f"{_short(name)}: holds more than one YAML document (the second starts at "
+                raise TaskError("", f"{name}: holds more than one YAML document (the second starts at "
                                     f"line {event.start_mark.line + 1}); a task file holds one")
         elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
             stack.pop()
@@ -291,7 +293,7 @@ def _scan(text: str, name: str) -> None:
             nodes += 1
             line = event.start_mark.line + 1
             if nodes > MAX_YAML_NODES:
-                raise TaskError("", f"{_short(name)}: more than {MAX_YAML_NODES} YAML nodes (at line {line})")
+                raise TaskError("", f"{name}: more than {MAX_YAML_NODES} YAML nodes (at line {line})")
             where = _place(stack, event, line)
             if where is not None:
                 _check_node(stack, event, where, line)
@@ -372,6 +374,11 @@ def _join(prefix: str, key: str) -> str:
 def _short(text: str, limit: int = 80) -> str:
     """``text`` cut to ``limit`` characters for a message."""
     return text if len(text) <= limit else f"{text[:limit - 3]}..."
+
+
+def _path_text(path: str) -> str:
+    """A file path for a message: as it is when printable, else quoted; shortened either way."""
+    return _short(path if path.isprintable() else repr(path), 200)
 
 
 def _key_text(key: Any) -> str:
@@ -478,12 +485,12 @@ def _robot_ref(value: Any, base_dir: Path | None) -> str:
         path = base_dir / path
     try:
         if path.is_dir():
-            raise TaskError("robot", f"{_short(str(path))} is a directory, not a URDF file")
+            raise TaskError("robot", f"{_path_text(str(path))} is a directory, not a URDF file")
         if not path.is_file():
-            raise TaskError("robot", f"URDF file {_short(str(path))} does not exist")
+            raise TaskError("robot", f"URDF file {_path_text(str(path))} does not exist")
         return str(path.resolve())
     except OSError as exc:  # e.g. a name too long for the file system
-        raise TaskError("robot", f"URDF file {_short(str(path))} cannot be read ({exc.strerror})") from None
+        raise TaskError("robot", f"URDF file {_path_text(str(path))} cannot be read ({exc.strerror})") from None
 
 
 def _pose(where: str, value: Any, need_rpy: bool = False) -> PoseSpec:

@@ -96,7 +96,7 @@ def test_cli_exit_codes_name_the_problem(tmp_path: Path, doc: dict, code: int, w
 
 
 def test_output_sample_cap_is_bad_input() -> None:
-    doc = task(moves=[{"ptp": {"to": {"joints_deg": [160, -80, 100, 0, 40, 0]}, "velocity_scale": 1e-6}}],
-               output={"period": 0.0001})
+    doc = task(moves=[{"ptp": {"to": {"joints_deg": [160, -80, 100, 0, 40, 0]}, "velocity_scale": 1e-3}}],
+               limits={"velocity_scale": 1e-3}, output={"period": 0.0001})  # the smallest scales: 1e-6 in all
     with pytest.raises(TaskError, match="over the cap"):
         plan(parse_task(doc))

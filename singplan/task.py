@@ -282,16 +282,16 @@ def _scan(text: str, name: str) -> None:
     stack: list[_Open] = []
     documents = nodes = 0
     for event in yaml.parse(text, Loader=_Loader):
+        line = event.start_mark.line + 1 if event.start_mark is not None else 0  # the parser always marks
         if isinstance(event, yaml.DocumentStartEvent):
             documents += 1
             if documents > 1:
                 raise TaskError("", f"{name}: holds more than one YAML document (the second starts at "
-                                    f"line {event.start_mark.line + 1}); a task file holds one")
+                                    f"line {line}); a task file holds one")
         elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
             stack.pop()
         elif isinstance(event, yaml.NodeEvent):
             nodes += 1
-            line = event.start_mark.line + 1
             if nodes > MAX_YAML_NODES:
                 raise TaskError("", f"{name}: more than {MAX_YAML_NODES} YAML nodes (at line {line})")
             where = _place(stack, event, line)
@@ -479,7 +479,7 @@ def _robot_ref(value: Any, base_dir: Path | None) -> str:
         if "/" in name or "\\" in name or "." in name:
             raise TaskError("robot", f"{_short(repr(name))} is not a bundled robot name, and a URDF path must "
                                      "end in .urdf")
-        return name
+        return _string("robot", name, max_chars=MAX_NAME_CHARS)
     path = Path(name).expanduser()
     if not path.is_absolute() and base_dir is not None:
         path = base_dir / path

@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from singplan.errors import RobotModelError, UnknownNameError
-from singplan.robot import bundled_robots, load_robot, robots_dir
+from singplan.robot import MAX_URDF_BYTES, SUPPORTED_JOINT_COUNTS, bundled_robots, load_robot, robots_dir
 
 from .conftest import OPW_NAMES, random_q
 
@@ -113,3 +113,70 @@ def test_wrist_center_is_on_axes_4_5_6_for_opw_arms(robots, rng) -> None:
         # the flange sits c4 along its z axis from the wrist centre
         c4 = robot.opw.c4 if robot.opw else math.nan
         np.testing.assert_allclose(flange.translation - c4 * flange.rotation[:, 2], wc, atol=1e-12)
+
+
+URDF_TEXT = (robots_dir() / "abb_irb2400.urdf").read_text()
+JOINT_5_LIMIT = 'velocity="6.283185307179586" lower="-2.0943951023931953" upper="2.0943951023931953"'
+
+
+def _urdf(tmp_path, old: str, new: str):
+    assert old in URDF_TEXT
+    path = tmp_path / "arm.urdf"
+    path.write_text(URDF_TEXT.replace(old, new, 1))
+    return path
+
+
+@pytest.mark.parametrize(("old", "new", "words"), [
+    (JOINT_5_LIMIT, JOINT_5_LIMIT.replace("6.283185307179586", "0"), "joint 'joint_5' has velocity limit 0 rad/s"),
+    (JOINT_5_LIMIT, JOINT_5_LIMIT.replace("6.283185307179586", "1e-300"), "joint 'joint_5' has velocity limit 1e-300"),
+    (JOINT_5_LIMIT, JOINT_5_LIMIT.replace("6.283185307179586", "nan"), "joint [joint_5]: velocity value (nan)"),
+    (JOINT_5_LIMIT, 'velocity="6" lower="1" upper="1"', "joint 'joint_5' has position limits [1, 1] rad"),
+    (JOINT_5_LIMIT, 'velocity="6" lower="-30" upper="30"', "4 turns"),
+    ('<joint name="joint_6" type="revolute">', '<joint name="joint_6" type="fixed">',
+     "5 revolute joints from base_link to tool0; singplan plans arms with 6 or 7"),
+    ('<joint name="joint_2" type="revolute">', '<joint name="joint_2" type="prismatic">', "'joint_2' is prismatic"),
+    ('<joint name="joint_4" type="revolute">', '<joint name="joint_4" type="continuous">', "'joint_4' is continuous"),
+    ('<joint name="joint_4" type="revolute">', '<joint name="joint_4" type="planar">', "'joint_4' is a Planar joint"),
+    ('<origin xyz="0.497 0.0 0.0"', '<origin xyz="nan 0.0 0.0"', "[nan]"),
+    ('<origin xyz="0.497 0.0 0.0"', '<origin xyz="1e308 1e308 0.0"', "forward kinematics"),
+    ('<origin xyz="0.497 0.0 0.0"', '<origin xyz="1497 0.0 0.0"', "units in mm"),
+    ("<robot", "robot", "cannot be read as URDF"),
+])
+def test_urdf_without_what_planning_needs_names_file_and_joint(tmp_path, capfd, old: str, new: str,
+                                                                words: str) -> None:
+    path = _urdf(tmp_path, old, new)
+    with pytest.raises(RobotModelError) as info:
+        load_robot(path)
+    assert words in str(info.value) and str(path) in str(info.value)
+    assert info.value.exit_code == 2
+    captured = capfd.readouterr()
+    assert captured.err == "" and captured.out == ""  # urdfdom's own lines go into the message, not the terminal
+
+
+def test_supported_joint_counts_is_the_one_place(tmp_path, monkeypatch) -> None:
+    import singplan.robot as robot_module
+
+    five = _urdf(tmp_path, '<joint name="joint_6" type="revolute">', '<joint name="joint_6" type="fixed">')
+    monkeypatch.setattr(robot_module, "SUPPORTED_JOINT_COUNTS", (5, 6, 7))
+    assert load_robot(five).n_joints == 5
+
+
+def test_urdf_files_that_are_not_usable(tmp_path) -> None:
+    (tmp_path / "folder.urdf").mkdir()
+    with pytest.raises(RobotModelError, match="is a directory"):
+        load_robot(tmp_path / "folder.urdf")
+    big = tmp_path / "big.urdf"
+    big.write_text(URDF_TEXT.replace("</robot>", "<!--" + "x" * MAX_URDF_BYTES + "--></robot>"))
+    with pytest.raises(RobotModelError, match="cap"):
+        load_robot(big)
+    with pytest.raises(RobotModelError, match="No link"):
+        load_robot(_urdf(tmp_path, URDF_TEXT, '<robot name="x"></robot>'))
+    with pytest.raises(UnknownNameError, match="robot"):
+        load_robot(tmp_path / "arm.xml")
+
+
+def test_every_bundled_arm_passes_the_checks() -> None:
+    for name in bundled_robots():
+        robot = load_robot(name)
+        assert robot.n_joints in SUPPORTED_JOINT_COUNTS
+        assert np.all(robot.velocity_rad_s > 0) and np.all(robot.lower_rad < robot.upper_rad)

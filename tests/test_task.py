@@ -2,13 +2,25 @@
 
 from __future__ import annotations
 
+import math
 import textwrap
 from pathlib import Path
 
 import pytest
 
 from singplan.errors import TaskError
-from singplan.task import MAX_MOVES, load_task, parse_task
+from singplan.robot import VELOCITY_LIMIT_RAD_S
+from singplan.task import (
+    ACCELERATION_RAD_S2,
+    JOINT_DEG,
+    MAX_FILE_BYTES,
+    MAX_MOVES,
+    PERIOD_S,
+    SPEED_M_S,
+    VELOCITY_SCALE,
+    load_task,
+    parse_task,
+)
 
 GOOD = """
 robot: abb_irb2400
@@ -100,3 +112,108 @@ def test_missing_file_and_binary_file(tmp_path: Path) -> None:
     bad.write_bytes(b"\xff\xfe\x00robot")
     with pytest.raises(TaskError):
         load_task(bad)
+
+
+def test_a_key_given_twice_is_bad_input_naming_the_key_and_lines(tmp_path: Path) -> None:
+    """The last value used to win silently: speed 0.25 then 9.5 planned at 9.5 m/s."""
+    text = GOOD.replace("speed: 0.25,", "speed: 0.25, speed: 9.5,")
+    with pytest.raises(TaskError) as info:
+        load_task(write(tmp_path, text))
+    assert info.value.field == "moves[0].lin.speed"
+    assert "twice" in str(info.value) and "lines 6 and 6" in str(info.value)
+
+
+@pytest.mark.parametrize("style", ["flow", "block", "mapping"])
+def test_nesting_is_refused_before_pyyaml_recurses(tmp_path: Path, style: str) -> None:
+    depth = 20_000
+    if style == "flow":
+        text = "robot: " + "[" * depth + "]" * depth
+    elif style == "block":
+        text = "robot:\n" + "".join(" " * (i + 1) + "- \n" for i in range(3000))
+    else:
+        text = "robot: " + "{a: " * depth + "1" + "}" * depth
+    with pytest.raises(TaskError, match="deeper than 64") as info:
+        load_task(write(tmp_path, text))
+    assert info.value.field.startswith("robot[0]" if style != "mapping" else "robot.a.a")
+
+
+def test_64_levels_are_allowed(tmp_path: Path) -> None:
+    """The cap counts levels from the document's top mapping: 64 read, 65 refused."""
+    inner = "[" * 61 + "]" * 61  # top mapping + limits mapping + 62 lists = 64 levels
+    with pytest.raises(TaskError, match=r"limits.acceleration\[0\]: expected a number"):
+        load_task(write(tmp_path, GOOD.replace("acceleration: [5, 5, 5, 10, 10, 10]", f"acceleration: [{inner}]")))
+    with pytest.raises(TaskError, match="deeper than 64"):
+        load_task(write(tmp_path, GOOD.replace("acceleration: [5, 5, 5, 10, 10, 10]", f"acceleration: [[{inner}]]")))
+
+
+def test_exponent_floats_are_numbers(tmp_path: Path) -> None:
+    """YAML 1.1 reads 1e-3 as a string; a task means the number (as YAML 1.2 and JSON do)."""
+    text = GOOD.replace("speed: 0.25", "speed: 2.5e-1").replace("period: 0.002", "period: 2E-3")
+    task = load_task(write(tmp_path, text))
+    assert task.moves[0].speed_m_s == 0.25 and task.period_s == 0.002
+
+
+@pytest.mark.parametrize(("snippet", "replacement", "field", "words"), [
+    ("speed: 0.25", "speed: " + "9" * 400, "moves[0].lin.speed", "number too large"),
+    ("speed: 0.25", "speed: 1" + "0" * 330, "moves[0].lin.speed", "number too large"),
+    ("speed: 0.25", "speed: 1e-300", "moves[0].lin.speed", "at least 0.0001 m/s"),
+    ("velocity_scale: 0.5", "velocity_scale: 1e-300", "moves[2].ptp.velocity_scale", "at least 0.001"),
+    ("velocity_scale: 0.8", "velocity_scale: 1e-300", "limits.velocity_scale", "at least 0.001"),
+    ("acceleration: [5, 5, 5, 10, 10, 10]", "acceleration: 1e-300", "limits.acceleration", "at least 0.01"),
+    ("position_tolerance_mm: 0.01", "position_tolerance_mm: 1e-300", "singularity.position_tolerance_mm", "at least"),
+    ("orientation_tolerance_deg: 2", "orientation_tolerance_deg: 1e-300", "singularity.orientation_tolerance_deg",
+     "at least"),
+    ("shoulder_mm: 10", "shoulder_mm: 1e-300", "singularity.zone.shoulder_mm", "at least"),
+    ("tool: {xyz: [0, 0, 0.1]", "tool: {xyz: [0, 0, 11]", "tool.xyz[2]", "at most 10 m"),
+    ("robot: abb_irb2400", "robot: " + "x" * 300, "robot", "over the cap"),
+    ("robot: abb_irb2400", 'robot: "abb\\tirb"', "robot", "U+0009"),
+    ("robot: abb_irb2400", "robot: arm.xml", "robot", "must end in .urdf"),
+    ("tool: {xyz: [0, 0, 0.1], rpy_deg: [0, 0, 0]}", "tool: []", "tool", "expected a mapping"),
+    ("zone: {wrist_deg: 4, shoulder_mm: 10, elbow_deg: 3}", "zone: 0", "singularity.zone", "expected a mapping"),
+    ("output: {period: 0.002}", "output: false", "output", "expected a mapping"),
+    ("speed: 0.25,", "<<: {speed: 0.3},", "moves[0].lin.<<", "merge keys"),
+    ("speed: 0.25,", "? [a]\n      : 1,", "moves[0].lin", "plain name"),
+])
+def test_out_of_range_and_odd_values_are_named(tmp_path: Path, snippet: str, replacement: str, field: str,
+                                               words: str) -> None:
+    assert snippet in GOOD
+    with pytest.raises(TaskError) as info:
+        load_task(write(tmp_path, GOOD.replace(snippet, replacement, 1)))
+    assert info.value.field == field, str(info.value)
+    assert words in str(info.value) and len(str(info.value)) < 300
+
+
+@pytest.mark.parametrize(("content", "words"), [
+    (b"", "empty"),
+    (b"# only a comment\n", "empty"),
+    (b"---\n...\n", "empty"),
+    (b"robot: abb_irb2400\n---\nrobot: ur5\n", "more than one YAML document"),
+    (b"just a scalar\n", "mapping"),
+    (b"robot: \xc3\x28\n", "UTF-8"),
+    (b"x: [" + b",".join([b"0"] * 500_001) + b"]\n", "500000 YAML nodes"),
+])
+def test_unusable_files_name_the_file(tmp_path: Path, content: bytes, words: str) -> None:
+    path = tmp_path / "odd.yaml"
+    path.write_bytes(content)
+    with pytest.raises(TaskError, match=words) as info:
+        load_task(path)
+    assert "odd.yaml" in str(info.value)
+
+
+def test_directory_and_oversized_file(tmp_path: Path) -> None:
+    with pytest.raises(TaskError, match="is a directory"):
+        load_task(tmp_path)
+    big = tmp_path / "big.yaml"
+    big.write_bytes(b"#" * (MAX_FILE_BYTES + 1))
+    with pytest.raises(TaskError, match="cap"):
+        load_task(big)
+
+
+def test_every_positive_range_keeps_durations_finite() -> None:
+    """The longest path (a LIN across the +-100 m cube) at the slowest speed, and the widest joint
+    move at the smallest combined velocity scale, take a finite time in floats."""
+    longest_m = math.dist((-100, -100, -100), (100, 100, 100))
+    assert math.isfinite(longest_m / SPEED_M_S.low)
+    slowest_joint_rad_s = VELOCITY_SCALE.low ** 2 * VELOCITY_LIMIT_RAD_S[0]
+    assert math.isfinite(math.radians(2 * JOINT_DEG.high) / slowest_joint_rad_s / PERIOD_S.low)
+    assert math.isfinite(math.sqrt(math.radians(2 * JOINT_DEG.high) / ACCELERATION_RAD_S2.low) / PERIOD_S.low)

@@ -328,7 +328,7 @@ def _check_node(stack: list[_Open], event: Any, where: str, line: int) -> None:
     if isinstance(event, yaml.AliasEvent):
         raise TaskError(where, f"YAML aliases are not allowed in a task (line {line})")
     if isinstance(event, yaml.ScalarEvent):
-        if event.implicit[0] and _LONG_INTEGER.fullmatch(event.value):
+        if _LONG_INTEGER.fullmatch(event.value):  # quoted too: `!!int "9...9"` would reach int() otherwise
             raise TaskError(where, f"number too large ({len(event.value)} characters, line {line})")
         if len(event.value) > MAX_SCALAR_CHARS:
             raise TaskError(where, f"a value of {len(event.value)} characters is over the cap of "

@@ -129,7 +129,7 @@ CASES: dict[str, Case] = {
     "acceleration with 4 numbers": Case(edit("[5, 5, 5, 10, 10, 10]", "[5, 5, 5, 10]"),
                                         ("limits.acceleration", "expected 1 or 6")),
     "100 joint values": Case(edit("[0, 10, 20, 0, 30, 0]", str([0] * 100)), ("start.joints_deg", "100 joint values")),
-    "empty move list": Case(edit("moves:\n", "moves: []\nx_moves:\n"), ("x_moves", "unknown key")),
+    "misspelt top-level key": Case(edit("moves:\n", "moves: []\nx_moves:\n"), ("x_moves", "unknown key")),
     "no moves": Case("robot: abb_irb2400\nstart: {joints_deg: [0, 10, 20, 0, 30, 0]}\nmoves: []\n",
                      ("moves", "empty")),
     "move with two kinds": Case(edit("  - ptp:", "  - lin: {to: {xyz: [1, 0, 1]}}\n    ptp:"),

@@ -1,7 +1,8 @@
 """Reliability figures: random valid tasks and hostile inputs, each planned in its own process.
 
     python bench/reliability.py --valid 200 [--seed 0] [--hostile-dir DIR ...] [--generated-hostile]
-                                [--timeout 120] [--slow 60] [--mem-limit-mb 4000] [--failures DIR] [--json FILE]
+                                [--timeout 120] [--slow 60] [--mem-limit-mb 4000] [--in-process]
+                                [--failures DIR] [--json FILE]
 
 Every case runs as ``python -m singplan plan TASK -o OUT --quiet --no-report --no-replay`` with a
 timeout; its wall time and peak resident memory come from ``os.wait4`` (that child's own rusage).
@@ -22,15 +23,18 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import io
 import json
 import os
 import re
 import resource
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
 import time
+import traceback
 from collections import Counter, defaultdict
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -154,6 +158,46 @@ def run_case(case: Case, work: Path, timeout_s: float, mem_limit_mb: int) -> tup
     return code, seconds, usage.ru_maxrss / 1024.0, stdout.read_text(), stderr.read_text()
 
 
+class _CaseTimeoutError(Exception):
+    pass
+
+
+def _alarm(signum: int, frame: object) -> None:
+    raise _CaseTimeoutError
+
+
+def run_in_process(case: Case, work: Path, timeout_s: float) -> tuple[int | None, float, float, str, str]:
+    """The same as :func:`run_case` through ``singplan.cli.main`` in this process (no start-up cost per case).
+
+    Peak memory is then this process's high-water mark so far, not the case's own.
+    """
+    from singplan.cli import main as cli_main
+
+    work.mkdir(parents=True)
+    task = work / "task.yaml"
+    task.write_text(case.text)
+    out, err = io.StringIO(), io.StringIO()
+    argv = ["plan", str(task), "-o", str(work / "out"), "--quiet", "--no-report", "--no-replay"]
+    previous = signal.signal(signal.SIGALRM, _alarm)
+    signal.setitimer(signal.ITIMER_REAL, timeout_s)
+    start = time.monotonic()
+    code: int | None
+    try:
+        code = cli_main(argv, out=out, err=err)
+    except _CaseTimeoutError:
+        code = None
+    except BaseException:  # what would reach the user as a traceback (exit 1)
+        err.write(traceback.format_exc())
+        code = 1
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, previous)
+    seconds = time.monotonic() - start
+    (work / "stdout.txt").write_text(out.getvalue())
+    (work / "stderr.txt").write_text(err.getvalue())
+    return code, seconds, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, out.getvalue(), err.getvalue()
+
+
 def _checker() -> ModuleType | None:
     if not VERIFY.is_file():
         return None
@@ -246,6 +290,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--timeout", type=float, default=120.0, help="seconds before a run is killed")
     ap.add_argument("--slow", type=float, default=60.0, help="seconds over which a run counts as slow")
     ap.add_argument("--mem-limit-mb", type=int, default=4000, help="address-space cap of each run (0: none)")
+    ap.add_argument("--in-process", action="store_true",
+                    help="plan through singplan.cli.main in this process: fast, but memory is the process's peak")
     ap.add_argument("--failures", type=Path, default=None, help="save each failing case under DIR/<verdict>/")
     ap.add_argument("--json", type=Path, default=None, help="write every outcome as JSON")
     args = ap.parse_args(argv)
@@ -255,6 +301,8 @@ def main(argv: list[str] | None = None) -> int:
         cases += folder_cases(folder)
     if args.generated_hostile:
         cases += generated_hostile()
+    if args.in_process:
+        _limit_memory(args.mem_limit_mb)
     verify = _checker()
     if verify is None:
         print(f"warning: no independent checker at {VERIFY}: planned trajectories are not checked", file=sys.stderr)
@@ -262,7 +310,10 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="singplan-reliability-") as tmp:
         for case in cases:
             work = Path(tmp) / case.name
-            code, seconds, rss_mb, out, err = run_case(case, work, args.timeout, args.mem_limit_mb)
+            if args.in_process:
+                code, seconds, rss_mb, out, err = run_in_process(case, work, args.timeout)
+            else:
+                code, seconds, rss_mb, out, err = run_case(case, work, args.timeout, args.mem_limit_mb)
             said = out + err
             verdict, checker = judge(case, code, seconds, said, work, args.slow, verify)
             outcome = Outcome(case.name, case.category, code, verdict, round(seconds, 3), round(rss_mb, 1),

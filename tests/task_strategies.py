@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import random
 from collections.abc import Callable, Sequence
-from functools import lru_cache
+from functools import cache
 from typing import Any, Protocol, TypeVar
 
 import numpy as np
@@ -88,7 +88,7 @@ class HypothesisDraws:
         return self.draw(st.integers(0, 999)) >= round(1000 * (1.0 - p))
 
 
-@lru_cache(maxsize=None)
+@cache
 def robot_for(name: str) -> Robot:
     return load_robot(name)
 

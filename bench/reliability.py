@@ -113,8 +113,9 @@ def generated_hostile() -> list[Case]:
         "collinear-circ": (_BASE + "moves:\n  - circ: {via: {xyz: [0.52863961, 0.0, 0.79636039]}, "
                                    "to: {xyz: [0.54863961, 0.0, 0.77636039]}}\n", 2),
         "joints-out-of-limits": ("robot: kuka_kr6_r900_2\nstart: {joints_deg: [0, -90, 90, 0, 170, 0]}\n" + _LIN, 2),
+        # the stretched arm: the TCP of all-zero joints is at xyz [0.81725, 0.19145, -0.00549]
         "ur5-all-zero-start": ("robot: ur5\nstart: {joints_deg: [0, 0, 0, 0, 0, 0]}\n"
-                               "moves:\n  - ptp: {to: {joints_deg: [5, -5, 5, 5, 5, 5]}}\n", 0),
+                               "moves:\n  - lin: {to: {xyz: [0.76725, 0.19145, -0.00549]}, speed: 0.1}\n", 0),
         "unreachable-lin": (_BASE + "moves:\n  - lin: {to: {xyz: [5.0, 0.0, 0.5]}}\n", 3),
         "tiny-lin-10um": (_BASE + "moves:\n  - lin: {to: {xyz: [0.50864961, 0.0, 0.81636039]}}\n", 0),
     }

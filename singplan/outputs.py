@@ -41,7 +41,10 @@ def check_output_dir(path: str | os.PathLike[str]) -> Path:
 def check_output_file(path: str | os.PathLike[str]) -> Path:
     """Refuse a file path that cannot be written; return the file to write (a symlink's target)."""
     target = _usable_file(path)
-    check_output_dir(target.parent)
+    try:
+        check_output_dir(target.parent)
+    except OutputPathError as exc:
+        raise OutputPathError(os.fspath(path), exc.reason) from None
     return target
 
 
@@ -95,7 +98,7 @@ def _usable_dir(path: str | os.PathLike[str]) -> Path:
                 raise OutputPathError(text, f"{p} is a broken symbolic link")
             if p.exists():
                 if not p.is_dir():
-                    raise OutputPathError(text, "exists and is not a folder" if p == folder
+                    raise OutputPathError(text, f"{p} is not a folder" if p == folder
                                           else f"lies under {p}, which is not a folder")
                 break
     except OSError as exc:

@@ -64,7 +64,8 @@ def main(argv: list[str]) -> None:
         else:
             save(traj, folder)
         elapsed_s = time.perf_counter() - start
-        traced = f"tracemalloc peak while saving {tracemalloc.get_traced_memory()[1] / 2**20:.0f} MiB; " if trace else ""
+        peak_mb = tracemalloc.get_traced_memory()[1] / 2**20
+        traced = f"tracemalloc peak while saving {peak_mb:.0f} MiB; " if trace else ""
         tracemalloc.stop()
         sizes = {p.name: p.stat().st_size / 2**20 for p in sorted(folder.iterdir())}
     print(f"{'old' if '--old' in argv else 'new'}: {samples} samples x {len(traj.joint_names)} joints; "

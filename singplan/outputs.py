@@ -51,6 +51,9 @@ def check_output_file(path: str | os.PathLike[str]) -> Path:
 def write_files(path: str | os.PathLike[str], writers: Mapping[str, Writer]) -> list[Path]:
     """Write each ``name -> writer(stream)`` into folder ``path``, all or nothing; return the files."""
     folder = _usable_dir(path)
+    for name in writers:  # found before writing: a rename would fail half way through the files
+        if (folder / name).is_dir():
+            raise OutputPathError(os.fspath(path), f"{folder / name} is a folder; singplan cannot replace it")
     created = _make_dirs(folder)
     temps: dict[str, Path] = {}
     written: list[Path] = []

@@ -21,6 +21,7 @@ import yaml
 from singplan import cli, outputs
 from singplan import trajectory as trajectory_module
 from singplan.cli import main
+from singplan.errors import OutputPathError
 from singplan.trajectory import Trajectory, load, save, write_csv, write_json
 
 ROBOT_URDF = Path(__file__).resolve().parents[1] / "robots" / "urdf" / "kuka_kr6_r900_2.urdf"
@@ -146,6 +147,7 @@ def test_an_interrupted_write_leaves_no_temporary_file_and_the_old_results(proje
     assert code == (130 if stop is KeyboardInterrupt else 2), err
     assert _listing(project) == before  # trajectory.csv was written first, yet nothing was renamed
     code, _, _ = _plan(project / "task.yaml", project / "fresh" / "out", "--no-report", "--no-replay")
+    assert code == (130 if stop is KeyboardInterrupt else 2)
     assert not (project / "fresh").exists()
 
 
@@ -168,7 +170,7 @@ def test_a_report_that_fails_unexpectedly_is_a_warning(tmp_path: Path, monkeypat
         raise ZeroDivisionError("in a plot")
 
     monkeypatch.setattr(cli, "report_html", broken)
-    code, out, err = _plan(_task(tmp_path), tmp_path / "out", "--no-replay", "--quiet")
+    code, _, err = _plan(_task(tmp_path), tmp_path / "out", "--no-replay", "--quiet")
     assert code == 0
     assert "report.html not written" in err and "ZeroDivisionError: in a plot" in err
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["trajectory.csv", "trajectory.json"]
@@ -334,6 +336,10 @@ def test_write_files_is_all_or_nothing_for_any_writer(tmp_path: Path) -> None:
     outputs.write_files(tmp_path, {"a.txt": outputs.text_writer("new a"), "b.txt": outputs.text_writer("b")})
     assert _listing(tmp_path) == {"a.txt": b"new a", "b.txt": b"b"}
     assert oct((tmp_path / "b.txt").stat().st_mode & 0o777) == oct(0o666 & ~_umask())
+    (tmp_path / "c.txt").mkdir()  # a folder where a file goes: refused before anything is renamed
+    with pytest.raises(OutputPathError, match=r"c\.txt is a folder"):
+        outputs.write_files(tmp_path, {"a.txt": outputs.text_writer("newer a"), "c.txt": outputs.text_writer("c")})
+    assert _listing(tmp_path) == {"a.txt": b"new a", "b.txt": b"b", "c.txt": None}
 
 
 def _umask() -> int:

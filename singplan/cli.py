@@ -1,7 +1,9 @@
 """The ``singplan`` command.
 
-``main(argv) -> int`` returns the exit code (0 ok, 2 bad input, 3 no plan) so tests can call
-it directly; :func:`run` is the console-script entry point.
+``main(argv) -> int`` returns the exit code (0 ok, 1 internal error, 2 bad input, 3 no plan,
+130 interrupted) so tests can call it directly; :func:`run` is the console-script entry point.
+Whatever goes wrong, the user gets one line on stderr, never a traceback (unless
+SINGPLAN_DEBUG=1 asks for it).
 """
 
 from __future__ import annotations
@@ -9,9 +11,11 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import signal
 import sys
 import time
+import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TextIO
@@ -23,13 +27,14 @@ from singplan.compiled import kernels_cached
 from singplan.configuration import singularity_distances
 from singplan.errors import InputError, SingplanError
 from singplan.ik import solve_all
+from singplan.outputs import check_output_dir
 from singplan.planner import detect, load_task_robot, plan
 from singplan.report import report_html
 from singplan.robot import Robot, RobotEntry, bundled_robots, load_robot
 from singplan.summary import summary
 from singplan.task import load_task
-from singplan.trajectory import save
-from singplan.viewer import LiveReplay, replay, replay_html
+from singplan.trajectory import Trajectory, save
+from singplan.viewer import DEFAULT_HOST, LiveReplay, replay, replay_html
 
 
 def _reach_m(robot: Robot) -> float:
@@ -59,7 +64,7 @@ def _source(entry: RobotEntry) -> str:
     return chain[0].removeprefix("chain ").split(":")[0] if chain else ""
 
 
-def cmd_robots(args: argparse.Namespace, out: TextIO) -> int:
+def cmd_robots(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     rows = _robot_rows()
     if args.json:
         out.write(json.dumps(rows, indent=2) + "\n")
@@ -75,7 +80,7 @@ def _pose(xyz: Sequence[float], rpy_deg: Sequence[float]) -> pin.SE3:
     return pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.asarray(xyz, dtype=float))
 
 
-def cmd_ik(args: argparse.Namespace, out: TextIO) -> int:
+def cmd_ik(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     robot = load_robot(args.robot, tip=args.tip, tool=_pose(args.tool_xyz, args.tool_rpy_deg))
     if args.seed_deg is not None and len(args.seed_deg) != robot.n_joints:
         raise InputError(f"--seed-deg: expected {robot.n_joints} numbers, got {len(args.seed_deg)}")
@@ -113,27 +118,43 @@ def _progress_printer(err: TextIO, quiet: bool) -> Callable[[int, int], None] | 
     return show
 
 
-def cmd_plan(args: argparse.Namespace, out: TextIO) -> int:
+def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     task = load_task(args.task)
+    folder = check_output_dir(args.output)  # before planning: nobody waits for a plan that cannot be written
     if not args.quiet and not kernels_cached():
-        sys.stderr.write("singplan: first run after an install: compiling the planner's kernels "
-                         "(about 10 s on two cores; cached on disk afterwards)\n")
-    traj = plan(task, method=args.method, progress=_progress_printer(sys.stderr, args.quiet))
-    robot = load_task_robot(task)
-    extra = {} if args.no_report else {"report.html": report_html(traj, robot)}
-    if not args.no_replay:
-        extra["replay.html"] = replay_html(traj, robot)
-    folder = save(traj, args.output, extra_files=extra)
+        err.write("singplan: first run after an install: compiling the planner's kernels "
+                  "(about 10 s on two cores; cached on disk afterwards)\n")
+    traj = plan(task, method=args.method, progress=_progress_printer(err, args.quiet))
+    pages, skipped = _pages(traj, load_task_robot(task), report=not args.no_report, replay=not args.no_replay)
+    for name, reason in skipped.items():
+        err.write(f"singplan: warning: {name} not written (the plan succeeded): {reason}\n")
+    folder = save(traj, folder, extra_files=pages)
     if args.quiet:
         out.write(f"planned {args.task}: {traj.duration_s:.3f} s, {len(traj.t)} samples -> {folder}\n")
     else:
         out.write(summary(traj, task))
-        written = ", ".join(str(folder / name) for name in ("trajectory.csv", "trajectory.json", *extra))
+        written = ", ".join(str(folder / name) for name in ("trajectory.csv", "trajectory.json", *pages))
         out.write(f"wrote {written}\n")
+        for name, reason in skipped.items():
+            out.write(f"not written: {name} ({reason})\n")
     return 0
 
 
-def cmd_check(args: argparse.Namespace, out: TextIO) -> int:
+def _pages(traj: Trajectory, robot: Robot, report: bool, replay: bool) -> tuple[dict[str, str], dict[str, str]]:
+    """The HTML pages asked for, and why any could not be built (a warning: the plan stands)."""
+    builders = {"report.html": (report, report_html), "replay.html": (replay, replay_html)}
+    pages, skipped = {}, {}
+    for name, (wanted, build) in builders.items():
+        if not wanted:
+            continue
+        try:
+            pages[name] = build(traj, robot)
+        except Exception as exc:  # any failure of a page loses that page only, never the trajectory
+            skipped[name] = str(exc) if isinstance(exc, SingplanError) else f"{type(exc).__name__}: {exc}"
+    return pages, skipped
+
+
+def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     task = load_task(args.task)
     found = detect(task)
     out.write(f"{args.task}: {sum(len(m.zones) for m in found)} singular zone(s) along the programmed path\n")
@@ -145,18 +166,20 @@ def cmd_check(args: argparse.Namespace, out: TextIO) -> int:
     return 0
 
 
-def cmd_demo(args: argparse.Namespace, out: TextIO) -> int:
+def cmd_demo(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     task_path = Path(__file__).with_name("demo_task.yaml")
     out.write(f"singplan demo: planning {task_path.name} (a LIN through a wrist singularity, KUKA KR 6 R900-2)\n")
     code = cmd_plan(argparse.Namespace(task=task_path, output=args.output, method=None, quiet=False,
-                                       no_report=False, no_replay=False), out)
+                                       no_report=False, no_replay=False), out, err)
     out.write(f"task: {task_path}\n")
     return code
 
 
-def cmd_replay(args: argparse.Namespace, out: TextIO) -> int:
+def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.serve:
         return _serve(args, out)
+    if args.host is not None:
+        raise InputError("replay: --host goes with --serve")
     if args.html is None:
         raise InputError("replay: give --html FILE (write the page) or --serve (live meshcat server)")
     written = replay(args.trajectory, html=args.html)
@@ -166,7 +189,8 @@ def cmd_replay(args: argparse.Namespace, out: TextIO) -> int:
 
 def _serve(args: argparse.Namespace, out: TextIO) -> int:
     """Play the trajectory on a live meshcat server until Ctrl-C (or SIGTERM)."""
-    live = replay(args.trajectory, serve=True, speed=args.speed, loop=not args.no_loop)
+    host = DEFAULT_HOST if args.host is None else args.host
+    live = replay(args.trajectory, serve=True, speed=args.speed, loop=not args.no_loop, host=host)
     assert isinstance(live, LiveReplay)
     previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
@@ -220,6 +244,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("trajectory", help="trajectory.json or the output folder holding it")
     rep.add_argument("--html", default=None, help="write the self-contained replay page to this file")
     rep.add_argument("--serve", action="store_true", help="start a live meshcat server on loopback and play there")
+    rep.add_argument("--host", default=None,
+                     help=f"--serve: address the server listens on (default {DEFAULT_HOST}, this machine only)")
     rep.add_argument("--speed", type=float, default=1.0, help="--serve: playback speed, x real time (default 1)")
     rep.add_argument("--no-loop", action="store_true", help="--serve: play once instead of looping")
     rep.set_defaults(func=cmd_replay)
@@ -239,12 +265,27 @@ def main(argv: Sequence[str] | None = None, out: TextIO | None = None, err: Text
     except SystemExit as exc:  # argparse already printed the usage error
         return int(exc.code or 0) if exc.code in (0, None) else 2
     try:
-        return int(args.func(args, out))
+        return int(args.func(args, out, err))
     except SingplanError as exc:
         err.write(f"singplan: error: {exc}\n")
         return exc.exit_code
+    except KeyboardInterrupt:
+        err.write("singplan: interrupted\n")
+        return 130
+    except Exception as exc:  # a bug (or an input no check caught): one line, not a traceback
+        if os.environ.get("SINGPLAN_DEBUG", "") not in ("", "0"):
+            traceback.print_exc(file=err)
+        err.write(f"singplan: internal error: {type(exc).__name__}: {_one_line(exc)} "
+                  "(please report this; run with SINGPLAN_DEBUG=1 for the traceback)\n")
+        return 1
+
+
+def _one_line(exc: BaseException, max_chars: int = 300) -> str:
+    text = " ".join(str(exc).split())
+    return text if len(text) <= max_chars else text[:max_chars] + " ..."
 
 
 def run() -> None:
-    """Console-script entry point."""
+    """Console-script entry point; SIGTERM stops like Ctrl-C (temporary files are removed)."""
+    signal.signal(signal.SIGTERM, _interrupt)
     sys.exit(main())

@@ -44,6 +44,15 @@ class RobotModelError(InputError):
         super().__init__(f"{path}: {reason}")
 
 
+class OutputPathError(InputError):
+    """An output path singplan cannot write: ``path`` as given, ``reason`` what is wrong with it."""
+
+    def __init__(self, path: str, reason: str) -> None:
+        self.path = path
+        self.reason = reason
+        super().__init__(f"output {path!r}: {reason}")
+
+
 class TaskError(InputError):
     """A task field is invalid; ``field`` is its path, e.g. ``moves[2].lin.to.xyz``."""
 

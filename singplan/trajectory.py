@@ -1,9 +1,9 @@
 """The planned trajectory, its segments, events and metrics, and its files.
 
 ``trajectory.json`` (format ``singplan.trajectory/1``) and ``trajectory.csv`` follow the
-contract of DESIGN.md. :func:`save` writes a whole output folder atomically: everything goes
-to a temporary sibling folder that replaces the target only when complete, so a failed plan
-never leaves a partial folder behind.
+contract of DESIGN.md. :func:`save` writes them into an output folder by the rules of
+:mod:`singplan.outputs` (only its own files, all or nothing). Both files are streamed a chunk
+of samples at a time, so writing needs little memory beyond the trajectory's own arrays.
 """
 
 from __future__ import annotations
@@ -11,17 +11,18 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
-import tempfile
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
 from singplan.errors import InputError
+from singplan.outputs import Writer, text_writer, write_files
 
 FORMAT = "singplan.trajectory/1"
+_CHUNK_ROWS = 4096  # samples formatted at once when writing (bounds the text held in memory)
 
 
 @dataclass(frozen=True)
@@ -95,10 +96,15 @@ class Trajectory:
         return float(self.t[-1])
 
     def to_json(self) -> dict[str, Any]:
+        """The trajectory.json document as plain Python values."""
+        return _listed(self.document())
+
+    def document(self) -> dict[str, Any]:
+        """The trajectory.json document with its per-sample series left as numpy arrays."""
         return {
             "format": FORMAT, "robot": self.robot, "urdf": self.urdf, "tip": self.tip, "tool": self.tool,
             "task": self.task, "joint_names": list(self.joint_names), "period": self.period,
-            "t": self.t.tolist(), "q": self.q.tolist(), "qd": self.qd.tolist(), "qdd": self.qdd.tolist(),
+            "t": self.t, "q": self.q, "qd": self.qd, "qdd": self.qdd,
             "segments": [s.to_json() for s in self.segments], "events": [e.to_json() for e in self.events],
             "metrics": _jsonable(self.metrics),
             "samples": _sample_series(self.samples),
@@ -109,14 +115,37 @@ def _sample_series(samples: dict[str, np.ndarray]) -> dict[str, Any]:
     """Per-sample series in the file's units: mm, deg (shoulder distance in mm)."""
     out: dict[str, Any] = {}
     if "position_error_m" in samples:
-        out["position_error_mm"] = (samples["position_error_m"] * 1e3).tolist()
+        out["position_error_mm"] = samples["position_error_m"] * 1e3
     if "orientation_error_rad" in samples:
-        out["orientation_error_deg"] = np.degrees(samples["orientation_error_rad"]).tolist()
+        out["orientation_error_deg"] = np.degrees(samples["orientation_error_rad"])
     if "distances" in samples:
         d = samples["distances"]
-        out["singular_distances"] = {"wrist_deg": np.degrees(d[:, 0]).tolist(), "shoulder_mm": (d[:, 1] * 1e3).tolist(),
-                                     "elbow_deg": np.degrees(d[:, 2]).tolist()}
+        out["singular_distances"] = {"wrist_deg": np.degrees(d[:, 0]), "shoulder_mm": d[:, 1] * 1e3,
+                                     "elbow_deg": np.degrees(d[:, 2])}
     return out
+
+
+def _samples_from_file(series: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """The inverse of :func:`_sample_series`: back to m and rad."""
+    out: dict[str, np.ndarray] = {}
+    if "position_error_mm" in series:
+        out["position_error_m"] = np.asarray(series["position_error_mm"], dtype=float) * 1e-3
+    if "orientation_error_deg" in series:
+        out["orientation_error_rad"] = np.radians(np.asarray(series["orientation_error_deg"], dtype=float))
+    if "singular_distances" in series:
+        d = series["singular_distances"]
+        out["distances"] = np.column_stack([np.radians(np.asarray(d["wrist_deg"], dtype=float)),
+                                            np.asarray(d["shoulder_mm"], dtype=float) * 1e-3,
+                                            np.radians(np.asarray(d["elbow_deg"], dtype=float))])
+    return out
+
+
+def _listed(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _listed(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value
 
 
 def _jsonable(value: Any) -> Any:
@@ -141,40 +170,55 @@ def finite_differences(q: np.ndarray, period_s: float) -> tuple[np.ndarray, np.n
     return qd, qdd
 
 
-def write_csv(path: Path, traj: Trajectory) -> None:
-    header = "t," + ",".join(traj.joint_names)
-    data = np.hstack([traj.t[:, None], traj.q])
-    np.savetxt(path, data, delimiter=",", header=header, comments="", fmt="%.17g")
+def write_csv(stream: TextIO, traj: Trajectory) -> None:
+    """trajectory.csv: header ``t,<joint names>``, then one row per sample (as ``%.17g``)."""
+    stream.write("t," + ",".join(traj.joint_names) + "\n")
+    row = ",".join(["%.17g"] * (1 + len(traj.joint_names))) + "\n"
+    for start in range(0, len(traj.t), _CHUNK_ROWS):
+        stop = start + _CHUNK_ROWS
+        block = np.hstack([traj.t[start:stop, None], traj.q[start:stop]])
+        stream.write("".join(row % tuple(values) for values in block.tolist()))
 
 
-def save(traj: Trajectory, out_dir: str | Path, extra_files: dict[str, str] | None = None) -> Path:
-    """Write trajectory.csv, trajectory.json (and extra text files) into ``out_dir`` atomically."""
-    target = Path(out_dir).resolve()
-    target.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
-    umask = os.umask(0)
-    os.umask(umask)
-    staging.chmod(0o777 & ~umask)  # mkdtemp makes it private; the result is an ordinary folder
-    try:
-        write_csv(staging / "trajectory.csv", traj)
-        (staging / "trajectory.json").write_text(json.dumps(traj.to_json()))
-        for name, text in (extra_files or {}).items():
-            (staging / name).write_text(text)
-        _replace_dir(staging, target)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
-    return target
+def write_json(stream: TextIO, traj: Trajectory) -> None:
+    """trajectory.json, the same text as ``json.dumps(traj.to_json())``, streamed chunk by chunk."""
+    _dump(stream, traj.document())
 
 
-def _replace_dir(staging: Path, target: Path) -> None:
-    if target.exists():
-        old = target.with_name(f".{target.name}.old-{os.getpid()}")
-        target.rename(old)
-        staging.rename(target)
-        shutil.rmtree(old, ignore_errors=True)
+def _dump(stream: TextIO, value: Any) -> None:
+    if isinstance(value, np.ndarray):
+        stream.write("[")
+        for start in range(0, len(value), _CHUNK_ROWS):
+            if start:
+                stream.write(", ")
+            stream.write(json.dumps(value[start:start + _CHUNK_ROWS].tolist())[1:-1])
+        stream.write("]")
+    elif isinstance(value, dict) and _holds_array(value):
+        stream.write("{")
+        for n, (key, item) in enumerate(value.items()):
+            stream.write(("" if n == 0 else ", ") + json.dumps(key) + ": ")
+            _dump(stream, item)
+        stream.write("}")
     else:
-        staging.rename(target)
+        stream.write(json.dumps(value))
+
+
+def _holds_array(value: dict[str, Any]) -> bool:
+    return any(isinstance(v, np.ndarray) or (isinstance(v, dict) and _holds_array(v)) for v in value.values())
+
+
+def save(traj: Trajectory, out_dir: str | Path, extra_files: Mapping[str, str] | None = None) -> Path:
+    """Write trajectory.csv, trajectory.json (and extra text files) into ``out_dir``.
+
+    Only these files are written; the rest of the folder is left alone. All are renamed into
+    place together once written; on any failure the folder is as it was (see
+    :mod:`singplan.outputs`). An unusable ``out_dir`` raises OutputPathError.
+    """
+    writers: dict[str, Writer] = {"trajectory.csv": lambda stream: write_csv(stream, traj),
+                                  "trajectory.json": lambda stream: write_json(stream, traj)}
+    writers.update({name: text_writer(text) for name, text in (extra_files or {}).items()})
+    write_files(out_dir, writers)
+    return Path(os.path.abspath(out_dir))  # absolute, but a symbolic link stays as named
 
 
 _SEGMENT_FIELDS = ("move", "kind", "t0", "t1", "config_before", "config_after", "singularity", "method")
@@ -191,6 +235,13 @@ def load(path: str | Path) -> Trajectory:
         raise InputError(f"{p}: cannot read a trajectory ({exc})") from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise InputError(f"{p}: not a {FORMAT} file")
+    try:
+        return _from_document(doc)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise InputError(f"{p}: not a valid {FORMAT} file ({type(exc).__name__}: {exc})") from None
+
+
+def _from_document(doc: dict[str, Any]) -> Trajectory:
     segments = tuple(Segment(**{k: s.get(k) for k in _SEGMENT_FIELDS},
                              details={k: v for k, v in s.items() if k not in _SEGMENT_FIELDS})
                      for s in doc["segments"])
@@ -199,4 +250,4 @@ def load(path: str | Path) -> Trajectory:
     arrays = {k: np.asarray(doc[k], dtype=float) for k in ("t", "q", "qd", "qdd")}
     return Trajectory(doc["robot"], doc["urdf"], doc["tip"], doc["tool"], doc["task"], tuple(doc["joint_names"]),
                       float(doc["period"]), arrays["t"], arrays["q"], arrays["qd"], arrays["qdd"], segments, events,
-                      doc["metrics"])
+                      doc["metrics"], _samples_from_file(doc.get("samples", {})))

@@ -6,17 +6,22 @@ animation of every link at the trajectory's real timing. For the page, no server
 a recorder stands in for meshcat's ZMQ window and keeps the commands, and the template in
 :func:`viewer_dir` inlines meshcat's viewer bundle, replays them in order and adds the legend,
 the segment list, the crossing labels and the joint-speed strip, so it works offline in any
-current browser. :func:`serve_replay` sends the same commands to meshcat's own server.
+current browser. :func:`serve_replay` sends the same commands to a meshcat server listening
+on loopback only, unless another address is asked for (:mod:`singplan.meshcat_server`).
 """
 
 from __future__ import annotations
 
+import atexit
 import base64
 import contextlib
 import io
 import json
 import math
 import re
+import socket
+import subprocess
+import sys
 from dataclasses import dataclass
 from html import escape
 from pathlib import Path
@@ -32,12 +37,15 @@ import umsgpack
 from pinocchio.visualize import MeshcatVisualizer
 
 from singplan.errors import InputError, RobotModelError
+from singplan.outputs import check_output_file, text_writer, write_file
 from singplan.path import rpy_deg_to_rotation
 from singplan.planner import plan_move_piece
 from singplan.robot import Robot, bundled_robots, load_robot
 from singplan.task import parse_task
 from singplan.trajectory import Segment, Trajectory, load
 
+DEFAULT_HOST = "127.0.0.1"  # the live server is for this machine unless asked otherwise
+_SERVER_START_S = 60.0  # longest wait for the live server to report its address
 ANIMATION_STEP_S = 0.02  # animation keyframes; the browser interpolates between them
 SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575}
 _DOT_EVERY = 3  # executed-path dots: one per this many samples
@@ -224,21 +232,21 @@ def robot_of(traj: Trajectory) -> Robot:
 
 @dataclass
 class LiveReplay:
-    """A meshcat server playing a trajectory on loopback; :meth:`close` stops it.
+    """A meshcat server playing a trajectory; :meth:`close` stops it.
 
     Attributes:
         url: the page to open (meshcat's viewer, with play / pause / time / speed controls).
+        host: the address the server listens on.
     """
 
     url: str
+    host: str
     visualizer: meshcat.Visualizer
+    server: subprocess.Popen[str]
 
     def close(self) -> None:
         """Stop the meshcat server process."""
-        proc = self.visualizer.window.server_proc
-        if proc is not None and proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        _stop(self.server)
 
     def __enter__(self) -> LiveReplay:
         return self
@@ -247,37 +255,70 @@ class LiveReplay:
         self.close()
 
 
-def serve_replay(traj: Trajectory, robot: Robot, speed: float = 1.0, loop: bool = True) -> LiveReplay:
-    """Start a meshcat server (a free loopback port from 7000 up) and play the trajectory there."""
-    with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its URL; the caller decides
-        vis = meshcat.Visualizer()
-    live = LiveReplay(vis.url(), vis)
+def _stop(server: subprocess.Popen[str]) -> None:
+    if server.poll() is None:
+        server.kill()
+    server.wait()
+    if server.stdout is not None:
+        server.stdout.close()
+
+
+def _start_server(host: str) -> tuple[subprocess.Popen[str], str]:
+    """Start :mod:`singplan.meshcat_server` listening on ``host``; return it and its command address."""
     try:
+        socket.getaddrinfo(host, None)
+    except (OSError, UnicodeError, ValueError) as exc:
+        raise InputError(f"replay --host {host!r}: not an address of this machine ({exc})") from None
+    script = Path(__file__).with_name("meshcat_server.py")
+    server = subprocess.Popen([sys.executable, "-u", str(script), host], stdout=subprocess.PIPE,
+                              stderr=subprocess.DEVNULL, text=True, start_new_session=True)
+    atexit.register(_stop, server)
+    try:
+        assert server.stdout is not None
+        line = server.stdout.readline().strip()
+        if not line.startswith("zmq_url="):
+            reason = line.removeprefix("error=") or f"the server exited with code {server.wait(_SERVER_START_S)}"
+            raise InputError(f"replay --host {host!r}: cannot serve there ({reason})")
+        server.stdout.readline()  # web_url=...: the visualiser asks the server for it
+    except BaseException:
+        _stop(server)
+        raise
+    return server, line.removeprefix("zmq_url=")
+
+
+def serve_replay(traj: Trajectory, robot: Robot, speed: float = 1.0, loop: bool = True,
+                 host: str = DEFAULT_HOST) -> LiveReplay:
+    """Start a meshcat server (on ``host``, a free port from 7000 up) and play the trajectory there."""
+    server, command_url = _start_server(host)
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its URL; the caller decides
+            vis = meshcat.Visualizer(zmq_url=command_url)
+        live = LiveReplay(vis.url(), host, vis, server)
         tcp = robot.tcp_positions(traj.q)
         _scene(vis, traj, robot, tcp, programmed_path(traj, robot, tcp), speed=speed, loop=loop, play=True)
     except BaseException:
-        live.close()
+        _stop(server)
         raise
     return live
 
 
 def replay(traj: Trajectory | str | Path, html: str | Path | None = None, serve: bool = False,
-           speed: float = 1.0, loop: bool = True) -> Path | LiveReplay:
+           speed: float = 1.0, loop: bool = True, host: str = DEFAULT_HOST) -> Path | LiveReplay:
     """Replay a trajectory (object, or a trajectory.json / output folder) in the browser.
 
-    ``html=path`` writes the self-contained page and returns its path; ``serve=True`` starts a
-    live meshcat server playing it (``speed`` x real time, looping unless ``loop=False``) and
-    returns the running :class:`LiveReplay`, whose ``url`` to open and ``close()`` to stop it.
+    ``html=path`` writes the self-contained page and returns its path (written under a
+    temporary name and renamed when complete; an unusable path is an OutputPathError before
+    anything is built). ``serve=True`` starts a live meshcat server listening on ``host``
+    (loopback by default) playing it (``speed`` x real time, looping unless ``loop=False``)
+    and returns the running :class:`LiveReplay`, whose ``url`` to open and ``close()`` to stop it.
     """
     if (html is None) == (not serve):
         raise InputError("replay: give exactly one of html=PATH or serve=True")
     if not (math.isfinite(speed) and 0.01 <= speed <= 100.0):
         raise InputError(f"replay: speed must be a number in [0.01, 100], got {speed}")
+    target = None if html is None else check_output_file(html)
     trajectory = traj if isinstance(traj, Trajectory) else load(traj)
     robot = robot_of(trajectory)
-    if serve:
-        return serve_replay(trajectory, robot, speed=speed, loop=loop)
-    assert html is not None
-    out = Path(html)
-    out.write_text(replay_html(trajectory, robot))
-    return out
+    if target is None:
+        return serve_replay(trajectory, robot, speed=speed, loop=loop, host=host)
+    return write_file(target, text_writer(replay_html(trajectory, robot)))

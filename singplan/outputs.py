@@ -1,0 +1,180 @@
+"""Writing singplan's files without touching anything else (DESIGN.md, "Outputs").
+
+singplan writes only its own files into an output folder, creating the folder (and missing
+parents) when absent. Each file is first written under a hidden temporary name in the folder
+and renamed into place only once every file was written, so a failure or an interrupt leaves
+the folder as it was: the temporary files are removed, and so are the folders singplan
+created. Other files in the folder are never touched; a symbolic link to a folder is written
+through and kept.
+
+An unusable path (empty, an existing non-folder, under a file, not writable) is an
+:class:`OutputPathError` (bad input, exit 2). :func:`check_output_dir` and
+:func:`check_output_file` find that out before any planning, by creating what is missing and
+a probe file, and removing both again.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import TextIO
+
+from singplan.errors import OutputPathError
+
+Writer = Callable[[TextIO], None]
+_TEMP_SUFFIX = ".singplan-tmp"
+
+
+def check_output_dir(path: str | os.PathLike[str]) -> Path:
+    """Refuse (OutputPathError) a folder that cannot receive singplan's files; leave it as it was."""
+    folder = _usable_dir(path)
+    created = _make_dirs(folder)
+    try:
+        _probe(folder)
+    finally:
+        _remove_dirs(created)
+    return folder
+
+
+def check_output_file(path: str | os.PathLike[str]) -> Path:
+    """Refuse a file path that cannot be written; return the file to write (a symlink's target)."""
+    target = _usable_file(path)
+    try:
+        check_output_dir(target.parent)
+    except OutputPathError as exc:
+        raise OutputPathError(os.fspath(path), exc.reason) from None
+    return target
+
+
+def write_files(path: str | os.PathLike[str], writers: Mapping[str, Writer]) -> list[Path]:
+    """Write each ``name -> writer(stream)`` into folder ``path``, all or nothing; return the files."""
+    folder = _usable_dir(path)
+    for name in writers:  # found before writing: a rename would fail half way through the files
+        if (folder / name).is_dir():
+            raise OutputPathError(os.fspath(path), f"{folder / name} is a folder; singplan cannot replace it")
+    created = _make_dirs(folder)
+    temps: dict[str, Path] = {}
+    written: list[Path] = []
+    try:
+        for name, write in writers.items():
+            _write_temp(folder, name, write, temps)
+        for name in list(temps):
+            os.replace(temps[name], folder / name)  # each rename is atomic; no reader sees a partial file
+            del temps[name]
+            written.append(folder / name)
+    except BaseException as exc:
+        for temp in temps.values():
+            temp.unlink(missing_ok=True)
+        if not written:  # nothing renamed yet: the folder is as it was
+            _remove_dirs(created)
+        if isinstance(exc, OSError):
+            raise OutputPathError(os.fspath(path), f"cannot write into {folder}: {_reason(exc)}") from exc
+        raise
+    return written
+
+
+def write_file(path: str | os.PathLike[str], write: Writer) -> Path:
+    """Write one file the same way: a temporary name in its folder, renamed when complete."""
+    target = _usable_file(path)
+    return write_files(target.parent, {target.name: write})[0]
+
+
+def text_writer(text: str) -> Writer:
+    """A writer of a ready string."""
+    def write(stream: TextIO) -> None:
+        stream.write(text)
+    return write
+
+
+def _usable_dir(path: str | os.PathLike[str]) -> Path:
+    text = os.fspath(path)
+    if text == "":
+        raise OutputPathError(text, "empty path; give a folder, e.g. -o out")
+    if "\0" in text:
+        raise OutputPathError(text, "contains a NUL character")
+    folder = Path(text)
+    try:
+        for p in (folder, *folder.parents):
+            if p.is_symlink() and not p.exists():
+                raise OutputPathError(text, f"{p} is a broken symbolic link")
+            if p.exists():
+                if not p.is_dir():
+                    raise OutputPathError(text, f"{p} is not a folder" if p == folder
+                                          else f"lies under {p}, which is not a folder")
+                break
+    except OSError as exc:
+        raise OutputPathError(text, _reason(exc)) from None
+    return folder
+
+
+def _usable_file(path: str | os.PathLike[str]) -> Path:
+    text = os.fspath(path)
+    if text == "" or text.endswith(os.sep):
+        raise OutputPathError(text, "give a file name, e.g. replay.html")
+    target = Path(text)
+    if target.is_symlink():
+        target = Path(os.path.realpath(target))  # write the file it points to and keep the link
+    if target.is_dir():
+        raise OutputPathError(text, "is a folder; give a file name")
+    return target
+
+
+def _make_dirs(folder: Path) -> list[Path]:
+    """Create ``folder`` and its missing parents; return those created, outermost first."""
+    missing = []
+    p = folder
+    while not p.exists():
+        missing.append(p)
+        p = p.parent
+    created: list[Path] = []
+    try:
+        for d in reversed(missing):
+            d.mkdir()
+            created.append(d)
+    except OSError as exc:
+        _remove_dirs(created)
+        raise OutputPathError(str(folder), f"cannot create the folder {d}: {_reason(exc)}") from None
+    except BaseException:
+        _remove_dirs(created)
+        raise
+    return created
+
+
+def _remove_dirs(created: list[Path]) -> None:
+    for d in reversed(created):
+        try:
+            d.rmdir()
+        except OSError:  # something else appeared in it meanwhile: not ours to remove
+            return
+
+
+def _probe(folder: Path) -> None:
+    try:
+        fd, name = tempfile.mkstemp(prefix=".singplan-probe.", suffix=_TEMP_SUFFIX, dir=folder)
+        os.close(fd)
+        os.unlink(name)
+    except OSError as exc:
+        raise OutputPathError(str(folder), f"cannot write into it: {_reason(exc)}") from None
+
+
+def _write_temp(folder: Path, name: str, write: Writer, temps: dict[str, Path]) -> None:
+    """Write one file under a hidden temporary name, registered in ``temps`` before any byte."""
+    fd, temp = tempfile.mkstemp(prefix=f".{name}.", suffix=_TEMP_SUFFIX, dir=folder)
+    temps[name] = Path(temp)
+    with os.fdopen(fd, "w", encoding="utf-8") as stream:
+        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes it private; the result is an ordinary file
+        write(stream)
+        stream.flush()
+        os.fsync(fd)
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _reason(exc: OSError) -> str:
+    return exc.strerror or str(exc)

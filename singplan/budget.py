@@ -143,7 +143,7 @@ def check_task(task: Task, robot: Robot, q_start: np.ndarray, step_m: float, ste
                               f"about {used:.0f} MB, over the budget of {budget_mb:.0f} MB; {_advice(m, timed)}",
                               m.index, used, budget_mb)
     spare_mb = budget_mb - memory_mb(0, path_largest, path_total)
-    allowance = min(max_output_samples, int(spare_mb * 1e6 / OUTPUT_MB_PER_MILLION))
+    allowance = int(min(max_output_samples, spare_mb * 1e6 / OUTPUT_MB_PER_MILLION))
     return TaskEstimate(tuple(moves), allowance)
 
 

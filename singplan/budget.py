@@ -28,13 +28,14 @@ from singplan.robot import Robot
 from singplan.task import MAX_OUTPUT_SAMPLES, Move, Task
 
 TASK_MEMORY_MB = 1500.0  # DESIGN.md "Bounded resources": the whole process, in all
-# Peak RSS of `singplan plan` on a one-sample task (interpreter, numpy, pinocchio, numba kernels,
-# TOPP-RA, matplotlib): 352-360 MB measured by bench/bench_memory.py (docs/benchmarks.md), rounded up.
-BASE_MB = 380.0
-# Peak RSS growth per million output samples of `singplan plan` with its report (trajectory,
-# per-sample deviations and distances, finite differences, report): measured by bench/bench_memory.py
-# on 0.1-1 M samples (docs/benchmarks.md), rounded up.
-OUTPUT_MB_PER_MILLION = 350.0
+# Peak RSS of planning a short task (interpreter, numpy, pinocchio, numba kernels, TOPP-RA): 388 MB,
+# and of a 0.1 M-sample one 450 MB (the chunked evaluation's fixed ~60 MB of temporaries), measured by
+# bench/bench_memory.py (docs/benchmarks.md, AMD EPYC, 2 cores); the 450 MB is taken as the base.
+BASE_MB = 450.0
+# Peak RSS growth per million output samples of plan() and its report: 270 MB measured between 0.1 and
+# 1 M samples (658 MB at 1 M), the report ~10 MB more at 0.1 and 0.5 M (bench/bench_memory.py); rounded up.
+# Writing trajectory.json / .csv is not in it: it is being made streaming (see docs/benchmarks.md).
+OUTPUT_MB_PER_MILLION = 300.0
 # Peak RSS growth per path sample while one move is planned (tracking candidates, TOPP-RA's grid of
 # the reference samples): 4.7 kB measured on a 0.355 m LIN sampled at 4 um (88 750 samples), rounded up.
 PATH_KB_PER_SAMPLE_PLANNING = 5.0
@@ -42,7 +43,7 @@ PATH_KB_PER_SAMPLE_PLANNING = 5.0
 # zones, crossings): a rough upper figure of 0.2 kB (u + q = 56 bytes, plus the parts' copies).
 PATH_KB_PER_SAMPLE_KEPT = 0.2
 # A bound of work rather than memory: path samples over all moves (about 20 us of IK and detection
-# each, so ~100 s of geometry at the cap). 10 000 moves of 1 m at the 2 mm step stay under it.
+# each, so ~100 s of geometry at the cap). 10 000 moves of 0.9 m at the 2 mm step stay under it.
 MAX_PATH_SAMPLES = 5_000_000
 
 

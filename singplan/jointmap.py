@@ -27,6 +27,7 @@ from singplan.robot import Robot
 from singplan.tracking import PoseFunction
 
 _DAMPING = 1e-6  # Levenberg-Marquardt lambda^2 of the position re-solve [m^2]
+_CHUNK = 65_536  # samples evaluated at once: the IK's temporaries take ~0.8 kB a sample
 
 
 @dataclass(frozen=True)
@@ -112,6 +113,11 @@ class JointMap:
     def evaluate(self, u: np.ndarray) -> np.ndarray:
         """Joint values (N, n) at parameters u (N,), each exactly on the map's definition."""
         u = np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0)  # np.clip costs several times more
+        if len(u) > _CHUNK:
+            out = np.empty((len(u), self.robot.n_joints))
+            for k in range(0, len(u), _CHUNK):
+                out[k:k + _CHUNK] = self.evaluate(u[k:k + _CHUNK])
+            return out
         if len(self.parts) == 1:
             return self._evaluate_part(self.parts[0], u)
         q = np.empty((len(u), self.robot.n_joints))

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from singplan.budget import check_task
 from singplan.configuration import classify, distances_batch, labels_from_distances, parse_configuration
 from singplan.crossing import (
     METHODS_AVAILABLE,
@@ -106,11 +107,13 @@ def plan(task: Task | str | Path, method: str | None = None, progress: Progress 
         task = task.with_method(method)
     robot = load_task_robot(task)
     q = _start_joints(task, robot)
+    allowance = check_task(task, robot, q, STEP_M, STEP_RAD).output_allowance  # before anything large
     T = robot.fk(q)
     planned: list[PlannedMove] = []
     timed: list[TimedMove] = []
     for i, move in enumerate(task.moves):
-        pm, tm = _best_of(robot, task, i, move, T, q, candidate_methods(task.singularity.method, move))
+        left = allowance - 1 - sum(len(t.q) - 1 for t in timed)
+        pm, tm = _best_of(robot, task, i, move, T, q, candidate_methods(task.singularity.method, move), left)
         planned.append(pm)
         timed.append(tm)
         q = tm.q[-1]
@@ -121,7 +124,7 @@ def plan(task: Task | str | Path, method: str | None = None, progress: Progress 
 
 
 def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
-             methods: list[CrossingMethod]) -> tuple[PlannedMove, TimedMove]:
+             methods: list[CrossingMethod], max_samples: int) -> tuple[PlannedMove, TimedMove]:
     """Plan and time the move with each method; keep the fastest within the tolerances."""
     results: list[tuple[PlannedMove, TimedMove]] = []
     failures: list[tuple[str, PlanningError]] = []
@@ -130,7 +133,7 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
             break  # nothing to cross: every method gives this same motion
         try:
             pm = _plan_move(robot, task, i, move, T, q, method)
-            tm = time_move(pm.jmap, pm.limits, task.period_s, i)
+            tm = time_move(pm.jmap, pm.limits, task.period_s, i, max_samples)
             _check_config(robot, i, move, tm.q)
             _check_tolerances(robot, task, pm, tm)
         except PlanningError as exc:
@@ -393,6 +396,7 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     robot = load_task_robot(task)
     thresholds = thresholds_si(task.singularity.zone)
     q = _start_joints(task, robot)
+    check_task(task, robot, q, STEP_M, STEP_RAD, timed=False)  # before any path is sampled
     T = robot.fk(q)
     out = []
     for i, move in enumerate(task.moves):

@@ -25,6 +25,9 @@ from numpy.typing import ArrayLike
 from singplan.robot import Robot
 from singplan.trajectory import Trajectory
 
+_PLOT_BUCKETS = 2000  # a curve longer than two points a bucket is drawn as its min/max envelope
+_CHUNK = 65_536  # samples whose TCP positions are formed at once (a list of arrays: ~150 bytes each)
+
 _STYLE = """body{font-family:system-ui,sans-serif;margin:2em;max-width:1100px;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}
 th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}h2{margin-top:1.6em}
@@ -44,6 +47,25 @@ def _svg(draw: Callable[[plt.Figure], None], height: float = 3.0) -> str:
     return text[text.index("<svg"):]
 
 
+def _envelope(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The curve to draw: y itself, or for long series the min and max of each of
+    ``_PLOT_BUCKETS`` buckets, so that an SVG of a million samples stays small and no peak
+    (a speed or deviation spike) is lost."""
+    if len(y) <= 2 * _PLOT_BUCKETS:
+        return x, y
+    starts = np.linspace(0, len(y), _PLOT_BUCKETS + 1).astype(int)[:-1]
+    low, high = np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts)
+    return np.repeat(x[starts], 2), np.column_stack([low, high]).ravel()
+
+
+def _tcp_positions(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """TCP positions (K, 3) [m], formed a chunk at a time."""
+    out = np.empty((len(q), 3))
+    for c in range(0, len(q), _CHUNK):
+        out[c:c + _CHUNK] = robot.tcp_positions(q[c:c + _CHUNK])
+    return out
+
+
 def _shade(ax: Any, traj: Trajectory) -> None:
     for s in traj.segments:
         if s.kind == "crossing":
@@ -56,7 +78,7 @@ def _joints(traj: Trajectory, robot: Robot) -> Callable[[plt.Figure], None]:
         for j in range(n):
             ax = fig.add_subplot(2, math.ceil(n / 2), j + 1)
             _shade(ax, traj)
-            ax.plot(traj.t, np.degrees(traj.q[:, j]), lw=1.2)
+            ax.plot(*_envelope(traj.t, np.degrees(traj.q[:, j])), lw=1.2)
             for limit in (robot.lower_rad[j], robot.upper_rad[j]):
                 ax.axhline(math.degrees(limit), color="r", ls="--", lw=0.8)
             ax.set_title(traj.joint_names[j], fontsize=9)
@@ -68,9 +90,9 @@ def _speed_ratio(traj: Trajectory, vmax: np.ndarray) -> Callable[[plt.Figure], N
     def draw(fig: plt.Figure) -> None:
         ax = fig.add_subplot(1, 1, 1)
         _shade(ax, traj)
-        qd = np.diff(traj.q, axis=0) / traj.period
         for j, name in enumerate(traj.joint_names):
-            ax.plot(traj.t[1:], np.abs(qd[:, j]) / vmax[j], lw=1, label=name)
+            ratio = np.abs(np.diff(traj.q[:, j])) / traj.period / vmax[j]
+            ax.plot(*_envelope(traj.t[1:], ratio), lw=1, label=name)
         ax.axhline(1.0, color="r", ls="--", lw=0.8)
         ax.set_xlabel("t [s]")
         ax.set_ylabel("|qd| / limit")
@@ -100,7 +122,7 @@ def _distances(traj: Trajectory, thresholds: list[float], s_mm: np.ndarray) -> C
         for k, (label, values, thr) in enumerate(series):
             ax = fig.add_subplot(1, 3, k + 1)
             _shade(ax, traj)
-            ax.plot(traj.t, values, lw=1.2)
+            ax.plot(*_envelope(traj.t, values), lw=1.2)
             for sign in (-1, 1):
                 ax.axhline(sign * thr, color="r", ls="--", lw=0.8)
             ax.axhline(0, color="k", lw=0.5)
@@ -118,7 +140,7 @@ def _deviation(traj: Trajectory, pos_tol_mm: float, ori_tol_deg: float,
                 ("orientation deviation [deg]", np.degrees(traj.samples["orientation_error_rad"]), ori_tol_deg))):
             ax = fig.add_subplot(1, 2, k + 1)
             _shade(ax, traj)
-            ax.plot(traj.t, values, lw=1.2)
+            ax.plot(*_envelope(traj.t, values), lw=1.2)
             ax.axhline(tol, color="r", ls="--", lw=0.8)
             ax.set_title(label, fontsize=9)
             ax.set_xlabel("t [s]", fontsize=8)
@@ -133,7 +155,7 @@ def _tcp_speed(traj: Trajectory, step_m: np.ndarray) -> Callable[[plt.Figure], N
     def draw(fig: plt.Figure) -> None:
         ax = fig.add_subplot(1, 1, 1)
         _shade(ax, traj)
-        ax.plot(traj.t[1:], speed, lw=1.2, label="TCP speed")
+        ax.plot(*_envelope(traj.t[1:], speed), lw=1.2, label="TCP speed")
         for i, move in enumerate(moves):
             kind, spec = next(iter(move.items()))
             segs = [s for s in traj.segments if s.move == i]
@@ -175,7 +197,7 @@ def report_html(traj: Trajectory, robot: Robot) -> str:
     sing = traj.task.get("singularity", {})
     zone = sing.get("zone", {})
     vmax = robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", 1.0))
-    tcp = robot.tcp_positions(traj.q)  # (K, 3)
+    tcp = _tcp_positions(robot, traj.q)  # (K, 3)
     step_m = np.linalg.norm(np.diff(tcp, axis=0), axis=1)  # (K - 1,)
     s_mm = np.concatenate([[0.0], np.cumsum(step_m)]) * 1e3  # (K,)
     figures = [

@@ -26,7 +26,8 @@ import toppra as ta
 import toppra.algorithm as ta_algo
 import toppra.constraint as ta_constraint
 
-from singplan.errors import PlanningError, TaskError
+from singplan.budget import check_move_samples
+from singplan.errors import PlanningError
 from singplan.jointmap import JointMap
 from singplan.task import MAX_OUTPUT_SAMPLES
 
@@ -129,12 +130,10 @@ def _grid(u: np.ndarray) -> np.ndarray:
     return np.unique(np.concatenate([u, *extra])) if extra else u
 
 
-def _sample(profile: _Profile, period_s: float, move_index: int) -> tuple[np.ndarray, float]:
+def _sample(profile: _Profile, period_s: float, move_index: int, max_samples: int) -> tuple[np.ndarray, float]:
     duration = float(profile.t_nodes[-1])
     count = max(1, math.ceil(duration / period_s - 1e-9))
-    if count > MAX_OUTPUT_SAMPLES:
-        raise TaskError("output.period", f"move {move_index} lasts {duration:.1f} s: {count} samples at "
-                                         f"{period_s} s is over the cap of {MAX_OUTPUT_SAMPLES}")
+    check_move_samples(move_index, count, max_samples, duration, period_s)  # before the samples are allocated
     stretch = count * period_s / duration if duration > 0 else 1.0
     t = np.arange(count + 1) * period_s / stretch
     u = np.maximum.accumulate(np.clip(profile.u_at(t), 0.0, 1.0))
@@ -152,13 +151,17 @@ def sample_ratios(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.nda
     return speed, accel
 
 
-def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int) -> TimedMove:
-    """Fastest uniform sampling of the move within the limits, every sample on the path."""
+def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int,
+              max_samples: int = MAX_OUTPUT_SAMPLES) -> TimedMove:
+    """Fastest uniform sampling of the move within the limits, every sample on the path.
+
+    ``max_samples``: what is left of the task's allowance of output samples (bad input if over).
+    """
     u_ref, q_ref = _reference(jmap)
     scale_v = scale_a = 1.0
     for _ in range(_TIGHTEN_PASSES):
         profile = _toppra_profile(u_ref, q_ref, limits, scale_v, scale_a, move_index)
-        u, duration = _sample(profile, period_s, move_index)
+        u, duration = _sample(profile, period_s, move_index, max_samples)
         q = jmap.evaluate(u)
         speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
         tcp = _tcp_ratio(u, limits, period_s)

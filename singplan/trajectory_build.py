@@ -32,7 +32,7 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
     q = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
     t = np.arange(len(q)) * period
     distances = distances_batch(robot, q)  # (K, 3)
-    labels = labels_from_distances(distances)
+    labels = _Labels(distances)
     segments: list[Segment] = []
     events: list[Event] = []
     crossings: list[dict[str, Any]] = []
@@ -53,9 +53,9 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
                           "config_before": s.config_before, "config_after": s.config_after, **s.details}
                          for s in segs if s.kind == "crossing")
         k0 = k1
-    qd, qdd = finite_differences(q, period)
-    speed, accel = sample_ratios(q, period, robot.velocity_rad_s * task.limits.velocity_scale,
-                                 robot.acceleration_rad_s2)
+    speed, accel = _chunked_ratios(q, period, robot.velocity_rad_s * task.limits.velocity_scale,
+                                   robot.acceleration_rad_s2)
+    qd, qdd = _chunked_differences(q, period)
     metrics = {"max_position_error_mm": worst_pos * 1e3, "max_orientation_error_deg": math.degrees(worst_ori),
                "max_joint_speed_ratio": speed, "max_joint_accel_ratio": accel, "duration_s": float(t[-1]),
                "planning_time_s": planning_time_s, "samples": len(t), "method": task.singularity.method,
@@ -67,17 +67,60 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
                       period, t, q, qd, qdd, tuple(segments), tuple(events), metrics, samples)
 
 
+_CHUNK = 65_536  # programmed poses formed at once (128 bytes a sample)
+
+
+class _Labels:
+    """Configuration labels of the samples, kept as one sign code per sample.
+
+    A list of a million label strings takes ~60 MB; the codes take 1 MB and give the same
+    labels (those of :func:`labels_from_distances`) where they are asked for.
+    """
+
+    def __init__(self, distances: np.ndarray) -> None:
+        signs = distances >= 0  # NaN counts as negative, as in labels_from_distances
+        self.codes = (signs[:, 0] * 1 + signs[:, 1] * 2 + signs[:, 2] * 4).astype(np.int8)
+        rows = np.array([[bit & 1, bit & 2, bit & 4] for bit in range(8)], dtype=float) - 0.5
+        self.table = labels_from_distances(rows)
+
+    def __getitem__(self, k: int) -> str:
+        return self.table[self.codes[k]]
+
+    def changes(self, k0: int, k1: int) -> np.ndarray:
+        """Samples k in (k0, k1] whose label differs from sample k - 1's."""
+        return k0 + 1 + np.nonzero(self.codes[k0 + 1:k1 + 1] != self.codes[k0:k1])[0]
+
+
+def _chunked_ratios(q: np.ndarray, period: float, vmax: np.ndarray, amax: np.ndarray) -> tuple[float, float]:
+    """:func:`sample_ratios` of all samples, a chunk at a time (its temporaries take ~150 bytes a
+    sample); chunks overlap by the two samples a second difference spans, so the maxima are exact."""
+    ratios = [sample_ratios(q[c:c + _CHUNK + 2], period, vmax, amax) for c in range(0, max(len(q) - 2, 1), _CHUNK)]
+    return max(r[0] for r in ratios), max(r[1] for r in ratios)
+
+
+def _chunked_differences(q: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`finite_differences` written into whole arrays a chunk at a time (same values: the
+    central differences of a chunk overlapping its neighbours by one sample)."""
+    qd, qdd = np.zeros_like(q), np.zeros_like(q)
+    for c in range(1, len(q) - 1, _CHUNK):
+        end = min(c + _CHUNK, len(q) - 1)  # interior samples c .. end - 1
+        part_qd, part_qdd = finite_differences(q[c - 1:end + 1], period)
+        qd[c:end], qdd[c:end] = part_qd[1:-1], part_qdd[1:-1]
+    return qd, qdd
+
+
 def sample_deviations(robot: Robot, piece: CartesianPiece | None, u: np.ndarray,
                       q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Position [m] and orientation [rad] error of each sample q (K, n) against the path at its u."""
     if piece is None:
         return np.zeros(len(q)), np.zeros(len(q))
-    want = piece.poses(u)
     pos, ori = np.empty(len(q)), np.empty(len(q))
-    for k, qk in enumerate(q):
-        T = robot.fk(qk)
-        pos[k] = float(np.linalg.norm(T.translation - want[k, :3, 3]))
-        ori[k] = rotation_angle(T.rotation, want[k, :3, :3])
+    for c in range(0, len(q), _CHUNK):
+        want = piece.poses(u[c:c + _CHUNK])
+        for k, qk in enumerate(q[c:c + _CHUNK]):
+            T = robot.fk(qk)
+            pos[c + k] = float(np.linalg.norm(T.translation - want[k, :3, 3]))
+            ori[c + k] = rotation_angle(T.rotation, want[k, :3, :3])
     return pos, ori
 
 
@@ -101,7 +144,7 @@ def _merged_spans(pm: PlannedMove, tm: TimedMove) -> list[tuple[int, int, list[Z
     return spans
 
 
-def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float, labels: list[str],
+def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float, labels: _Labels,
                    pos_err: np.ndarray, ori_err: np.ndarray) -> list[Segment]:
     def seg(kind: str, a: int, b: int, **extra: Any) -> Segment:
         return Segment(pm.index, kind, (k0 + a) * period, (k0 + b) * period, labels[k0 + a], labels[k0 + b], **extra)
@@ -148,13 +191,12 @@ def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone
 
 
 def _move_events(pm: PlannedMove, segs: list[Segment], k0: int, k1: int, period: float,
-                 labels: list[str]) -> list[Event]:
+                 labels: _Labels) -> list[Event]:
     events = []
     for s in segs:
         if s.kind == "crossing":
             events.append(Event(s.t0, pm.index, "zone_entry", {"singularity": s.singularity}))
             events.append(Event(s.t1, pm.index, "zone_exit", {"singularity": s.singularity}))
-    for k in range(k0 + 1, k1 + 1):
-        if labels[k] != labels[k - 1]:
-            events.append(Event(k * period, pm.index, "config_change", {"from": labels[k - 1], "to": labels[k]}))
+    for k in labels.changes(k0, k1).tolist():
+        events.append(Event(k * period, pm.index, "config_change", {"from": labels[k - 1], "to": labels[k]}))
     return sorted(events, key=lambda e: e.t)

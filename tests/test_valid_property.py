@@ -5,8 +5,8 @@ The tasks come from tests/task_strategies.py (every bundled arm, LIN / CIRC / PT
 The checker is ../shared/verify/verify_trajectory.py, which shares no code with singplan; it sits
 next to the project in development and CI, so without it these tests skip, except under CI=true.
 
-The default run is a few derandomized examples. The soak runs only when asked for, with the
-number of examples: ``SINGPLAN_SOAK_EXAMPLES=300 python -m pytest -m soak tests/test_valid_property.py``.
+The default run is a few derandomized examples. The soak (marker ``soak``, deselected by default, run by
+CI) plans ``SINGPLAN_SOAK_EXAMPLES`` tasks (default 300): ``python -m pytest -q -m soak``.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from tests.task_strategies import valid_tasks
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 VERIFY = SHARED / "verify" / "verify_trajectory.py"
 DEFAULT_EXAMPLES = 12
-SOAK_EXAMPLES = int(os.environ.get("SINGPLAN_SOAK_EXAMPLES", "0"))
+SOAK_EXAMPLES = int(os.environ.get("SINGPLAN_SOAK_EXAMPLES", "300"))
 MOVE_NAMED = re.compile(r"\bmove \d+")
 # a point on the path: arc length, a position, a sample or a time
 POINT_NAMED = re.compile(r"s = -?\d[\d.]* mm|xyz|sample \d+|t = \d[\d.]* ?s")
@@ -82,7 +82,6 @@ def test_a_random_valid_task_plans_and_passes_the_checker_or_is_refused_with_mov
 
 
 @pytest.mark.soak
-@pytest.mark.skipif(SOAK_EXAMPLES <= 0, reason="soak: set SINGPLAN_SOAK_EXAMPLES to the number of tasks")
 @settings(max_examples=max(SOAK_EXAMPLES, 1), derandomize=True, deadline=None, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(task=valid_tasks())

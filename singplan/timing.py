@@ -37,6 +37,7 @@ _UNLIMITED = 1e9
 _TIGHTEN_PASSES = 8
 _SPEED_MARGIN = 0.999  # ratios the samples must stay under
 _ACCEL_MARGIN = 0.995
+_END_STEP_MARGIN = 1.0  # end steps may reach the continuous-time bound exactly (see end_step_ratio)
 _TCP_MARGIN = 0.999
 _DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
@@ -152,6 +153,21 @@ def sample_ratios(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.nda
     return speed, accel
 
 
+def end_step_ratio(q: np.ndarray, period_s: float, amax: np.ndarray) -> float:
+    """Largest first or last step of samples q (K+1, n) over amax * period^2 / 2.
+
+    A move starts and ends at rest; from rest, an acceleration within amax covers at most
+    amax * period^2 / 2 in one period. Keeping both end steps under that bound keeps the second
+    difference across any seam (the end of one move, the start of the next, both at rest on the
+    shared sample) within amax whatever the neighbouring move does, and each end "at rest" as
+    the checker defines it (a step no longer than amax * period^2).
+    """
+    if len(q) < 2:
+        return 0.0
+    steps = np.maximum(np.abs(q[1] - q[0]), np.abs(q[-1] - q[-2]))
+    return float(np.max(2.0 * steps / (amax * period_s**2)))
+
+
 def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int) -> TimedMove:
     """Fastest uniform sampling of the move within the limits, every sample on the path."""
     u_ref, q_ref = _reference(jmap)
@@ -163,7 +179,8 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
         speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
         tcp = _tcp_ratio(u, limits, period_s)
         worst_v = max(speed, tcp) / _SPEED_MARGIN
-        worst_a = accel / _ACCEL_MARGIN
+        worst_a = max(accel / _ACCEL_MARGIN,
+                      end_step_ratio(q, period_s, limits.acceleration_rad_s2) / _END_STEP_MARGIN)
         if worst_v <= 1.0 and worst_a <= 1.0:
             return TimedMove(u, q, duration, speed, accel)
         if worst_v > _DISCONTINUOUS or worst_a > _DISCONTINUOUS:

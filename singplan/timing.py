@@ -42,6 +42,20 @@ _TCP_MARGIN = 0.999
 _DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
 
+class TimingError(PlanningError):
+    """A move cannot be timed within the limits; ``u`` is the path parameter where (None: unknown).
+
+    The planner names the move's kind and turns ``u`` into a point on the path.
+    """
+
+    def __init__(self, move: int, u: float | None, reason: str) -> None:
+        self.move = move
+        self.u = u
+        self.reason = reason
+        where = f" at u = {u:.6f}" if u is not None else ""
+        super().__init__(f"move {move}: {reason}{where}")
+
+
 @dataclass(frozen=True)
 class TimedMove:
     """A move sampled at the controller period.
@@ -72,6 +86,13 @@ class MoveLimits:
 
 def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
     u, q = jmap.reference()
+    # Where a move starts or ends on a reach boundary (a stretched elbow) a joint goes as the
+    # square root of the distance to the end: its path derivative grows without bound there. Points
+    # graded toward both ends let the spline and TOPP-RA's grid see it, so the move still stops
+    # with every joint at rest instead of the elbow arriving at speed.
+    ends = 10.0 ** -np.arange(3.0, 10.0)
+    u = np.unique(np.concatenate([u, ends, 1.0 - ends]))
+    q = jmap.evaluate(u)
     keep = np.concatenate([[True], np.diff(u) > 1e-12])
     u, q = u[keep], q[keep]
     if len(u) < 4:  # a spline needs a few points; add interior ones (straight PTP lines)
@@ -102,23 +123,48 @@ class _Profile:
         return np.minimum(self.grid[i] + self.sd[i] * tau + 0.5 * sdd[i] * tau**2, self.grid[i + 1])
 
 
+def path_scale(u: np.ndarray, q: np.ndarray, limits: MoveLimits) -> float:
+    """The length of the path coordinate handed to TOPP-RA: the largest travel of any joint [rad]
+    or of the TCP [m] over the move, so that the path's derivatives are of order one.
+
+    TOPP-RA works in the squared path speed with absolute tolerances; along u in [0, 1] a 10 um
+    LIN or a 1e-4 deg PTP has derivatives of 1e-6 and path speeds of 1e4 / s, whose squares
+    defeat those tolerances ("not controllable"). Scaling u by the travel is exact otherwise.
+    """
+    travel = float(np.max(np.sum(np.abs(np.diff(q, axis=0)), axis=0), initial=0.0))
+    return max(travel, limits.length_m)
+
+
 def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale_v: float, scale_a: float,
                     move_index: int) -> _Profile:
-    arc_scale = limits.length_m if limits.length_m > 0 else 1.0
-    waypoints = np.hstack([q, (u * arc_scale)[:, None]])
-    path = ta.SplineInterpolator(u, waypoints)
+    length = path_scale(u, q, limits)
+    x = u * length  # TOPP-RA's path coordinate
+    # the TCP's arc length as one more coordinate, capped at the programmed speed (d arc / dx <= 1)
+    waypoints = np.hstack([q, (u * (limits.length_m if limits.length_m > 0 else length))[:, None]])
+    path = ta.SplineInterpolator(x, waypoints)
     vmax = np.append(limits.velocity_rad_s * scale_v,
                      limits.tcp_speed_m_s * scale_v if limits.tcp_speed_m_s and limits.length_m > 0 else _UNLIMITED)
     amax = np.append(limits.acceleration_rad_s2 * scale_a, _UNLIMITED)
     constraints = [ta_constraint.JointVelocityConstraint(np.stack([-vmax, vmax], axis=1)),
                    ta_constraint.JointAccelerationConstraint(np.stack([-amax, amax], axis=1))]
-    instance = ta_algo.TOPPRA(constraints, path, gridpoints=_grid(u))
+    instance = ta_algo.TOPPRA(constraints, path, gridpoints=_grid(u) * length)
     instance.compute_parameterization(0.0, 0.0)
     data = instance.problem_data
     if data.return_code != ta_algo.ParameterizationReturnCode.Ok or data.sd_vec is None:
-        raise PlanningError(f"move {move_index}: TOPP-RA found no feasible time-parameterisation "
-                            f"({data.return_code}; joint limits too tight for the path)")
-    return _Profile(np.asarray(data.gridpoints, dtype=float), np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0))
+        raise TimingError(move_index, _infeasible_at(data, length),
+                          f"TOPP-RA found no feasible time-parameterisation ({data.return_code.value}; the "
+                          f"joint velocity and acceleration limits cannot hold the path there)")
+    return _Profile(np.asarray(data.gridpoints, dtype=float) / length,
+                    np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0) / length)
+
+
+def _infeasible_at(data: ta_algo.ParameterizationData, length: float) -> float | None:
+    """The path parameter u where TOPP-RA's controllable set first empties (backward pass), if known."""
+    if data.K is None or data.gridpoints is None:
+        return None
+    sets = np.asarray(data.K, dtype=float)
+    empty = np.flatnonzero(~(sets[:, 1] >= sets[:, 0]))  # also NaN
+    return float(np.asarray(data.gridpoints)[empty[-1]] / length) if len(empty) else None
 
 
 def _grid(u: np.ndarray) -> np.ndarray:
@@ -171,6 +217,9 @@ def end_step_ratio(q: np.ndarray, period_s: float, amax: np.ndarray) -> float:
 def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int) -> TimedMove:
     """Fastest uniform sampling of the move within the limits, every sample on the path."""
     u_ref, q_ref = _reference(jmap)
+    if path_scale(u_ref, q_ref, limits) == 0.0:
+        logger.info("move %d changes nothing: one period at rest", move_index)
+        return TimedMove(np.array([0.0, 1.0]), q_ref[[0, -1]], period_s, 0.0, 0.0)
     scale_v = scale_a = 1.0
     for _ in range(_TIGHTEN_PASSES):
         profile = _toppra_profile(u_ref, q_ref, limits, scale_v, scale_a, move_index)
@@ -188,8 +237,21 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
         logger.debug("move %d: samples at x%.4f speed, x%.4f accel; tightening", move_index, speed, accel)
         scale_v *= min(1.0, 1.0 / worst_v) * (0.998 if worst_v > 1.0 else 1.0)
         scale_a *= min(1.0, 1.0 / worst_a) * (0.995 if worst_a > 1.0 else 1.0)
-    raise PlanningError(f"move {move_index}: could not keep the joint limits on the output samples "
-                        f"(speed x{speed:.3f}, acceleration x{accel:.3f} after tightening)")
+    ends = end_step_ratio(q, period_s, limits.acceleration_rad_s2)
+    raise TimingError(move_index, float(u[_worst_sample(q, period_s, limits)]),
+                      f"could not keep the joint limits on the output samples (speed x{speed:.3f}, "
+                      f"acceleration x{accel:.3f}, end steps x{ends:.3f} after tightening)")
+
+
+def _worst_sample(q: np.ndarray, period_s: float, limits: MoveLimits) -> int:
+    """The sample where speed or acceleration (end steps included) is furthest over its limit."""
+    padded = np.concatenate([q[:1], q, q[-1:]])  # at rest before and after
+    qd = np.diff(padded, axis=0) / period_s
+    speed = np.max(np.abs(qd) / limits.velocity_rad_s, axis=1)  # step k -> k+1 of padded
+    accel = np.max(np.abs(np.diff(qd, axis=0)) / period_s / limits.acceleration_rad_s2, axis=1)  # at q[k]
+    accel[[0, -1]] *= 2.0  # an end step's bound is amax * period^2 / 2 (end_step_ratio)
+    over = np.maximum(accel, np.maximum(speed[:-1], speed[1:]))
+    return int(np.argmax(over))
 
 
 def _tcp_ratio(u: np.ndarray, limits: MoveLimits, period_s: float) -> float:

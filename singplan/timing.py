@@ -39,6 +39,7 @@ _SPEED_MARGIN = 0.999  # ratios the samples must stay under
 _ACCEL_MARGIN = 0.995
 _END_STEP_MARGIN = 1.0  # end steps may reach the continuous-time bound exactly (see end_step_ratio)
 _TCP_MARGIN = 0.999
+_FINEST_STEP = 1e-9  # the finest grid step [rad or m of travel] TOPP-RA is handed
 _DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
 
@@ -48,12 +49,12 @@ class TimingError(PlanningError):
     The planner names the move's kind and turns ``u`` into a point on the path.
     """
 
-    def __init__(self, move: int, u: float | None, reason: str) -> None:
+    def __init__(self, move: int, u: float | None, reason: str, kind: str = "", where: str = "") -> None:
         self.move = move
         self.u = u
         self.reason = reason
-        where = f" at u = {u:.6f}" if u is not None else ""
-        super().__init__(f"move {move}: {reason}{where}")
+        where = where or (f"u = {u:.6f} along the move" if u is not None else "")
+        super().__init__(f"move {move}{f' ({kind})' if kind else ''}: {reason}{f' at {where}' if where else ''}")
 
 
 @dataclass(frozen=True)
@@ -84,13 +85,14 @@ class MoveLimits:
     tcp_speed_m_s: float | None
 
 
-def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
+def _reference(jmap: JointMap, limits: MoveLimits) -> tuple[np.ndarray, np.ndarray]:
     u, q = jmap.reference()
     # Where a move starts or ends on a reach boundary (a stretched elbow) a joint goes as the
     # square root of the distance to the end: its path derivative grows without bound there. Points
     # graded toward both ends let the spline and TOPP-RA's grid see it, so the move still stops
     # with every joint at rest instead of the elbow arriving at speed.
     ends = 10.0 ** -np.arange(3.0, 10.0)
+    ends = ends[ends * path_scale(u, q, limits) >= _FINEST_STEP]  # a tiny move needs none
     u = np.unique(np.concatenate([u, ends, 1.0 - ends]))
     q = jmap.evaluate(u)
     keep = np.concatenate([[True], np.diff(u) > 1e-12])
@@ -216,7 +218,7 @@ def end_step_ratio(q: np.ndarray, period_s: float, amax: np.ndarray) -> float:
 
 def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int) -> TimedMove:
     """Fastest uniform sampling of the move within the limits, every sample on the path."""
-    u_ref, q_ref = _reference(jmap)
+    u_ref, q_ref = _reference(jmap, limits)
     if path_scale(u_ref, q_ref, limits) == 0.0:
         logger.info("move %d changes nothing: one period at rest", move_index)
         return TimedMove(np.array([0.0, 1.0]), q_ref[[0, -1]], period_s, 0.0, 0.0)

@@ -182,7 +182,7 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
         try:
             pm = _plan_move(robot, task, i, move, T, q, method)
             tm = _timed(robot, pm, task.period_s)
-            _check_config(robot, i, move, tm.q)
+            _check_config(robot, move, pm, tm)
             _check_tolerances(robot, task, pm, tm)
         except PlanningError as exc:
             failures.append((method.name, exc))

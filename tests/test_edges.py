@@ -30,7 +30,7 @@ def _at_rest_everywhere_it_should(traj, amax: float) -> None:
     for t in sorted({s.t0 for s in traj.segments if s.kind in ("path", "pre", "ptp")} | {traj.t[-1]}):
         k = round(t / traj.period)
         for a, b in ((k - 1, k), (k, k + 1)):
-            if 0 <= a and b < len(traj.q):
+            if a >= 0 and b < len(traj.q):
                 assert np.all(np.abs(traj.q[b] - traj.q[a]) <= amax * traj.period**2 * (1 + 1e-9))
 
 
@@ -72,7 +72,7 @@ def test_a_ur5_lin_ending_at_full_reach_stops_there() -> None:
 def test_tiny_moves_plan(move) -> None:
     q0 = np.radians([0, 10, 20, 0, 30, 0])
     if "lin" in move:
-        move = {"lin": {"to": {"xyz": (load_robot("abb_irb2400").fk(q0).translation + [1e-5, 0, 0]).tolist()},
+        move = {"lin": {"to": {"xyz": (load_robot("abb_irb2400").fk(q0).translation + np.array([1e-5, 0, 0])).tolist()},
                         "speed": 0.25}}
     traj = plan(parse_task({"robot": "abb_irb2400", "start": {"joints_deg": [0, 10, 20, 0, 30, 0]},
                             "moves": [move]}))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -92,7 +93,7 @@ def _ur_shoulder_q(robot, q):
         return robot.data.oMi[1].actInv(robot.data.oMi[6].translation)[0]
 
     grid = np.linspace(-3, 3, 61)
-    for a, b in zip(grid[:-1], grid[1:], strict=True):
+    for a, b in itertools.pairwise(grid):
         if x1(a) * x1(b) < 0:
             out = np.array(q, dtype=float)
             out[1] = brentq(x1, a, b, xtol=1e-15)

@@ -12,6 +12,8 @@ periods by slowing the profile uniformly. Each sample's joints come from the joi
 ``evaluate(u)`` (exact IK, or the crossing's definition), never from the spline, so every
 sample is on the path. Limits are then checked on the samples with the same finite
 differences a checker uses, and the profile is tightened where TOPP-RA's grid let them slip.
+Both end steps are held within amax * period^2 / 2 (a start from rest, an arrival at rest), so
+a seam between two moves stays within the acceleration limit whatever its neighbours do.
 """
 
 from __future__ import annotations
@@ -39,7 +41,6 @@ _SPEED_MARGIN = 0.999  # ratios the samples must stay under
 _ACCEL_MARGIN = 0.995
 _END_STEP_MARGIN = 1.0  # end steps may reach the continuous-time bound exactly (see end_step_ratio)
 _TCP_MARGIN = 0.999
-_FINEST_STEP = 1e-9  # the finest grid step [rad or m of travel] TOPP-RA is handed
 _DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
 
@@ -92,7 +93,6 @@ def _reference(jmap: JointMap, limits: MoveLimits) -> tuple[np.ndarray, np.ndarr
     # graded toward both ends let the spline and TOPP-RA's grid see it, so the move still stops
     # with every joint at rest instead of the elbow arriving at speed.
     ends = 10.0 ** -np.arange(3.0, 10.0)
-    ends = ends[ends * path_scale(u, q, limits) >= _FINEST_STEP]  # a tiny move needs none
     u = np.unique(np.concatenate([u, ends, 1.0 - ends]))
     q = jmap.evaluate(u)
     keep = np.concatenate([[True], np.diff(u) > 1e-12])
@@ -126,47 +126,51 @@ class _Profile:
 
 
 def path_scale(u: np.ndarray, q: np.ndarray, limits: MoveLimits) -> float:
-    """The length of the path coordinate handed to TOPP-RA: the largest travel of any joint [rad]
-    or of the TCP [m] over the move, so that the path's derivatives are of order one.
-
-    TOPP-RA works in the squared path speed with absolute tolerances; along u in [0, 1] a 10 um
-    LIN or a 1e-4 deg PTP has derivatives of 1e-6 and path speeds of 1e4 / s, whose squares
-    defeat those tolerances ("not controllable"). Scaling u by the travel is exact otherwise.
-    """
+    """The move's size: the largest travel of any joint [rad] or of the TCP [m] along it."""
     travel = float(np.max(np.sum(np.abs(np.diff(q, axis=0)), axis=0), initial=0.0))
     return max(travel, limits.length_m)
 
 
 def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale_v: float, scale_a: float,
                     move_index: int) -> _Profile:
+    """TOPP-RA on the move made dimensionless.
+
+    TOPP-RA works in the squared path speed with absolute tolerances. Along u in [0, 1] a 10 um
+    LIN has path derivatives of 1e-6 and path speeds of 1e4 / s, whose squares defeat those
+    tolerances ("not controllable"). So the joints (and the TCP's arc length) are divided by
+    the move's size L and time by ``tau = sqrt(L / a)``, the time the slowest-accelerating joint
+    needs to cover L: derivatives, path speeds and the duration are then all of order one
+    whatever the size of the move, and the result is exact in the original units.
+    """
     length = path_scale(u, q, limits)
-    x = u * length  # TOPP-RA's path coordinate
-    # the TCP's arc length as one more coordinate, capped at the programmed speed (d arc / dx <= 1)
-    waypoints = np.hstack([q, (u * (limits.length_m if limits.length_m > 0 else length))[:, None]])
-    path = ta.SplineInterpolator(x, waypoints)
+    amax = limits.acceleration_rad_s2 * scale_a
+    tau = math.sqrt(length / float(np.min(amax)))
+    arc = u * (limits.length_m if limits.length_m > 0 else length)  # the TCP's arc length, capped at its speed
+    path = ta.SplineInterpolator(u, np.hstack([q - q[0], arc[:, None]]) / length)  # from 0: no digits lost
     vmax = np.append(limits.velocity_rad_s * scale_v,
                      limits.tcp_speed_m_s * scale_v if limits.tcp_speed_m_s and limits.length_m > 0 else _UNLIMITED)
-    amax = np.append(limits.acceleration_rad_s2 * scale_a, _UNLIMITED)
-    constraints = [ta_constraint.JointVelocityConstraint(np.stack([-vmax, vmax], axis=1)),
-                   ta_constraint.JointAccelerationConstraint(np.stack([-amax, amax], axis=1))]
-    instance = ta_algo.TOPPRA(constraints, path, gridpoints=_grid(u) * length)
+    vmax_1 = np.minimum(vmax * tau / length, _UNLIMITED)
+    amax_1 = np.append(amax * tau**2 / length, _UNLIMITED)
+    constraints = [ta_constraint.JointVelocityConstraint(np.stack([-vmax_1, vmax_1], axis=1)),
+                   ta_constraint.JointAccelerationConstraint(np.stack([-amax_1, amax_1], axis=1))]
+    instance = ta_algo.TOPPRA(constraints, path, gridpoints=_grid(u))
     instance.compute_parameterization(0.0, 0.0)
     data = instance.problem_data
     if data.return_code != ta_algo.ParameterizationReturnCode.Ok or data.sd_vec is None:
-        raise TimingError(move_index, _infeasible_at(data, length),
+        raise TimingError(move_index, _infeasible_at(data),
                           f"TOPP-RA found no feasible time-parameterisation ({data.return_code.value}; the "
                           f"joint velocity and acceleration limits cannot hold the path there)")
-    return _Profile(np.asarray(data.gridpoints, dtype=float) / length,
-                    np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0) / length)
+    sd = np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0) / tau  # du/dt in real time
+    return _Profile(np.asarray(data.gridpoints, dtype=float), sd)
 
 
-def _infeasible_at(data: ta_algo.ParameterizationData, length: float) -> float | None:
+def _infeasible_at(data: ta_algo.ParameterizationData) -> float | None:
     """The path parameter u where TOPP-RA's controllable set first empties (backward pass), if known."""
     if data.K is None or data.gridpoints is None:
         return None
     sets = np.asarray(data.K, dtype=float)
     empty = np.flatnonzero(~(sets[:, 1] >= sets[:, 0]))  # also NaN
-    return float(np.asarray(data.gridpoints)[empty[-1]] / length) if len(empty) else None
+    return float(np.asarray(data.gridpoints)[empty[-1]]) if len(empty) else None
 
 
 def _grid(u: np.ndarray) -> np.ndarray:
@@ -219,6 +223,9 @@ def end_step_ratio(q: np.ndarray, period_s: float, amax: np.ndarray) -> float:
 def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int) -> TimedMove:
     """Fastest uniform sampling of the move within the limits, every sample on the path."""
     u_ref, q_ref = _reference(jmap, limits)
+    missing = np.flatnonzero(~np.all(np.isfinite(q_ref), axis=1))
+    if len(missing):  # a joint map without IK somewhere: never hand NaN to TOPP-RA
+        raise TimingError(move_index, float(u_ref[missing[0]]), "no joint values (no inverse kinematics solution)")
     if path_scale(u_ref, q_ref, limits) == 0.0:
         logger.info("move %d changes nothing: one period at rest", move_index)
         return TimedMove(np.array([0.0, 1.0]), q_ref[[0, -1]], period_s, 0.0, 0.0)

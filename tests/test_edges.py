@@ -65,15 +65,16 @@ def test_a_ur5_lin_ending_at_full_reach_stops_there() -> None:
 
 
 @pytest.mark.parametrize("move", [
-    {"lin": {"to": {"xyz": "SHIFT"}, "speed": 0.25}},
+    {"lin": {"to": {"xyz": 1e-5}, "speed": 0.25}},
+    {"lin": {"to": {"xyz": 1e-9}, "speed": 0.25}},
     {"ptp": {"to": {"joints_deg": [1e-4, 10, 20, 0, 30, 0]}}},
     {"ptp": {"to": {"joints_deg": [0, 10, 20, 0, 30, 0]}}},  # changes nothing: rest samples
-], ids=["lin-10um", "ptp-1e-4deg", "ptp-nothing"])
+], ids=["lin-10um", "lin-1nm", "ptp-1e-4deg", "ptp-nothing"])
 def test_tiny_moves_plan(move) -> None:
     q0 = np.radians([0, 10, 20, 0, 30, 0])
     if "lin" in move:
-        move = {"lin": {"to": {"xyz": (load_robot("abb_irb2400").fk(q0).translation + np.array([1e-5, 0, 0])).tolist()},
-                        "speed": 0.25}}
+        shift = np.array([move["lin"]["to"]["xyz"], 0.0, 0.0])
+        move = {"lin": {"to": {"xyz": (load_robot("abb_irb2400").fk(q0).translation + shift).tolist()}, "speed": 0.25}}
     traj = plan(parse_task({"robot": "abb_irb2400", "start": {"joints_deg": [0, 10, 20, 0, 30, 0]},
                             "moves": [move]}))
     assert traj.metrics["max_joint_accel_ratio"] <= 1 + 1e-9

@@ -106,7 +106,7 @@ def test_ur_closed_form_solves_every_reach_boundary() -> None:
     robot = load_robot("ur5")
     assert _solves_pose(robot, np.zeros(6))  # on main: no solution at all
     rng = np.random.default_rng(7)
-    for trial in range(10):
+    for trial in range(6):
         q = rng.uniform(-3, 3, 6)
         cases = []
         for q3 in (0.0, 1e-9, -1e-7, math.pi):

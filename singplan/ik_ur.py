@@ -61,7 +61,10 @@ def ur_parameters(robot: Robot) -> UrParameters:
     return UrParameters.from_robot(robot)
 
 
-_SINGULAR_Q5 = 1e-9  # |sin q5| under which a (= q2 + q3 + q4 + pi) keeps the seed's value [rad]
+# |sin q5| under which a (= q2 + q3 + q4 + pi) keeps the seed's value [rad]: the pose then
+# differs by at most |sin q5| * |a - a_true|, under 1e-9 m / rad even a half turn from the seed
+_SINGULAR_Q5 = 1e-10
+_WRIST_SHIFT_RAD = 1e-10  # the most pose error a shift of a into the arm's reach may cost
 
 
 def ur_solutions(p: UrParameters, T_base_tool: np.ndarray, seed: np.ndarray | None = None) -> np.ndarray:
@@ -77,30 +80,46 @@ def ur_batch(p: UrParameters, T_base_tool: np.ndarray, seeds: np.ndarray | None 
     """
     T = np.ascontiguousarray(T_base_tool, dtype=float).reshape(-1, 4, 4)
     a_seed = (np.zeros(len(T)) if seeds is None else np.asarray(seeds, dtype=float)[:, 1:4].sum(axis=1)) + math.pi
-    return _branches(T, a_seed, p.d1, p.lateral, p.l2, p.l3, p.wrist_y, p.d5, p.d6)
+    return _branches(T, a_seed, p.d1, p.lateral, p.l2, p.l3, p.wrist_y, p.d5, p.d6, _tolerance_m(p))
+
+
+def _tolerance_m(p: UrParameters) -> float:
+    """How far [m] beyond a reach boundary a point still counts as on it (REACH_REL_TOL of the arm)."""
+    size = abs(p.d1) + abs(p.lateral) + abs(p.l2) + abs(p.l3) + abs(p.d5) + abs(p.d6)
+    return REACH_REL_TOL * size
+
+
+# A point this much [m per m of the arm's size] beyond a reach boundary (the stretched or folded
+# elbow, the shoulder's lateral offset) is taken as on it: the URDF's placements are rounded
+# (e.g. pi/2 to 11 digits), which moves the boundary by ~1e-12 of the lengths, and a pose made
+# by FK exactly on the boundary must keep its solution.
+REACH_REL_TOL = 1e-9
 
 
 @jit
-def _shoulder(x: float, y: float, lateral: float) -> tuple[float, float]:
+def _shoulder(x: float, y: float, lateral: float, tol_m: float) -> tuple[float, float]:
     """The two q1 (front, back) that put a point at (x, y) in the base at ``lateral`` on y1:
-    ``r sin(phi - q1) = lateral``; NaN when the point lies inside that offset."""
+    ``r sin(phi - q1) = lateral``; NaN when the point lies inside that offset by more than tol_m."""
     r = math.hypot(x, y)
-    if not abs(lateral) <= r:
+    if not abs(lateral) <= r + tol_m:
         return math.nan, math.nan
-    phi, delta = math.atan2(y, x), math.asin(lateral / r)
+    phi = math.atan2(y, x)
+    delta = math.copysign(0.5 * math.pi, lateral) if abs(lateral) >= r else math.asin(lateral / r)
     return phi - delta, phi - math.pi + delta
 
 
 @jit
 def _branches(T: np.ndarray, a_seed: np.ndarray, d1: float, lateral: float, l2: float, l3: float, wrist_y: float,
-              d5: float, d6: float) -> np.ndarray:
+              d5: float, d6: float, tol_m: float) -> np.ndarray:
     """The four steps of the module docstring, pose by pose; (N, 8, 6)."""
     out = np.full((T.shape[0], 8, 6), np.nan)
+    # |cos q3| slack for a wrist-1 point tol_m beyond the stretched (or folded) elbow
+    cos_tol = tol_m * (abs(l2) + abs(l3)) / abs(l2 * l3)
     m = np.empty((3, 3))
     for i in range(T.shape[0]):
         zx, zy, zz = T[i, 0, 2], T[i, 1, 2], T[i, 2, 2]
         px, py, pz = T[i, 0, 3] - d6 * zx, T[i, 1, 3] - d6 * zy, T[i, 2, 3] - d6 * zz  # wrist point
-        front, back = _shoulder(px, py, lateral)
+        front, back = _shoulder(px, py, lateral, tol_m)
         if math.isnan(front):
             continue  # the wrist point is inside the lateral offset
         for s in range(2):
@@ -117,16 +136,25 @@ def _branches(T: np.ndarray, a_seed: np.ndarray, d1: float, lateral: float, l2: 
             for w in range(2):
                 q5 = angle5 if w == 0 else -angle5
                 s5, c5 = math.sin(q5), math.cos(q5)
-                a = math.atan2(m[2, 1] * s5, -m[0, 1] * s5) if abs(s5) > _SINGULAR_Q5 else a_seed[i]
+                x0, z0 = c1 * px + s1 * py, pz - d1
+                if abs(s5) > _SINGULAR_Q5:
+                    a = math.atan2(m[2, 1] * s5, -m[0, 1] * s5)
+                    # near q5 = 0, a carries an error of (rotation round-off) / |sin q5| that can
+                    # put the wrist-1 point out of reach; moving a by d costs only |sin q5| d of pose
+                    reach_a = _free_wrist_angle(a, x0, z0, d5, l2, l3)
+                    if abs(s5) * abs(math.sin(0.5 * (reach_a - a))) * 2.0 <= _WRIST_SHIFT_RAD:
+                        a = reach_a
+                else:
+                    a = _free_wrist_angle(a_seed[i], x0, z0, d5, l2, l3)
                 ca, sa = math.cos(a), math.sin(a)
                 row0 = c5 * (ca * m[0, 0] - sa * m[2, 0]) + s5 * m[1, 0]
                 row2 = c5 * (ca * m[0, 2] - sa * m[2, 2]) + s5 * m[1, 2]
                 q6 = math.atan2(row2, row0)
                 # wrist-1 point o4 = P - d5 z5 - wrist_y y1, z5 = sin(a) x1 + cos(a) z1, in frame 1's x-z plane
-                x = c1 * px + s1 * py - d5 * sa
-                z = pz - d5 * ca - d1
+                x = x0 - d5 * sa
+                z = z0 - d5 * ca
                 cos3 = (x * x + z * z - l2 * l2 - l3 * l3) / (2.0 * l2 * l3)
-                if not abs(cos3) <= 1.0 + 1e-12:
+                if not abs(cos3) <= 1.0 + cos_tol:
                     continue
                 for e in range(2):
                     q3 = math.acos(min(1.0, max(-1.0, cos3))) * (1.0 if e == 0 else -1.0)
@@ -137,6 +165,30 @@ def _branches(T: np.ndarray, a_seed: np.ndarray, d1: float, lateral: float, l2: 
                     for j in range(6):
                         row[j] = math.pi - (math.pi - row[j]) % (2.0 * math.pi)
     return out
+
+
+@jit
+def _free_wrist_angle(a_seed: float, x: float, z: float, d5: float, l2: float, l3: float) -> float:
+    """``a`` at q5 = 0, where the pose leaves it free: the seed's, or the nearest the arm reaches.
+
+    The wrist-1 point ``(x - d5 sin a, z - d5 cos a)`` (frame 1's x-z plane, wrist point at
+    (x, z)) runs round a circle as ``a`` turns; its distance rho from the shoulder must lie in
+    [|l2 - l3|, l2 + l3]. With ``theta = atan2(x, z)`` that is ``cos(a - theta)`` between
+    ``(R^2 + d5^2 - (l2 + l3)^2) / (2 d5 R)`` and the same with |l2 - l3|. A seed outside is
+    moved to the nearest end of that range, so a pose reachable with some ``a`` is solved.
+    """
+    radius = math.hypot(x, z)
+    if radius * d5 == 0.0:
+        return a_seed
+    theta = math.atan2(x, z)
+    delta = math.atan2(math.sin(a_seed - theta), math.cos(a_seed - theta))
+    c_far = (radius * radius + d5 * d5 - (l2 + l3) ** 2) / (2.0 * d5 * radius)
+    c_near = (radius * radius + d5 * d5 - (l2 - l3) ** 2) / (2.0 * d5 * radius)
+    c = math.cos(delta)
+    if c_far > 1.0 or c_near < -1.0 or c_far <= c <= c_near:
+        return a_seed  # out of reach for every a, or the seed's reaches
+    bound = c_far if c < c_far else c_near
+    return theta + math.copysign(math.acos(min(1.0, max(-1.0, bound))), delta)
 
 
 def ur_arm_for_point(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.ndarray:
@@ -154,7 +206,7 @@ def ur_arm_for_point(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.n
     p = ur_parameters(robot)
     point = np.array([_tcp_in_joint3(robot, qk) for qk in q]).reshape(-1, 3)
     arms = _arm_for_point(point, np.ascontiguousarray(targets_m, dtype=float), p.d1, p.shoulder_y + p.elbow_y,
-                          p.l2, p.shoulder_turn)
+                          p.l2, p.shoulder_turn, _tolerance_m(p))
     out = np.array(q, dtype=float)
     out[:, :3] = nearest_shifted(arms, out[:, :3])[0]
     return out
@@ -167,13 +219,13 @@ def _tcp_in_joint3(robot: Robot, q: np.ndarray) -> np.ndarray:
 
 @jit
 def _arm_for_point(point: np.ndarray, targets: np.ndarray, d1: float, lateral: float, l2: float,
-                   shoulder_turn: float) -> np.ndarray:
+                   shoulder_turn: float, tol_m: float) -> np.ndarray:
     """(q1, q2, q3) (N, 4, 3) placing ``point`` (N, 3, in joint 3's frame) at ``targets`` (N, 3)."""
     out = np.full((point.shape[0], 4, 3), np.nan)
     for i in range(point.shape[0]):
         tx, ty, tz = targets[i, 0], targets[i, 1], targets[i, 2] - d1
         xx, xz = point[i, 0], point[i, 2]
-        front, back = _shoulder(tx, ty, lateral + point[i, 1])
+        front, back = _shoulder(tx, ty, lateral + point[i, 1], tol_m)
         if math.isnan(front):
             continue  # the point's lateral offset cannot reach the target
         # |A + Ry(t3) X|^2 = |P|^2, A = (0, l2): A.(Ry(t3) X) = l2 (xz cos t3 - xx sin t3) = k
@@ -183,7 +235,8 @@ def _arm_for_point(point: np.ndarray, targets: np.ndarray, d1: float, lateral: f
             q1 = front if s == 0 else back
             px, pz = math.cos(q1) * tx + math.sin(q1) * ty, tz
             k = 0.5 * (px * px + pz * pz - l2 * l2 - xx * xx - xz * xz)
-            if not abs(k) <= reach * (1.0 + 1e-12) or reach == 0.0:
+            # k changes by |P| per metre of |P|: the same slack as the wrist point's elbow
+            if not abs(k) <= reach + tol_m * (l2 + math.hypot(xx, xz)) or reach == 0.0:
                 continue
             swing = math.acos(min(1.0, max(-1.0, k / reach)))
             for e in range(2):

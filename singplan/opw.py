@@ -16,14 +16,18 @@ import numpy as np
 from singplan.compiled import jit
 
 TWO_PI = 2.0 * math.pi
-ACOS_SLACK = 1e-12  # tolerated overshoot of |cos| at a stretched elbow before the pose is unreachable
+# A wrist centre this much [m per m of the arm's size] beyond a reach boundary (the stretched or
+# folded elbow, the offset cylinder round axis 1) is taken as on it: a pose made by FK exactly
+# on the boundary must keep its solution, whatever the round-off of the URDF's placements.
+REACH_REL_TOL = 1e-9
 AXIS_EPS = 1e-12  # wrist centre this close to axis 1: q1 undefined, keep the seed's
 WRIST_EPS = 1e-12  # sin q5 under this: q4 undefined, keep the seed's
 
+
 @jit
-def _safe_acos(x: float) -> float:
-    """acos that clips round-off overshoot at a stretched arm, NaN when really out of reach."""
-    if not abs(x) <= 1.0 + ACOS_SLACK:  # also NaN
+def _safe_acos(x: float, slack: float) -> float:
+    """acos that clips an overshoot of up to ``slack`` at a stretched arm, NaN when really out of reach."""
+    if not abs(x) <= 1.0 + slack:  # also NaN
         return math.nan
     return math.acos(min(1.0, max(-1.0, x)))
 
@@ -38,30 +42,38 @@ def wrap(angle: float) -> float:
 @jit
 def _arm(cx: float, cy: float, cz: float, a1: float, a2: float, b: float, c1: float, c2: float, c3: float,
          q1_seed: float, out: np.ndarray) -> None:
-    """The four (theta1, theta2, theta3) of the arm for one wrist centre, into ``out`` (4, 3)."""
+    """The four (theta1, theta2, theta3) of the arm for one wrist centre, into ``out`` (4, 3).
+
+    theta3 comes from the distance of the wrist centre (law of cosines), theta2 from theta3 by
+    turning the elbow triangle onto the wrist centre's direction: at a stretched elbow, where
+    acos loses half the digits, the pair still places the wrist centre to round-off.
+    """
+    kappa = math.hypot(a2, c3)
+    tol_m = REACH_REL_TOL * (abs(a1) + abs(a2) + abs(b) + abs(c1) + abs(c2) + abs(c3))
     r2 = cx * cx + cy * cy
-    nx1 = np.sqrt(r2 - b * b) - a1  # NaN inside the offset cylinder
+    lateral2 = r2 - b * b
+    if lateral2 < 0.0 and lateral2 > -2.0 * tol_m * (abs(b) + tol_m):
+        lateral2 = 0.0  # on the offset cylinder to round-off
+    nx1 = np.sqrt(lateral2) - a1  # NaN inside the offset cylinder
     tmp1 = q1_seed if r2 < AXIS_EPS * AXIS_EPS else math.atan2(cy, cx)
     tmp2 = math.atan2(b, nx1 + a1)
     tmp3 = cz - c1
-    s1_2 = nx1 * nx1 + tmp3 * tmp3
     tmp4 = nx1 + 2.0 * a1
-    s2_2 = tmp4 * tmp4 + tmp3 * tmp3
-    kappa_2 = a2 * a2 + c3 * c3
-    c2_2 = c2 * c2
-    acos_a = _safe_acos((s1_2 + c2_2 - kappa_2) / (2.0 * math.sqrt(s1_2) * c2))
-    acos_b = _safe_acos((s2_2 + c2_2 - kappa_2) / (2.0 * math.sqrt(s2_2) * c2))
-    k = 2.0 * c2 * math.sqrt(kappa_2)
-    acos_c = _safe_acos((s1_2 - c2_2 - kappa_2) / k)
-    acos_d = _safe_acos((s2_2 - c2_2 - kappa_2) / k)
+    # |cos| slack for a distance tol_m beyond the elbow's reach: d(cos)/d(distance) <= (c2 + kappa) / (c2 kappa)
+    slack = tol_m * (c2 + kappa) / (c2 * kappa)
+    k = 2.0 * c2 * kappa
+    acos_c = _safe_acos((nx1 * nx1 + tmp3 * tmp3 - c2 * c2 - kappa * kappa) / k, slack)
+    acos_d = _safe_acos((tmp4 * tmp4 + tmp3 * tmp3 - c2 * c2 - kappa * kappa) / k, slack)
     phi = math.atan2(a2, c3)
     front, back = math.atan2(nx1, tmp3), math.atan2(tmp4, tmp3)
     out[0, 0] = out[1, 0] = tmp1 - tmp2
     out[2, 0] = out[3, 0] = tmp1 + tmp2 - math.pi
-    out[0, 1], out[1, 1] = -acos_a + front, acos_a + front
-    out[2, 1], out[3, 1] = -acos_b - back, acos_b - back
-    out[0, 2], out[1, 2] = acos_c - phi, -acos_c - phi
-    out[2, 2], out[3, 2] = acos_d - phi, -acos_d - phi
+    for j in range(4):
+        elbow = acos_c if j == 0 else (-acos_c if j == 1 else (acos_d if j == 2 else -acos_d))
+        # theta2: the wrist centre's direction (from the vertical) less the elbow triangle's angle
+        towards = front if j < 2 else -back
+        out[j, 1] = towards - math.atan2(kappa * math.sin(elbow), c2 + kappa * math.cos(elbow))
+        out[j, 2] = elbow - phi
 
 
 @jit

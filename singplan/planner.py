@@ -37,7 +37,7 @@ from singplan.path import CartesianPiece, make_circ, make_lin, rpy_deg_to_rotati
 from singplan.robot import Robot, load_robot
 from singplan.singularity import DistanceFunction, Zone, distances_along, find_zones, thresholds_si
 from singplan.task import Move, Task, check_against_robot, load_task
-from singplan.timing import MoveLimits, TimedMove, time_move
+from singplan.timing import MoveLimits, TimedMove, TimingError, time_move
 from singplan.tracking import BranchCandidates, TrackedPath, track
 from singplan.trajectory import Trajectory
 from singplan.trajectory_build import build_trajectory, sample_deviations
@@ -120,7 +120,80 @@ def plan(task: Task | str | Path, method: str | None = None, progress: Progress 
         T = pm.piece.T_end if pm.piece is not None else robot.fk(q)
         if progress is not None:
             progress(i + 1, len(task.moves))
-    return build_trajectory(robot, task, planned, timed, time.perf_counter() - started)
+    traj = build_trajectory(robot, task, planned, timed, time.perf_counter() - started)
+    _check_metrics(robot, task, planned, timed, traj)
+    return traj
+
+
+_ROUND_OFF = 1e-9  # a metric ratio this far over 1 is round-off, more is a violated limit
+
+
+def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: list[TimedMove],
+                   traj: Trajectory) -> None:
+    """The last gate: no plan is returned whose own samples break a limit (whatever the cause)."""
+    _check_positions(robot, planned, timed, traj)
+    over = {k: v for k, v in traj.metrics.items()
+            if k.startswith("max_") and k.endswith("_ratio") and isinstance(v, float) and v > 1.0 + _ROUND_OFF}
+    if not over:
+        return
+    vmax, amax = robot.velocity_rad_s * task.limits.velocity_scale, robot.acceleration_rad_s2
+    k = _worst_joint_sample(traj.q, traj.period, vmax, amax)
+    m, k_move = _move_of_sample(timed, k)
+    pm = planned[m]
+    figures = ", ".join(f"{name} {value:.4f}" for name, value in over.items())
+    raise PlanningError(f"move {m} ({pm.kind}): the planned samples break a limit ({figures}) near sample {k} "
+                        f"(t = {k * traj.period:.4f} s) at {_where(robot, pm, float(timed[m].u[k_move]))}")
+
+
+def _check_positions(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], traj: Trajectory) -> None:
+    """Every output sample inside the joint position limits."""
+    outside = (traj.q < robot.lower_rad - 1e-9) | (traj.q > robot.upper_rad + 1e-9)
+    if not outside.any():
+        return
+    k, j = (int(v) for v in np.argwhere(outside)[0])
+    m, k_move = _move_of_sample(timed, k)
+    pm = planned[m]
+    raise JointLimitError(
+        f"move {m} ({pm.kind}): sample {k} (t = {k * traj.period:.4f} s) puts {robot.joint_names[j]} at "
+        f"{math.degrees(traj.q[k, j]):.3f} deg, outside its limits [{math.degrees(robot.lower_rad[j]):.1f}, "
+        f"{math.degrees(robot.upper_rad[j]):.1f}] deg, at {_where(robot, pm, float(timed[m].u[k_move]))}",
+        joint=robot.joint_names[j], value_rad=float(traj.q[k, j]), lower_rad=float(robot.lower_rad[j]),
+        upper_rad=float(robot.upper_rad[j]), move=m)
+
+
+def _move_of_sample(timed: list[TimedMove], k: int) -> tuple[int, int]:
+    """The move holding output sample k, and k's index within that move's samples."""
+    ends = np.cumsum([len(tm.q) - 1 for tm in timed])
+    m = min(int(np.searchsorted(ends, k)), len(timed) - 1)
+    return m, k - (int(ends[m - 1]) if m > 0 else 0)
+
+
+def _worst_joint_sample(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.ndarray) -> int:
+    """The sample of q (K, n) whose speed or acceleration ratio is the largest."""
+    if len(q) < 3:
+        return 0
+    qd = np.diff(q, axis=0) / period_s
+    v = np.max(np.abs(qd) / vmax, axis=1)
+    a = np.max(np.abs(np.diff(qd, axis=0)) / period_s / amax, axis=1)
+    over = np.concatenate([[v[0]], np.maximum(np.maximum(v[:-1], v[1:]), a), [v[-1]]])
+    return int(np.argmax(over))
+
+
+def _where(robot: Robot, pm: PlannedMove, u: float) -> str:
+    """A point of a move for messages: the path point of a LIN / CIRC, the fraction and joints of a PTP."""
+    if pm.piece is not None:
+        return pm.piece.describe(u)
+    q = pm.jmap.evaluate(np.array([u]))[0]
+    return f"{u:.3f} of the joint motion (joints_deg {np.round(np.degrees(q), 3).tolist()})"
+
+
+def _timed(robot: Robot, pm: PlannedMove, period_s: float, max_samples: int) -> TimedMove:
+    """time_move, with a failure's path parameter turned into the point on the move."""
+    try:
+        return time_move(pm.jmap, pm.limits, period_s, pm.index, max_samples)
+    except TimingError as exc:
+        where = _where(robot, pm, exc.u) if exc.u is not None else "a point TOPP-RA did not report"
+        raise TimingError(pm.index, exc.u, exc.reason, kind=pm.kind, where=where) from exc
 
 
 def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
@@ -133,8 +206,8 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
             break  # nothing to cross: every method gives this same motion
         try:
             pm = _plan_move(robot, task, i, move, T, q, method)
-            tm = time_move(pm.jmap, pm.limits, task.period_s, i, max_samples)
-            _check_config(robot, i, move, tm.q)
+            tm = _timed(robot, pm, task.period_s, max_samples)
+            _check_config(robot, move, pm, tm)
             _check_tolerances(robot, task, pm, tm)
         except PlanningError as exc:
             failures.append((method.name, exc))
@@ -255,8 +328,6 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
         # the grid as refined: a re-track after a crossing starts from it (tracked.u starts at u_from)
         grid = np.concatenate([grid[grid < u_from], tracked.u])
         _check_tracked(robot, i, move, piece, tracked)
-        if parts and parts[-1].kind in ("blend", "axis"):  # the crossing just made
-            _check_limits(robot, i, move, piece, parts[-1].u, parts[-1].q, zones)
         dist = in_zone.distances(tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref),
@@ -276,6 +347,7 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
         parts.append(JointPart("track", tracked.u[:k_a + 1], tracked.q[:k_a + 1]))
         _check_limits(robot, i, move, piece, tracked.u[:k_a + 1], tracked.q[:k_a + 1], zones)
         parts.append(result.blend)
+        _check_limits(robot, i, move, piece, result.blend.u, result.blend.q, zones)  # every method's crossing
         crossings.append(result)
         u_from, q_from = result.blend.u1, result.q_exit
     return PlannedMove(i, move.kind, JointMap(robot, piece.poses, parts), _limits(robot, task, move, piece.length_m),
@@ -293,9 +365,19 @@ def _first_crossing(method: CrossingMethod, ctx: MoveContext, found: list[Zone],
         zones.append(zone)
         crossing = method.cross(ctx, zone)
         if crossing is not None:
-            zones[-1] = crossing.zone  # a crossing may span more than the detected zone
+            zones[-1] = _spanning(crossing)
             return crossing
     return None
+
+
+def _spanning(crossing: Crossing) -> Zone:
+    """The crossing's zone widened to the joint-map part it replaced.
+
+    A method may start its part before the detected entry (at the tracked sample below it) or end
+    it after the exit; every sample of that part is the crossing's, so its segment must cover it.
+    """
+    z, part = crossing.zone, crossing.blend
+    return Zone(z.kind, min(z.u_entry, part.u0), max(z.u_exit, part.u1), z.u_closest, z.min_distance, z.threshold)
 
 
 class _ZoneTest:
@@ -360,20 +442,25 @@ def _check_limits(robot: Robot, i: int, move: Move, piece: CartesianPiece, u: np
         joint=robot.joint_names[j], value_rad=float(q[k, j]), lower_rad=float(lo), upper_rad=float(hi), move=i)
 
 
-def _check_config(robot: Robot, i: int, move: Move, q: np.ndarray) -> None:
+def _check_config(robot: Robot, move: Move, pm: PlannedMove, tm: TimedMove) -> None:
     if move.config == "auto":
         return
-    labels = labels_from_distances(distances_batch(robot, q))  # closed form for OPW and UR arms
+    i = pm.index
+    labels = labels_from_distances(distances_batch(robot, tm.q))  # closed form for OPW and UR arms
     first, last = labels[0], labels[-1]
     if move.config == "keep":
-        if any(label != first for label in labels):
+        changed = [k for k, label in enumerate(labels) if label != first]
+        if changed:
+            k = changed[0]
+            s_m = float(tm.u[k]) * (pm.piece.length_m if pm.piece is not None else 0.0)
             raise SingularityError(f"move {i} ({move.kind}): config 'keep', but the motion changes the "
-                                   f"configuration from {first} to {last}", move=i, kind="config", s_m=0.0)
+                                   f"configuration from {first} to {labels[k]} at {_where(robot, pm, float(tm.u[k]))}",
+                                   move=i, kind="config", s_m=s_m)
         return
     wanted = parse_configuration(move.config).label
     if last != wanted:
-        raise PlanningError(f"move {i} ({move.kind}): ends in configuration {last}, but the move asks for "
-                            f"{wanted}; the chosen method cannot change the configuration here")
+        raise PlanningError(f"move {i} ({move.kind}): ends in configuration {last} at {_where(robot, pm, 1.0)}, "
+                            f"but the move asks for {wanted}; the chosen method cannot change the configuration here")
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,8 @@ periods by slowing the profile uniformly. Each sample's joints come from the joi
 ``evaluate(u)`` (exact IK, or the crossing's definition), never from the spline, so every
 sample is on the path. Limits are then checked on the samples with the same finite
 differences a checker uses, and the profile is tightened where TOPP-RA's grid let them slip.
+Both end steps are held within amax * period^2 / 2 (a start from rest, an arrival at rest), so
+a seam between two moves stays within the acceleration limit whatever its neighbours do.
 """
 
 from __future__ import annotations
@@ -38,8 +40,23 @@ _UNLIMITED = 1e9
 _TIGHTEN_PASSES = 8
 _SPEED_MARGIN = 0.999  # ratios the samples must stay under
 _ACCEL_MARGIN = 0.995
+_END_STEP_MARGIN = 1.0  # end steps may reach the continuous-time bound exactly (see end_step_ratio)
 _TCP_MARGIN = 0.999
 _DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
+
+
+class TimingError(PlanningError):
+    """A move cannot be timed within the limits; ``u`` is the path parameter where (None: unknown).
+
+    The planner names the move's kind and turns ``u`` into a point on the path.
+    """
+
+    def __init__(self, move: int, u: float | None, reason: str, kind: str = "", where: str = "") -> None:
+        self.move = move
+        self.u = u
+        self.reason = reason
+        where = where or (f"u = {u:.6f} along the move" if u is not None else "")
+        super().__init__(f"move {move}{f' ({kind})' if kind else ''}: {reason}{f' at {where}' if where else ''}")
 
 
 @dataclass(frozen=True)
@@ -70,8 +87,15 @@ class MoveLimits:
     tcp_speed_m_s: float | None
 
 
-def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
+def _reference(jmap: JointMap, limits: MoveLimits) -> tuple[np.ndarray, np.ndarray]:
     u, q = jmap.reference()
+    # Where a move starts or ends on a reach boundary (a stretched elbow) a joint goes as the
+    # square root of the distance to the end: its path derivative grows without bound there. Points
+    # graded toward both ends let the spline and TOPP-RA's grid see it, so the move still stops
+    # with every joint at rest instead of the elbow arriving at speed.
+    ends = 10.0 ** -np.arange(3.0, 10.0)
+    u = np.unique(np.concatenate([u, ends, 1.0 - ends]))
+    q = jmap.evaluate(u)
     keep = np.concatenate([[True], np.diff(u) > 1e-12])
     u, q = u[keep], q[keep]
     if len(u) < 4:  # a spline needs a few points; add interior ones (straight PTP lines)
@@ -102,23 +126,52 @@ class _Profile:
         return np.minimum(self.grid[i] + self.sd[i] * tau + 0.5 * sdd[i] * tau**2, self.grid[i + 1])
 
 
+def path_scale(u: np.ndarray, q: np.ndarray, limits: MoveLimits) -> float:
+    """The move's size: the largest travel of any joint [rad] or of the TCP [m] along it."""
+    travel = float(np.max(np.sum(np.abs(np.diff(q, axis=0)), axis=0), initial=0.0))
+    return max(travel, limits.length_m)
+
+
 def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale_v: float, scale_a: float,
                     move_index: int) -> _Profile:
-    arc_scale = limits.length_m if limits.length_m > 0 else 1.0
-    waypoints = np.hstack([q, (u * arc_scale)[:, None]])
-    path = ta.SplineInterpolator(u, waypoints)
+    """TOPP-RA on the move made dimensionless.
+
+    TOPP-RA works in the squared path speed with absolute tolerances. Along u in [0, 1] a 10 um
+    LIN has path derivatives of 1e-6 and path speeds of 1e4 / s, whose squares defeat those
+    tolerances ("not controllable"). So the joints (and the TCP's arc length) are divided by
+    the move's size L and time by ``tau = sqrt(L / a)``, the time the slowest-accelerating joint
+    needs to cover L: derivatives, path speeds and the duration are then all of order one
+    whatever the size of the move, and the result is exact in the original units.
+    """
+    length = path_scale(u, q, limits)
+    amax = limits.acceleration_rad_s2 * scale_a
+    tau = math.sqrt(length / float(np.min(amax)))
+    arc = u * (limits.length_m if limits.length_m > 0 else length)  # the TCP's arc length, capped at its speed
+    path = ta.SplineInterpolator(u, np.hstack([q - q[0], arc[:, None]]) / length)  # from 0: no digits lost
     vmax = np.append(limits.velocity_rad_s * scale_v,
                      limits.tcp_speed_m_s * scale_v if limits.tcp_speed_m_s and limits.length_m > 0 else _UNLIMITED)
-    amax = np.append(limits.acceleration_rad_s2 * scale_a, _UNLIMITED)
-    constraints = [ta_constraint.JointVelocityConstraint(np.stack([-vmax, vmax], axis=1)),
-                   ta_constraint.JointAccelerationConstraint(np.stack([-amax, amax], axis=1))]
+    vmax_1 = np.minimum(vmax * tau / length, _UNLIMITED)
+    amax_1 = np.append(amax * tau**2 / length, _UNLIMITED)
+    constraints = [ta_constraint.JointVelocityConstraint(np.stack([-vmax_1, vmax_1], axis=1)),
+                   ta_constraint.JointAccelerationConstraint(np.stack([-amax_1, amax_1], axis=1))]
     instance = ta_algo.TOPPRA(constraints, path, gridpoints=_grid(u))
     instance.compute_parameterization(0.0, 0.0)
     data = instance.problem_data
     if data.return_code != ta_algo.ParameterizationReturnCode.Ok or data.sd_vec is None:
-        raise PlanningError(f"move {move_index}: TOPP-RA found no feasible time-parameterisation "
-                            f"({data.return_code}; joint limits too tight for the path)")
-    return _Profile(np.asarray(data.gridpoints, dtype=float), np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0))
+        raise TimingError(move_index, _infeasible_at(data),
+                          f"TOPP-RA found no feasible time-parameterisation ({data.return_code.value}; the "
+                          f"joint velocity and acceleration limits cannot hold the path there)")
+    sd = np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0) / tau  # du/dt in real time
+    return _Profile(np.asarray(data.gridpoints, dtype=float), sd)
+
+
+def _infeasible_at(data: ta_algo.ParameterizationData) -> float | None:
+    """The path parameter u where TOPP-RA's controllable set first empties (backward pass), if known."""
+    if data.K is None or data.gridpoints is None:
+        return None
+    sets = np.asarray(data.K, dtype=float)
+    empty = np.flatnonzero(~(sets[:, 1] >= sets[:, 0]))  # also NaN
+    return float(np.asarray(data.gridpoints)[empty[-1]]) if len(empty) else None
 
 
 def _grid(u: np.ndarray) -> np.ndarray:
@@ -151,13 +204,34 @@ def sample_ratios(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.nda
     return speed, accel
 
 
+def end_step_ratio(q: np.ndarray, period_s: float, amax: np.ndarray) -> float:
+    """Largest first or last step of samples q (K+1, n) over amax * period^2 / 2.
+
+    A move starts and ends at rest; from rest, an acceleration within amax covers at most
+    amax * period^2 / 2 in one period. Keeping both end steps under that bound keeps the second
+    difference across any seam (the end of one move, the start of the next, both at rest on the
+    shared sample) within amax whatever the neighbouring move does, and each end "at rest" as
+    the checker defines it (a step no longer than amax * period^2).
+    """
+    if len(q) < 2:
+        return 0.0
+    steps = np.maximum(np.abs(q[1] - q[0]), np.abs(q[-1] - q[-2]))
+    return float(np.max(2.0 * steps / (amax * period_s**2)))
+
+
 def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int,
               max_samples: int = MAX_OUTPUT_SAMPLES) -> TimedMove:
     """Fastest uniform sampling of the move within the limits, every sample on the path.
 
     ``max_samples``: what is left of the task's allowance of output samples (bad input if over).
     """
-    u_ref, q_ref = _reference(jmap)
+    u_ref, q_ref = _reference(jmap, limits)
+    missing = np.flatnonzero(~np.all(np.isfinite(q_ref), axis=1))
+    if len(missing):  # a joint map without IK somewhere: never hand NaN to TOPP-RA
+        raise TimingError(move_index, float(u_ref[missing[0]]), "no joint values (no inverse kinematics solution)")
+    if path_scale(u_ref, q_ref, limits) == 0.0:
+        logger.info("move %d changes nothing: one period at rest", move_index)
+        return TimedMove(np.array([0.0, 1.0]), q_ref[[0, -1]], period_s, 0.0, 0.0)
     scale_v = scale_a = 1.0
     for _ in range(_TIGHTEN_PASSES):
         profile = _toppra_profile(u_ref, q_ref, limits, scale_v, scale_a, move_index)
@@ -166,7 +240,8 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
         speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
         tcp = _tcp_ratio(u, limits, period_s)
         worst_v = max(speed, tcp) / _SPEED_MARGIN
-        worst_a = accel / _ACCEL_MARGIN
+        worst_a = max(accel / _ACCEL_MARGIN,
+                      end_step_ratio(q, period_s, limits.acceleration_rad_s2) / _END_STEP_MARGIN)
         if worst_v <= 1.0 and worst_a <= 1.0:
             return TimedMove(u, q, duration, speed, accel)
         if worst_v > _DISCONTINUOUS or worst_a > _DISCONTINUOUS:
@@ -174,8 +249,21 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
         logger.debug("move %d: samples at x%.4f speed, x%.4f accel; tightening", move_index, speed, accel)
         scale_v *= min(1.0, 1.0 / worst_v) * (0.998 if worst_v > 1.0 else 1.0)
         scale_a *= min(1.0, 1.0 / worst_a) * (0.995 if worst_a > 1.0 else 1.0)
-    raise PlanningError(f"move {move_index}: could not keep the joint limits on the output samples "
-                        f"(speed x{speed:.3f}, acceleration x{accel:.3f} after tightening)")
+    ends = end_step_ratio(q, period_s, limits.acceleration_rad_s2)
+    raise TimingError(move_index, float(u[_worst_sample(q, period_s, limits)]),
+                      f"could not keep the joint limits on the output samples (speed x{speed:.3f}, "
+                      f"acceleration x{accel:.3f}, end steps x{ends:.3f} after tightening)")
+
+
+def _worst_sample(q: np.ndarray, period_s: float, limits: MoveLimits) -> int:
+    """The sample where speed or acceleration (end steps included) is furthest over its limit."""
+    padded = np.concatenate([q[:1], q, q[-1:]])  # at rest before and after
+    qd = np.diff(padded, axis=0) / period_s
+    speed = np.max(np.abs(qd) / limits.velocity_rad_s, axis=1)  # step k -> k+1 of padded
+    accel = np.max(np.abs(np.diff(qd, axis=0)) / period_s / limits.acceleration_rad_s2, axis=1)  # at q[k]
+    accel[[0, -1]] *= 2.0  # an end step's bound is amax * period^2 / 2 (end_step_ratio)
+    over = np.maximum(accel, np.maximum(speed[:-1], speed[1:]))
+    return int(np.argmax(over))
 
 
 def _tcp_ratio(u: np.ndarray, limits: MoveLimits, period_s: float) -> float:

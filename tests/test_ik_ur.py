@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import itertools
+import math
+
 import numpy as np
 import pinocchio as pin
+import pytest
+from scipy.optimize import brentq
 
 from singplan.configuration import classify
 from singplan.ik import solve_all
 from singplan.ik_ur import UrParameters, ur_arm_for_point, ur_solutions
+from singplan.robot import load_robot
 
 from .conftest import random_q
 
@@ -65,3 +71,73 @@ def test_ur5_flange_point_solve_reaches_the_target_with_the_wrist_held(robots, r
     for qk, target in zip(out, targets, strict=True):
         assert np.linalg.norm(robot.fk(qk).translation - target) < 1e-9
     np.testing.assert_array_equal(out[:, 3:], q[:, 3:])
+
+
+def _solves_pose(robot, q, seed=None, tol=1e-9) -> bool:
+    """solve_all(fk(q)) holds a solution reproducing the pose (joints may be non-unique on a boundary)."""
+    T = robot.fk(q)
+    for x in solve_all(robot, T, seed=seed).q:
+        F = robot.fk(x)
+        if (np.linalg.norm(F.translation - T.translation) <= tol
+                and np.linalg.norm(pin.log3(F.rotation.T @ T.rotation)) <= tol):
+            return True
+    return False
+
+
+def _ur_shoulder_q(robot, q):
+    """q with q2 moved so the wrist point lies on the shoulder's singular plane (x of frame 1 = 0)."""
+    def x1(q2):
+        qq = np.array(q, dtype=float)
+        qq[1] = q2
+        robot.fk(qq)
+        return robot.data.oMi[1].actInv(robot.data.oMi[6].translation)[0]
+
+    grid = np.linspace(-3, 3, 61)
+    for a, b in itertools.pairwise(grid):
+        if x1(a) * x1(b) < 0:
+            out = np.array(q, dtype=float)
+            out[1] = brentq(x1, a, b, xtol=1e-15)
+            return out
+    return None
+
+
+def test_ur_closed_form_solves_every_reach_boundary() -> None:
+    """Straight elbow, all-zero joints, q5 = 0 and +-1e-9, exact shoulder singularity; seeded random q."""
+    robot = load_robot("ur5")
+    assert _solves_pose(robot, np.zeros(6))  # on main: no solution at all
+    rng = np.random.default_rng(7)
+    for trial in range(6):
+        q = rng.uniform(-3, 3, 6)
+        cases = []
+        for q3 in (0.0, 1e-9, -1e-7, math.pi):
+            cases.append(np.r_[q[:2], q3, q[3:]])
+        for q5 in (0.0, 1e-9, -1e-9):
+            cases.append(np.r_[q[:4], q5, q[5]])
+            cases.append(np.r_[q[:2], rng.uniform(-1e-3, 1e-3), q[3], q5, q[5]])  # near straight too
+        shoulder = _ur_shoulder_q(robot, q)
+        if shoulder is not None:
+            cases += [shoulder, np.r_[shoulder[:4], 0.0, shoulder[5]]]
+        for qq in cases:
+            if trial == 0:  # unseeded solve_all lists every whole-turn variant: slow on +-360 deg joints
+                assert _solves_pose(robot, qq), qq
+            assert _solves_pose(robot, qq, seed=qq + 0.01), qq
+
+
+@pytest.mark.parametrize("name", ["abb_irb6700_200_260", "kuka_kr6_r700_sixx", "fanuc_r2000ib_210f",
+                                  "staubli_tx2_60"])
+def test_opw_closed_form_solves_the_stretched_elbow_and_the_wrist_singularity(name: str) -> None:
+    robot = load_robot(name)
+    p = robot.opw
+    rng = np.random.default_rng(11)
+    checked = 0
+    for _ in range(10):
+        q = rng.uniform(np.maximum(robot.lower_rad, -3), np.minimum(robot.upper_rad, 3))
+        for t3 in (-math.atan2(p.a2, p.c3), math.pi - math.atan2(p.a2, p.c3)):
+            for q5 in (q[4], 0.0, 1e-9, -1e-9):
+                qq = q.copy()
+                qq[2] = math.remainder((t3 + p.offsets[2]) * p.signs[2], 2 * math.pi)
+                qq[4] = q5
+                if np.all(qq >= robot.lower_rad) and np.all(qq <= robot.upper_rad):
+                    assert _solves_pose(robot, qq), qq  # on main: 3e-8 m off at the stretched elbow
+                    checked += 1
+    assert checked > 0

@@ -46,9 +46,10 @@ LIN_BACK = [0.45, -0.05, 0.45]
 
 
 def _three_slow_lins(samples_each: float) -> dict[str, Any]:
-    """Three LINs of ~0.35 m, each timed at about ``samples_each`` samples of 4 ms."""
-    speed = 0.355 / (samples_each * 0.004)
-    return _task([{"lin": {"to": {"xyz": xyz}, "speed": speed}} for xyz in (LIN_TO, LIN_BACK, LIN_TO)])
+    """Three LINs of ~0.35 m, each timed at about ``samples_each`` samples of 0.5 ms (speeds >= 0.1 mm/s)."""
+    period = 0.0005
+    speed = 0.355 / (samples_each * period)
+    return _task([{"lin": {"to": {"xyz": xyz}, "speed": speed}} for xyz in (LIN_TO, LIN_BACK, LIN_TO)], period)
 
 
 def _estimate(doc: dict[str, Any], **kwargs: Any) -> TaskEstimate:

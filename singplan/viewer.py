@@ -54,8 +54,8 @@ SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "pos
 # where the joints move fast (no joint turns more than the turn between two kept samples, so a
 # wrist flip stays a flip and not a shortcut; at most so many such points), and the segments'
 # boundaries and crossings' midpoints, exactly.
-_KEYFRAMES = 1000  # animation keyframes on the time grid (~0.7 kB of page each)
-_KEYFRAME_TURN_RAD = 0.1  # ... and a keyframe at least every 0.1 rad of a joint (1 mm of chord at 1 m)
+_KEYFRAMES = 600  # animation keyframes on the time grid (~1 kB of page each; a 60-move program: ~2.5 MB)
+_KEYFRAME_TURN_RAD = 0.15  # ... and one at least every 0.15 rad of a joint (a 3 mm chord at 1 m)
 _PATH_POINTS = 10_000  # executed-path points on the time grid (a line, and every _DOT_EVERY-th a dot)
 _PATH_TURN_RAD = 0.01  # ... and at least every 0.01 rad of a joint
 _DOT_EVERY = 3  # executed-path dots: one per this many path points

@@ -24,8 +24,16 @@ import yaml
 from singplan.planner import plan
 from singplan.robot import bundled_robots, load_robot
 from singplan.trajectory import Trajectory
-from singplan.viewer import (_KEYFRAME_TURN_RAD, _KEYFRAMES, _PATH_POINTS, _STRIP_POINTS, ANIMATION_STEP_S,
-                             kept_samples, replay_html, robot_of)
+from singplan.viewer import (
+    _KEYFRAME_TURN_RAD,
+    _KEYFRAMES,
+    _PATH_POINTS,
+    _STRIP_POINTS,
+    ANIMATION_STEP_S,
+    kept_samples,
+    replay_html,
+    robot_of,
+)
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 SIXTY_MOVES_MAX_BYTES = 5_000_000  # the page of a 60-move program (DESIGN: a page to mail, not a dump)

@@ -28,13 +28,15 @@ from singplan.robot import Robot
 from singplan.task import MAX_OUTPUT_SAMPLES, Move, Task
 
 TASK_MEMORY_MB = 1500.0  # DESIGN.md "Bounded resources": the whole process, in all
-# Peak RSS of planning a short task (interpreter, numpy, pinocchio, numba kernels, TOPP-RA): 388 MB,
-# and of a 0.1 M-sample one 450 MB (the chunked evaluation's fixed ~60 MB of temporaries), measured by
-# bench/bench_memory.py (docs/benchmarks.md, AMD EPYC, 2 cores); the 450 MB is taken as the base.
+# Peak RSS of a short task (interpreter, numpy, pinocchio, numba kernels, TOPP-RA): 388 MB; of a
+# 0.1 M-sample one 449-450 MB whatever the outputs (the chunked evaluation's fixed ~60 MB of
+# temporaries). bench/bench_memory.py, 2026-11-23, AMD EPYC, 2 cores (docs/benchmarks.md): 450 MB.
 BASE_MB = 450.0
-# Peak RSS growth per million output samples of plan() and its report: 270 MB measured between 0.1 and
-# 1 M samples (658 MB at 1 M), the report ~10 MB more at 0.1 and 0.5 M (bench/bench_memory.py); rounded up.
-# Writing trajectory.json / .csv is not in it: it is being made streaming (see docs/benchmarks.md).
+# Peak RSS growth per million output samples of `singplan plan` with its default outputs (trajectory
+# files written streaming, report.html, replay.html), same benchmark: 688 MB at 1 M, 965 MB at 2 M and
+# 1386 MB at 3.4 M samples, 284 MB a million above the 0.1 M figure (291 between 1 M and 3.4 M); the
+# files alone took 1277 MB at 3.4 M, so the report and the bounded replay add 30-110 MB. 300 keeps
+# every measured peak under the model (by 30-90 MB), so the budget's edge (3.5 M samples) is under 1.5 GB.
 OUTPUT_MB_PER_MILLION = 300.0
 # Peak RSS growth per path sample while one move is planned (tracking candidates, TOPP-RA's grid of
 # the reference samples): 4.7 kB measured on a 0.355 m LIN sampled at 4 um (88 750 samples), rounded up.

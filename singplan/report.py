@@ -26,7 +26,6 @@ from singplan.robot import Robot
 from singplan.trajectory import Trajectory
 
 _PLOT_BUCKETS = 2000  # a curve longer than two points a bucket is drawn as its min/max envelope
-_CHUNK = 65_536  # samples whose TCP positions are formed at once (a list of arrays: ~150 bytes each)
 
 _STYLE = """body{font-family:system-ui,sans-serif;margin:2em;max-width:1100px;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}
@@ -56,14 +55,6 @@ def _envelope(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     starts = np.linspace(0, len(y), _PLOT_BUCKETS + 1).astype(int)[:-1]
     low, high = np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts)
     return np.repeat(x[starts], 2), np.column_stack([low, high]).ravel()
-
-
-def _tcp_positions(robot: Robot, q: np.ndarray) -> np.ndarray:
-    """TCP positions (K, 3) [m], formed a chunk at a time."""
-    out = np.empty((len(q), 3))
-    for c in range(0, len(q), _CHUNK):
-        out[c:c + _CHUNK] = robot.tcp_positions(q[c:c + _CHUNK])
-    return out
 
 
 def _shade(ax: Any, traj: Trajectory) -> None:
@@ -197,7 +188,7 @@ def report_html(traj: Trajectory, robot: Robot) -> str:
     sing = traj.task.get("singularity", {})
     zone = sing.get("zone", {})
     vmax = robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", 1.0))
-    tcp = _tcp_positions(robot, traj.q)  # (K, 3)
+    tcp = robot.tcp_positions(traj.q)  # (K, 3), formed in chunks
     step_m = np.linalg.norm(np.diff(tcp, axis=0), axis=1)  # (K - 1,)
     s_mm = np.concatenate([[0.0], np.cumsum(step_m)]) * 1e3  # (K,)
     figures = [

@@ -16,6 +16,7 @@ import atexit
 import base64
 import contextlib
 import io
+import itertools
 import json
 import math
 import re
@@ -46,10 +47,19 @@ from singplan.trajectory import Segment, Trajectory, load
 
 DEFAULT_HOST = "127.0.0.1"  # the live server is for this machine unless asked otherwise
 _SERVER_START_S = 60.0  # longest wait for the live server to report its address
-ANIMATION_STEP_S = 0.02  # animation keyframes; the browser interpolates between them
+ANIMATION_STEP_S = 0.02  # animation keyframes at most this often; the browser interpolates between them
 SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575}
-_DOT_EVERY = 3  # executed-path dots: one per this many samples
-_STRIP_POINTS = 1500  # joint-speed strip: at most this many points
+# What the page holds is bounded whatever the number of samples (a million samples would be
+# hundreds of MB of page and a minute of building): a time grid of at most so many points, more
+# where the joints move fast (no joint turns more than the turn between two kept samples, so a
+# wrist flip stays a flip and not a shortcut; at most so many such points), and the segments'
+# boundaries and crossings' midpoints, exactly.
+_KEYFRAMES = 600  # animation keyframes on the time grid (~1 kB of page each; a 60-move program: ~2.5 MB)
+_KEYFRAME_TURN_RAD = 0.15  # ... and one at least every 0.15 rad of a joint (a 3 mm chord at 1 m)
+_PATH_POINTS = 10_000  # executed-path points on the time grid (a line, and every _DOT_EVERY-th a dot)
+_PATH_TURN_RAD = 0.01  # ... and at least every 0.01 rad of a joint
+_DOT_EVERY = 3  # executed-path dots: one per this many path points
+_STRIP_POINTS = 1500  # joint-speed strip: at most this many points (each bucket's lowest and highest)
 _VIEW_DIRECTION = np.array([0.8, -1.0, 0.75]) / np.linalg.norm([0.8, -1.0, 0.75])  # camera side of the scene
 _PACKAGE_DIR = Path(__file__).resolve().parent
 
@@ -75,7 +85,72 @@ def _line(points: np.ndarray, colour: int, width: float = 2.0) -> mg.Line:
     return mg.Line(geometry, mg.LineBasicMaterial(color=colour, linewidth=width))
 
 
-def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: np.ndarray, programmed: np.ndarray,
+@dataclass(frozen=True)
+class TcpPath:
+    """The executed TCP path at a bounded set of kept samples.
+
+    Attributes:
+        index: kept sample indices (M,), ascending, with every segment's first and last sample
+            and every crossing's midpoint.
+        xyz: TCP positions [m] (M, 3) at those samples.
+    """
+
+    index: np.ndarray
+    xyz: np.ndarray
+
+    def between(self, k0: int, k1: int) -> np.ndarray:
+        """Positions (m, 3) [m] of the kept samples k0..k1 (both included)."""
+        return self.xyz[np.searchsorted(self.index, k0):np.searchsorted(self.index, k1, side="right")]
+
+    def at(self, k: int) -> np.ndarray:
+        """Position (3,) [m] at a kept sample ``k``."""
+        i = int(np.searchsorted(self.index, k))
+        assert i < len(self.index) and self.index[i] == k, f"sample {k} is not kept"
+        return self.xyz[i]
+
+
+def tcp_path(traj: Trajectory, robot: Robot) -> TcpPath:
+    """The TCP path at the samples the page shows (:func:`kept_samples` at the path's density)."""
+    index = kept_samples(traj, 1, _PATH_POINTS, _PATH_TURN_RAD)
+    return TcpPath(index, robot.tcp_positions(traj.q[index]))
+
+
+def kept_samples(traj: Trajectory, min_stride: int, grid_points: int, turn_rad: float) -> np.ndarray:
+    """Sample indices (ascending) that stand for the trajectory, about 2 x ``grid_points`` at most
+    plus three a segment: a time grid (every ``min_stride`` samples or coarser, at most
+    ``grid_points``), a sample each time some joint has turned ``turn_rad`` more (coarser too if
+    that would be more than ``grid_points``), the last sample, each segment's first and last and
+    each crossing's midpoint."""
+    last = len(traj.t) - 1
+    stride = max(min_stride, math.ceil(last / grid_points))
+    travel = _joint_travel(traj.q)  # (K,) [rad], non-decreasing
+    turn = max(turn_rad, float(travel[-1]) / grid_points)
+    marks = np.searchsorted(travel, np.arange(turn, travel[-1], turn))  # first sample past each mark
+    bounds = [k for seg in traj.segments for k in (*_sample_range(traj, seg), _midpoint(traj, seg))]
+    keep = np.concatenate([np.arange(0, last + 1, stride), marks, np.clip(bounds, 0, last), [last]])
+    return np.unique(keep.astype(np.int64))
+
+
+def _joint_travel(q: np.ndarray) -> np.ndarray:
+    """Cumulative sum over samples of the largest joint step [rad] (K,), formed in chunks."""
+    travel = np.zeros(len(q))
+    total = 0.0
+    for c in range(0, len(q) - 1, _CHUNK):
+        steps = np.abs(np.diff(q[c:c + _CHUNK + 1], axis=0)).max(axis=1)
+        travel[c + 1:c + 1 + len(steps)] = total + np.cumsum(steps)
+        total = float(travel[c + len(steps)])
+    return travel
+
+
+_CHUNK = 65_536  # samples differenced at once (a few MB of temporaries)
+
+
+def _midpoint(traj: Trajectory, seg: Segment) -> int:
+    k0, k1 = _sample_range(traj, seg)
+    return (k0 + k1) // 2
+
+
+def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath, programmed: np.ndarray,
            speed: float = 1.0, loop: bool = False, play: bool = False) -> None:
     """Send the replay scene to ``vis``: robot, paths, crossing markers and the animation."""
     viz, full = _robot_visuals(vis, robot)
@@ -83,14 +158,23 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: np.ndar
     vis["/Grid"].set_property("visible", False)  # the robot's base axes show the ground frame
     vis["paths/programmed"].set_object(_line(programmed, 0x9E9E9E, 1.0))
     _draw_segments(vis, traj, tcp)
+    # a frame is a sample: keyframes at any kept sample, the exact joint values there
+    animation = meshcat.animation.Animation(default_framerate=speed / traj.period)
     step = max(1, round(ANIMATION_STEP_S / traj.period))
-    animation = meshcat.animation.Animation(default_framerate=speed / (step * traj.period))
-    for frame_index, k in enumerate(range(0, len(traj.t), step)):
-        with animation.at_frame(vis, frame_index) as frame:
+    for k in kept_samples(traj, step, _KEYFRAMES, _KEYFRAME_TURN_RAD).tolist():
+        with animation.at_frame(vis, k) as frame:
             viz.viewer = frame
             viz.display(full(traj.q[k]))
     viz.viewer = vis
+    _drop_still_clips(animation)
     vis.set_animation(animation, play=play, repetitions=_LOOP_REPETITIONS if loop else 1)
+
+
+def _drop_still_clips(animation: meshcat.animation.Animation) -> None:
+    """Remove the clips of nodes that never move (the base): the scene already shows them there."""
+    for path, clip in list(animation.clips.items()):
+        if all(all(v == track.values[0] for v in track.values) for track in clip.tracks.values()):
+            del animation.clips[path]
 
 
 def _robot_visuals(vis: meshcat.Visualizer, robot: Robot) -> tuple[MeshcatVisualizer, Any]:
@@ -107,21 +191,22 @@ def _robot_visuals(vis: meshcat.Visualizer, robot: Robot) -> tuple[MeshcatVisual
     return viz, _full_configuration(model, robot)
 
 
-def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: np.ndarray) -> None:
+def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath) -> None:
     """The executed TCP path by segment kind (a line plus dots), and a marker at each crossing."""
     for n, seg in enumerate(traj.segments):
         k0, k1 = _sample_range(traj, seg)
         colour = SEGMENT_COLOURS.get(seg.kind, 0)
-        vis[f"paths/executed/{n:03d}_{seg.kind}"].set_object(_line(tcp[k0:k1 + 1], colour, 3.0))
+        path = tcp.between(k0, k1)
+        vis[f"paths/executed/{n:03d}_{seg.kind}"].set_object(_line(path, colour, 3.0))
         # browsers draw lines one pixel wide: dots make the executed path readable at a glance
-        points = np.asarray(tcp[k0:k1 + 1:_DOT_EVERY], dtype=np.float32).T  # (3, M)
+        points = np.asarray(path[::_DOT_EVERY], dtype=np.float32).T  # (3, M)
         rgb = np.array([(colour >> 16) & 255, (colour >> 8) & 255, colour & 255], dtype=np.float32)[:, None] / 255
         dots = mg.PointsGeometry(points, color=np.repeat(rgb, points.shape[1], axis=1))
         vis[f"paths/dots/{n:03d}_{seg.kind}"].set_object(mg.Points(dots, mg.PointsMaterial(size=0.006)))
         if seg.kind == "crossing":
             marker = vis[f"crossings/{n:03d}_{seg.singularity}_{seg.method}"]
             marker.set_object(mg.Sphere(0.012), mg.MeshLambertMaterial(color=0xF4B400, opacity=0.8))
-            marker.set_transform(mtf.translation_matrix(tcp[(k0 + k1) // 2]))
+            marker.set_transform(mtf.translation_matrix(tcp.at(_midpoint(traj, seg))))
 
 
 _LOOP_REPETITIONS = 1_000_000  # meshcat's "loop": repeat the clip this many times
@@ -144,7 +229,7 @@ def _full_configuration(model: pin.Model, robot: Robot) -> Any:
     return full
 
 
-def programmed_path(traj: Trajectory, robot: Robot, tcp: np.ndarray) -> np.ndarray:
+def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
     """Points (M, 3) [m] of the programmed path: LIN/CIRC geometry from the task; PTP as executed."""
     task = parse_task(traj.task)
     points = []
@@ -153,7 +238,7 @@ def programmed_path(traj: Trajectory, robot: Robot, tcp: np.ndarray) -> np.ndarr
         segs = [s for s in traj.segments if s.move == i]
         k0, k1 = round(segs[0].t0 / traj.period), round(segs[-1].t1 / traj.period)
         if move.kind == "ptp":
-            points.append(tcp[k0:k1 + 1])
+            points.append(tcp.between(k0, k1))
             T = robot.fk(traj.q[k1])
             continue
         piece = plan_move_piece(i, move, T)
@@ -164,12 +249,12 @@ def programmed_path(traj: Trajectory, robot: Robot, tcp: np.ndarray) -> np.ndarr
 
 def replay_html(traj: Trajectory, robot: Robot) -> str:
     """The replay page, a self-contained HTML document (the template and assets of :func:`viewer_dir`)."""
-    tcp = robot.tcp_positions(traj.q)  # (K, 3)
+    tcp = tcp_path(traj, robot)
     recorder = _Recorder()
     _scene(meshcat.Visualizer(window=recorder), traj, robot, tcp, programmed_path(traj, robot, tcp))
     assets = viewer_dir()
     data = _page_data(traj, robot, tcp)
-    data["commands"] = [base64.b64encode(umsgpack.packb(c)).decode("ascii") for c in recorder.commands]
+    data["commands"] = [base64.b64encode(_packed(c)).decode("ascii") for c in recorder.commands]
     title = escape(f"singplan replay: {traj.robot}, {traj.duration_s:.3f} s")
     fills = {"__TITLE__": title, "__CSS__": (assets / "replay.css").read_text(),
              "__MESHCAT__": _meshcat_bundle(), "__DATA__": json.dumps(data).replace("</", "<\\/"),
@@ -178,35 +263,52 @@ def replay_html(traj: Trajectory, robot: Robot) -> str:
     return re.sub(r"__(TITLE|CSS|MESHCAT|DATA|JS)__", lambda m: fills[m.group(0)], template)  # values not rescanned
 
 
+def _packed(command: dict[str, Any]) -> bytes:
+    """A command as meshcat's viewer reads it; the animation's keyframes in single precision
+    (0.1 um at 1 m, 1e-7 of a quaternion) take a third less of the page than doubles."""
+    precision = "single" if command["type"] == "set_animation" else "double"
+    return bytes(umsgpack.packb(command, force_float_precision=precision))
+
+
 def _meshcat_bundle() -> str:
     return (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text()
 
 
-def _page_data(traj: Trajectory, robot: Robot, tcp: np.ndarray) -> dict[str, Any]:
+def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath) -> dict[str, Any]:
     """What replay.js shows besides the scene: segments, crossing labels, speed strip, camera."""
     segments, labels = [], []
     for seg in traj.segments:
-        k0, k1 = _sample_range(traj, seg)
         title, detail = _describe(seg)
         crossing = seg.kind == "crossing"
-        t_jump = traj.t[(k0 + k1) // 2] if crossing else seg.t0
+        t_jump = traj.t[_midpoint(traj, seg)] if crossing else seg.t0
         segments.append({"kind": seg.kind, "move": seg.move, "t0": seg.t0, "t1": seg.t1, "t_jump": float(t_jump),
                          "colour": SEGMENT_COLOURS.get(seg.kind, 0), "title": title, "detail": detail})
         if crossing:
             d = seg.details
             text = (f"{title.split(': ', 1)[1]}; {d.get('max_position_error_mm', 0.0):.3f} mm / "
                     f"{d.get('max_orientation_error_deg', 0.0):.2f} deg")
-            labels.append({"text": text, "xyz": tcp[(k0 + k1) // 2].tolist()})
+            labels.append({"text": text, "xyz": tcp.at(_midpoint(traj, seg)).tolist()})
     vmax = robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", 1.0))
-    ratio = np.max(np.abs(traj.qd) / vmax, axis=1)  # (K,)
-    keep = np.unique(np.linspace(0, len(traj.t) - 1, min(len(traj.t), _STRIP_POINTS)).astype(int))
-    points = np.vstack([tcp, np.zeros((1, 3))])  # the path and the robot's base
+    ratio = np.concatenate([np.max(np.abs(traj.qd[c:c + _CHUNK]) / vmax, axis=1)
+                            for c in range(0, len(traj.t), _CHUNK)])  # (K,)
+    keep = _extremes(ratio, _STRIP_POINTS)
+    points = np.vstack([tcp.xyz, np.zeros((1, 3))])  # the path and the robot's base
     lo, hi = points.min(axis=0), points.max(axis=0)
     radius = max(0.3, 0.5 * float(np.linalg.norm(hi - lo)))
     return {"duration": traj.duration_s, "colours": SEGMENT_COLOURS, "segments": segments, "labels": labels,
             "speed": {"t": np.round(traj.t[keep], 4).tolist(), "ratio": np.round(ratio[keep], 4).tolist()},
             "frame": {"center": (0.5 * (lo + hi)).tolist(), "distance": 2.2 * radius,
                       "direction": _VIEW_DIRECTION.tolist()}}
+
+
+def _extremes(values: np.ndarray, count: int) -> np.ndarray:
+    """Indices (ascending) of at most ``count`` values that draw the same peaks: all of them when
+    few, else the lowest and the highest of each of count / 2 buckets."""
+    if len(values) <= count:
+        return np.arange(len(values))
+    bounds = np.linspace(0, len(values), count // 2 + 1).astype(np.int64).tolist()
+    return np.unique([a + int(pick(values[a:b])) for a, b in itertools.pairwise(bounds)
+                      for pick in (np.argmin, np.argmax)])
 
 
 def _describe(seg: Segment) -> tuple[str, str]:
@@ -294,7 +396,7 @@ def serve_replay(traj: Trajectory, robot: Robot, speed: float = 1.0, loop: bool 
         with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its URL; the caller decides
             vis = meshcat.Visualizer(zmq_url=command_url)
         live = LiveReplay(vis.url(), host, vis, server)
-        tcp = robot.tcp_positions(traj.q)
+        tcp = tcp_path(traj, robot)
         _scene(vis, traj, robot, tcp, programmed_path(traj, robot, tcp), speed=speed, loop=loop, play=True)
     except BaseException:
         _stop(server)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import resource
 import subprocess
 import sys
@@ -45,9 +46,9 @@ LIN_TO = [0.45, 0.3, 0.45]
 LIN_BACK = [0.45, -0.05, 0.45]
 
 
-def _three_slow_lins(samples_each: float) -> dict[str, Any]:
-    """Three LINs of ~0.35 m, each timed at about ``samples_each`` samples of 0.5 ms (speeds >= 0.1 mm/s)."""
-    period = 0.0005
+def _three_slow_lins(samples_each: float, period: float = 0.0005) -> dict[str, Any]:
+    """Three LINs of ~0.35 m, each timed at about ``samples_each`` samples of ``period`` [s]
+    (0.5 ms: millions of samples at speeds above the task's lowest, 0.1 mm/s)."""
     speed = 0.355 / (samples_each * period)
     return _task([{"lin": {"to": {"xyz": xyz}, "speed": speed}} for xyz in (LIN_TO, LIN_BACK, LIN_TO)], period)
 
@@ -69,6 +70,22 @@ def _guarded_cli(args: list[str]) -> tuple[int, str, float]:
     done = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=GUARD_S,
                           preexec_fn=_limit_memory, check=False)
     return done.returncode, done.stderr, time.perf_counter() - t0
+
+
+def _measured_cli(args: list[str], tmp_path: Path) -> tuple[int, str, float]:
+    """``singplan ARGS`` in a guarded subprocess: exit code, stderr and peak RSS [MB] (``os.wait4``)."""
+    code = "import sys; from singplan.cli import main; sys.exit(main(sys.argv[1:]))"
+    err_path = tmp_path / "stderr.txt"
+    with err_path.open("w") as err:
+        proc = subprocess.Popen([sys.executable, "-c", code, *args], preexec_fn=_limit_memory,
+                                stdout=subprocess.DEVNULL, stderr=err)
+    deadline = time.perf_counter() + GUARD_S
+    while not (done := os.wait4(proc.pid, os.WNOHANG))[0]:
+        if time.perf_counter() > deadline:
+            proc.kill()
+        time.sleep(0.1)
+    proc.returncode = os.waitstatus_to_exitcode(done[1])
+    return proc.returncode, err_path.read_text(), done[2].ru_maxrss / 1024
 
 
 def _write(tmp_path: Path, doc: dict[str, Any]) -> Path:
@@ -173,3 +190,34 @@ def test_chunked_build_figures_equal_the_whole_array_ones(monkeypatch: pytest.Mo
         want_qd, want_qdd = finite_differences(q, 0.004)
         assert np.array_equal(qd, want_qd) and np.array_equal(qdd, want_qdd)
         assert trajectory_build._chunked_ratios(q, 0.004, vmax, amax) == sample_ratios(q, 0.004, vmax, amax)
+
+
+def _one_slow_lin(samples: float, period: float) -> dict[str, Any]:
+    """The LIN of bench/bench_memory.py (0.355 m), timed at about ``samples`` samples of ``period`` [s]."""
+    return _task([{"lin": {"to": {"xyz": LIN_TO}, "speed": 0.355 / (samples * period)}}], period)
+
+
+def test_the_budget_edge_is_where_the_model_reaches_the_budget() -> None:
+    """One LIN: 3.3 M samples fit the 1.5 GB (bench_memory measured 3.4 M under it); 3.8 M do not."""
+    fits = _estimate(_one_slow_lin(3.3e6, 0.0005))
+    assert fits.output_samples <= fits.output_allowance < 3.6e6
+    with pytest.raises(BudgetError) as info:
+        _estimate(_one_slow_lin(3.8e6, 0.0005))
+    assert info.value.move == 0 and info.value.cap == TASK_MEMORY_MB < info.value.value
+    assert "MB" in str(info.value) and "output.period" in str(info.value)
+
+
+def test_the_model_bounds_the_measured_peak_with_every_output(tmp_path: Path) -> None:
+    """plan with its default outputs (files, report, replay) on 0.2 M samples: the budget's estimate
+    is an upper bound of the measured peak RSS, and the replay page stays small."""
+    doc = _one_slow_lin(0.2e6, 0.001)
+    estimate = _estimate(doc)
+    out = tmp_path / "out"
+    code, stderr, peak_mb = _measured_cli(["plan", str(_write(tmp_path, doc)), "-o", str(out), "--quiet"], tmp_path)
+    model_mb = memory_mb(estimate.output_samples, max(m.path_samples for m in estimate.moves), estimate.path_samples)
+    print(f"0.2 M samples, every output: peak {peak_mb:.0f} MB, model {model_mb:.0f} MB, "
+          f"replay.html {(out / 'replay.html').stat().st_size / 1e6:.2f} MB")
+    assert code == 0, stderr
+    assert {"trajectory.json", "trajectory.csv", "report.html", "replay.html"} <= {p.name for p in out.iterdir()}
+    assert peak_mb <= model_mb
+    assert (out / "replay.html").stat().st_size < 5e6

@@ -158,9 +158,11 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale_v: f
     instance.compute_parameterization(0.0, 0.0)
     data = instance.problem_data
     if data.return_code != ta_algo.ParameterizationReturnCode.Ok or data.sd_vec is None:
-        raise TimingError(move_index, _infeasible_at(data),
+        at = _infeasible_at(data)
+        where = "" if at is not None else "; TOPP-RA did not say where: the path's steepest point"
+        raise TimingError(move_index, at if at is not None else _steepest_at(u, q, vmax[:-1]),
                           f"TOPP-RA found no feasible time-parameterisation ({data.return_code.value}; the "
-                          f"joint velocity and acceleration limits cannot hold the path there)")
+                          f"joint velocity and acceleration limits cannot hold the path there{where})")
     sd = np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0) / tau  # du/dt in real time
     return _Profile(np.asarray(data.gridpoints, dtype=float), sd)
 
@@ -172,6 +174,12 @@ def _infeasible_at(data: ta_algo.ParameterizationData) -> float | None:
     sets = np.asarray(data.K, dtype=float)
     empty = np.flatnonzero(~(sets[:, 1] >= sets[:, 0]))  # also NaN
     return float(np.asarray(data.gridpoints)[empty[-1]]) if len(empty) else None
+
+
+def _steepest_at(u: np.ndarray, q: np.ndarray, vmax: np.ndarray) -> float:
+    """The path parameter u of the reference step (K,) (K, n) whose joint slope |dq/du| / vmax is largest."""
+    slope = np.max(np.abs(np.diff(q, axis=0)) / vmax, axis=1) / np.diff(u)
+    return float(u[int(np.argmax(slope))])
 
 
 def _grid(u: np.ndarray) -> np.ndarray:

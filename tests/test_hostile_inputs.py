@@ -19,19 +19,7 @@ from singplan.cli import main
 from singplan.robot import MAX_URDF_BYTES, robots_dir
 from singplan.task import MAX_FILE_BYTES
 
-GOOD = """\
-robot: abb_irb2400
-tool: {xyz: [0, 0, 0.1], rpy_deg: [0, 0, 0]}
-start: {joints_deg: [0, 10, 20, 0, 30, 0]}
-moves:
-  - lin: {to: {xyz: [1.0, 0.0, 1.0], rpy_deg: [180, 0, 0]}, speed: 0.25, config: auto}
-  - circ: {via: {xyz: [1.1, 0.1, 1.0]}, to: {xyz: [1.0, 0.2, 1.0]}, speed: 0.1}
-  - ptp: {to: {joints_deg: [0, 0, 0, 0, 30, 0]}, velocity_scale: 0.5}
-singularity: {method: exact, orientation_tolerance_deg: 2, position_tolerance_mm: 0.01,
-              zone: {wrist_deg: 4, shoulder_mm: 10, elbow_deg: 3}}
-limits: {velocity_scale: 0.8, acceleration: [5, 5, 5, 10, 10, 10]}
-output: {period: 0.002}
-"""
+GOOD = (Path(__file__).parent / "data" / "good_task.yaml").read_text()  # every field set
 URDF = (robots_dir() / "abb_irb2400.urdf").read_text()
 JOINT_5_LIMIT = 'velocity="6.283185307179586" lower="-2.0943951023931953" upper="2.0943951023931953"'
 

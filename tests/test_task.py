@@ -22,19 +22,7 @@ from singplan.task import (
     parse_task,
 )
 
-GOOD = """
-robot: abb_irb2400
-tool: {xyz: [0, 0, 0.1], rpy_deg: [0, 0, 0]}
-start: {joints_deg: [0, 10, 20, 0, 30, 0]}
-moves:
-  - lin: {to: {xyz: [1.0, 0.0, 1.0], rpy_deg: [180, 0, 0]}, speed: 0.25, config: auto}
-  - circ: {via: {xyz: [1.1, 0.1, 1.0]}, to: {xyz: [1.0, 0.2, 1.0]}, speed: 0.1}
-  - ptp: {to: {joints_deg: [0, 0, 0, 0, 30, 0]}, velocity_scale: 0.5}
-singularity: {method: exact, orientation_tolerance_deg: 2, position_tolerance_mm: 0.01,
-              zone: {wrist_deg: 4, shoulder_mm: 10, elbow_deg: 3}}
-limits: {velocity_scale: 0.8, acceleration: [5, 5, 5, 10, 10, 10]}
-output: {period: 0.002}
-"""
+GOOD = (Path(__file__).parent / "data" / "good_task.yaml").read_text()  # every field set
 
 
 def write(tmp_path: Path, text: str) -> Path:
@@ -120,7 +108,7 @@ def test_a_key_given_twice_is_bad_input_naming_the_key_and_lines(tmp_path: Path)
     with pytest.raises(TaskError) as info:
         load_task(write(tmp_path, text))
     assert info.value.field == "moves[0].lin.speed"
-    assert "twice" in str(info.value) and "lines 6 and 6" in str(info.value)
+    assert "twice" in str(info.value) and "lines 5 and 5" in str(info.value)  # the LIN is line 5 of the file
 
 
 @pytest.mark.parametrize("style", ["flow", "block", "mapping"])

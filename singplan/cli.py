@@ -120,7 +120,9 @@ def _progress_printer(err: TextIO, quiet: bool) -> Callable[[int, int], None] | 
 
 def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     task = load_task(args.task)
-    folder = check_output_dir(args.output)  # before planning: nobody waits for a plan that cannot be written
+    names = ["trajectory.csv", "trajectory.json", *(() if args.no_report else ("report.html",)),
+             *(() if args.no_replay else ("replay.html",))]
+    folder = check_output_dir(args.output, names)  # before planning: nobody waits for a plan that cannot be written
     if not args.quiet and not kernels_cached():
         err.write("singplan: first run after an install: compiling the planner's kernels "
                   "(about 10 s on two cores; cached on disk afterwards)\n")
@@ -272,12 +274,17 @@ def main(argv: Sequence[str] | None = None, out: TextIO | None = None, err: Text
     except KeyboardInterrupt:
         err.write("singplan: interrupted\n")
         return 130
+    except BrokenPipeError:  # the reader went away (`singplan robots | head`): nothing left to say
+        return _SIGPIPE_EXIT
     except Exception as exc:  # a bug (or an input no check caught): one line, not a traceback
         if os.environ.get("SINGPLAN_DEBUG", "") not in ("", "0"):
             traceback.print_exc(file=err)
         err.write(f"singplan: internal error: {type(exc).__name__}: {_one_line(exc)} "
                   "(please report this; run with SINGPLAN_DEBUG=1 for the traceback)\n")
         return 1
+
+
+_SIGPIPE_EXIT = 141  # 128 + SIGPIPE, what a shell reports for a writer whose pipe closed
 
 
 def _one_line(exc: BaseException, max_chars: int = 300) -> str:
@@ -288,4 +295,7 @@ def _one_line(exc: BaseException, max_chars: int = 300) -> str:
 def run() -> None:
     """Console-script entry point; SIGTERM stops like Ctrl-C (temporary files are removed)."""
     signal.signal(signal.SIGTERM, _interrupt)
-    sys.exit(main())
+    code = main()
+    if code == _SIGPIPE_EXIT:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit's flush
+    sys.exit(code)

@@ -15,9 +15,11 @@ a probe file, and removing both again.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import TextIO
 
@@ -27,9 +29,10 @@ Writer = Callable[[TextIO], None]
 _TEMP_SUFFIX = ".singplan-tmp"
 
 
-def check_output_dir(path: str | os.PathLike[str]) -> Path:
-    """Refuse (OutputPathError) a folder that cannot receive singplan's files; leave it as it was."""
+def check_output_dir(path: str | os.PathLike[str], names: Iterable[str] = ()) -> Path:
+    """Refuse (OutputPathError) a folder that cannot receive the files ``names``; leave it as it was."""
     folder = _usable_dir(path)
+    _check_not_folders(path, folder, names)
     created = _make_dirs(folder)
     try:
         _probe(folder)
@@ -51,19 +54,18 @@ def check_output_file(path: str | os.PathLike[str]) -> Path:
 def write_files(path: str | os.PathLike[str], writers: Mapping[str, Writer]) -> list[Path]:
     """Write each ``name -> writer(stream)`` into folder ``path``, all or nothing; return the files."""
     folder = _usable_dir(path)
-    for name in writers:  # found before writing: a rename would fail half way through the files
-        if (folder / name).is_dir():
-            raise OutputPathError(os.fspath(path), f"{folder / name} is a folder; singplan cannot replace it")
+    _check_not_folders(path, folder, writers)  # found before writing: a rename would fail half way through
     created = _make_dirs(folder)
     temps: dict[str, Path] = {}
     written: list[Path] = []
     try:
         for name, write in writers.items():
             _write_temp(folder, name, write, temps)
-        for name in list(temps):
-            os.replace(temps[name], folder / name)  # each rename is atomic; no reader sees a partial file
-            del temps[name]
-            written.append(folder / name)
+        with _interrupts_held():  # Ctrl-C between two renames would leave a mixed set of files
+            for name in list(temps):
+                os.replace(temps[name], folder / name)  # each rename is atomic; no reader sees a partial file
+                del temps[name]
+                written.append(folder / name)
     except BaseException as exc:
         for temp in temps.values():
             temp.unlink(missing_ok=True)
@@ -73,6 +75,25 @@ def write_files(path: str | os.PathLike[str], writers: Mapping[str, Writer]) -> 
             raise OutputPathError(os.fspath(path), f"cannot write into {folder}: {_reason(exc)}") from exc
         raise
     return written
+
+
+@contextlib.contextmanager
+def _interrupts_held() -> Iterator[None]:
+    """SIGINT and SIGTERM wait until the block ends (POSIX; elsewhere nothing is held)."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def _check_not_folders(path: str | os.PathLike[str], folder: Path, names: Iterable[str]) -> None:
+    for name in names:
+        if (folder / name).is_dir():
+            raise OutputPathError(os.fspath(path), f"{folder / name} is a folder; singplan cannot replace it")
 
 
 def write_file(path: str | os.PathLike[str], write: Writer) -> Path:
@@ -113,10 +134,16 @@ def _usable_file(path: str | os.PathLike[str]) -> Path:
     text = os.fspath(path)
     if text == "" or text.endswith(os.sep):
         raise OutputPathError(text, "give a file name, e.g. replay.html")
+    if "\0" in text:
+        raise OutputPathError(text, "contains a NUL character")
     target = Path(text)
-    if target.is_symlink():
-        target = Path(os.path.realpath(target))  # write the file it points to and keep the link
-    if target.is_dir():
+    try:
+        if target.is_symlink():
+            target = Path(os.path.realpath(target))  # write the file it points to and keep the link
+        is_dir = target.is_dir()
+    except OSError as exc:  # e.g. a name too long for the file system
+        raise OutputPathError(text, _reason(exc)) from None
+    if is_dir:
         raise OutputPathError(text, "is a folder; give a file name")
     return target
 
@@ -161,7 +188,7 @@ def _probe(folder: Path) -> None:
 
 def _write_temp(folder: Path, name: str, write: Writer, temps: dict[str, Path]) -> None:
     """Write one file under a hidden temporary name, registered in ``temps`` before any byte."""
-    fd, temp = tempfile.mkstemp(prefix=f".{name}.", suffix=_TEMP_SUFFIX, dir=folder)
+    fd, temp = tempfile.mkstemp(prefix=f".{name[:64]}.", suffix=_TEMP_SUFFIX, dir=folder)  # short: any name fits
     temps[name] = Path(temp)
     with os.fdopen(fd, "w", encoding="utf-8") as stream:
         os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes it private; the result is an ordinary file

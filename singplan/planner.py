@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from singplan.budget import check_task
+from singplan.budget import BudgetError, check_task
 from singplan.configuration import classify, distances_batch, labels_from_distances, parse_configuration
 from singplan.crossing import (
     METHODS_AVAILABLE,
@@ -111,9 +111,10 @@ def plan(task: Task | str | Path, method: str | None = None, progress: Progress 
     T = robot.fk(q)
     planned: list[PlannedMove] = []
     timed: list[TimedMove] = []
+    left = allowance - 1  # output samples the remaining moves may add (they share their boundary samples)
     for i, move in enumerate(task.moves):
-        left = allowance - 1 - sum(len(t.q) - 1 for t in timed)
         pm, tm = _best_of(robot, task, i, move, T, q, candidate_methods(task.singularity.method, move), left)
+        left -= len(tm.q) - 1
         planned.append(pm)
         timed.append(tm)
         q = tm.q[-1]
@@ -132,8 +133,8 @@ def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: 
                    traj: Trajectory) -> None:
     """The last gate: no plan is returned whose own samples break a limit (whatever the cause)."""
     _check_positions(robot, planned, timed, traj)
-    over = {k: v for k, v in traj.metrics.items()
-            if k.startswith("max_") and k.endswith("_ratio") and isinstance(v, float) and v > 1.0 + _ROUND_OFF}
+    over = {k: v for k, v in traj.metrics.items()  # `not <=`: a NaN ratio is a violation too
+            if k.startswith("max_") and k.endswith("_ratio") and isinstance(v, float) and not v <= 1.0 + _ROUND_OFF}
     if not over:
         return
     vmax, amax = robot.velocity_rad_s * task.limits.velocity_scale, robot.acceleration_rad_s2
@@ -147,7 +148,7 @@ def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: 
 
 def _check_positions(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], traj: Trajectory) -> None:
     """Every output sample inside the joint position limits."""
-    outside = (traj.q < robot.lower_rad - 1e-9) | (traj.q > robot.upper_rad + 1e-9)
+    outside = ~((traj.q >= robot.lower_rad - 1e-9) & (traj.q <= robot.upper_rad + 1e-9))  # NaN too
     if not outside.any():
         return
     k, j = (int(v) for v in np.argwhere(outside)[0])
@@ -200,7 +201,7 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
              methods: list[CrossingMethod], max_samples: int) -> tuple[PlannedMove, TimedMove]:
     """Plan and time the move with each method; keep the fastest within the tolerances."""
     results: list[tuple[PlannedMove, TimedMove]] = []
-    failures: list[tuple[str, PlanningError]] = []
+    failures: list[tuple[str, PlanningError | BudgetError]] = []
     for method in methods:
         if results and not results[0][0].zones:
             break  # nothing to cross: every method gives this same motion
@@ -209,14 +210,15 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
             tm = _timed(robot, pm, task.period_s, max_samples)
             _check_config(robot, move, pm, tm)
             _check_tolerances(robot, task, pm, tm)
-        except PlanningError as exc:
+        except (PlanningError, BudgetError) as exc:  # a slow method over the allowance: another may fit
             failures.append((method.name, exc))
             continue
         results.append((replace(pm, method=method.name, variant=_variant(method)), tm))
     if not results:
-        unreachable: list[PlanningError] = [exc for _, exc in failures if isinstance(exc, UnreachableError)]
-        if len(failures) == 1 or unreachable:  # the path itself fails: no method can help
-            raise (unreachable or [failures[0][1]])[0]
+        decisive: list[PlanningError | BudgetError] = [
+            exc for _, exc in failures if isinstance(exc, (UnreachableError, BudgetError))]
+        if len(failures) == 1 or decisive:  # the path itself fails, or the task is too large: no method can help
+            raise (decisive or [failures[0][1]])[0]
         raise PlanningError(f"move {i} ({move.kind}): no method could plan it: "
                             + "; ".join(f"{name}: {exc}" for name, exc in failures))
     results.sort(key=lambda r: r[1].duration_s)

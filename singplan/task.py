@@ -56,7 +56,9 @@ MAX_PATH_CHARS = 4096
 MAX_JOINTS = 64
 METHODS = ("auto", "wrist-joint", "axis", "exact", "dls", "average", "ptp", "stop")
 DEFAULT_SPEED_M_S = 0.25
-_LONG_INTEGER = re.compile(r"[-+]?[0-9][0-9_:]{399,}")  # more digits than any float can hold
+# more digits than any float can hold: decimal (and YAML 1.1 octal), hexadecimal, binary
+_LONG_INTEGER = re.compile(r"[-+]?(?:[0-9][0-9_:]{399,}|0[xX][0-9a-fA-F_]{256,}|0[bB][01_]{1024,})")
+MAX_KEY_CHARS = 256  # keys are field names; a longer one can only be a mistake (or a huge number)
 
 
 class Range(NamedTuple):
@@ -317,8 +319,9 @@ def _place(stack: list[_Open], event: Any, line: int) -> str | None:
     if event.value in top.key_lines:
         raise TaskError(key_path, f"given twice in one mapping (lines {top.key_lines[event.value]} and {line}); "
                                   "a key may appear once")
-    if len(event.value) > MAX_SCALAR_CHARS:
-        raise TaskError(key_path, f"a key of {len(event.value)} characters (line {line})")
+    if len(event.value) > MAX_KEY_CHARS:
+        raise TaskError(key_path, f"a key of {len(event.value)} characters is over the cap of {MAX_KEY_CHARS} "
+                                  f"(line {line})")
     top.key_lines[event.value] = line
     top.key = event.value
     return None

@@ -110,6 +110,9 @@ def test_unusable_output_paths_exit_2_naming_the_path_before_planning(tmp_path: 
         assert err.startswith(f"singplan: error: output {str(out)!r}:") and err.count("\n") == 1, err
     assert (tmp_path / "a_file").read_text() == "keep me\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file", "task.yaml"]
+    (tmp_path / "busy" / "replay.html").mkdir(parents=True)  # a folder where one of singplan's files goes
+    code, _, err = _plan(task, tmp_path / "busy")
+    assert code == 2 and "replay.html is a folder" in err, err
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
@@ -180,7 +183,8 @@ def test_replay_html_follows_the_same_rules(tmp_path: Path, monkeypatch) -> None
     code, _, err = _plan(_task(tmp_path), tmp_path / "out", "--no-report", "--no-replay")
     assert code == 0, err
     (tmp_path / "a_file").write_text("keep me\n")
-    for target in (tmp_path / "out", tmp_path / "a_file" / "x.html", "", "/proc/singplan-x/r.html"):
+    too_long = tmp_path / ("a" * 300 + ".html")  # the file system refuses the name: bad input, not a crash
+    for target in (tmp_path / "out", tmp_path / "a_file" / "x.html", "", "/proc/singplan-x/r.html", too_long):
         stderr = io.StringIO()
         assert main(["replay", str(tmp_path / "out"), "--html", str(target)], out=io.StringIO(), err=stderr) == 2
         assert str(target) in stderr.getvalue()

@@ -193,8 +193,7 @@ def _timed(robot: Robot, pm: PlannedMove, period_s: float, max_samples: int) -> 
     try:
         return time_move(pm.jmap, pm.limits, period_s, pm.index, max_samples)
     except TimingError as exc:
-        where = _where(robot, pm, exc.u) if exc.u is not None else "a point TOPP-RA did not report"
-        raise TimingError(pm.index, exc.u, exc.reason, kind=pm.kind, where=where) from exc
+        raise TimingError(pm.index, exc.u, exc.reason, kind=pm.kind, where=_where(robot, pm, exc.u)) from exc
 
 
 def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,

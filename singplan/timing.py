@@ -40,23 +40,22 @@ _UNLIMITED = 1e9
 _TIGHTEN_PASSES = 8
 _SPEED_MARGIN = 0.999  # ratios the samples must stay under
 _ACCEL_MARGIN = 0.995
-_END_STEP_MARGIN = 1.0  # end steps may reach the continuous-time bound exactly (see end_step_ratio)
 _TCP_MARGIN = 0.999
 _DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
 
 class TimingError(PlanningError):
-    """A move cannot be timed within the limits; ``u`` is the path parameter where (None: unknown).
+    """A move cannot be timed within the limits; ``u`` is the path parameter where.
 
     The planner names the move's kind and turns ``u`` into a point on the path.
     """
 
-    def __init__(self, move: int, u: float | None, reason: str, kind: str = "", where: str = "") -> None:
+    def __init__(self, move: int, u: float, reason: str, kind: str = "", where: str = "") -> None:
         self.move = move
         self.u = u
         self.reason = reason
-        where = where or (f"u = {u:.6f} along the move" if u is not None else "")
-        super().__init__(f"move {move}{f' ({kind})' if kind else ''}: {reason}{f' at {where}' if where else ''}")
+        where = where or f"u = {u:.6f} along the move"
+        super().__init__(f"move {move}{f' ({kind})' if kind else ''}: {reason} at {where}")
 
 
 @dataclass(frozen=True)
@@ -87,7 +86,7 @@ class MoveLimits:
     tcp_speed_m_s: float | None
 
 
-def _reference(jmap: JointMap, limits: MoveLimits) -> tuple[np.ndarray, np.ndarray]:
+def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
     u, q = jmap.reference()
     # Where a move starts or ends on a reach boundary (a stretched elbow) a joint goes as the
     # square root of the distance to the end: its path derivative grows without bound there. Points
@@ -126,7 +125,7 @@ class _Profile:
         return np.minimum(self.grid[i] + self.sd[i] * tau + 0.5 * sdd[i] * tau**2, self.grid[i + 1])
 
 
-def path_scale(u: np.ndarray, q: np.ndarray, limits: MoveLimits) -> float:
+def path_scale(q: np.ndarray, limits: MoveLimits) -> float:
     """The move's size: the largest travel of any joint [rad] or of the TCP [m] along it."""
     travel = float(np.max(np.sum(np.abs(np.diff(q, axis=0)), axis=0), initial=0.0))
     return max(travel, limits.length_m)
@@ -143,7 +142,7 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale_v: f
     needs to cover L: derivatives, path speeds and the duration are then all of order one
     whatever the size of the move, and the result is exact in the original units.
     """
-    length = path_scale(u, q, limits)
+    length = path_scale(q, limits)
     amax = limits.acceleration_rad_s2 * scale_a
     tau = math.sqrt(length / float(np.min(amax)))
     arc = u * (limits.length_m if limits.length_m > 0 else length)  # the TCP's arc length, capped at its speed
@@ -233,11 +232,11 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
 
     ``max_samples``: what is left of the task's allowance of output samples (bad input if over).
     """
-    u_ref, q_ref = _reference(jmap, limits)
+    u_ref, q_ref = _reference(jmap)
     missing = np.flatnonzero(~np.all(np.isfinite(q_ref), axis=1))
     if len(missing):  # a joint map without IK somewhere: never hand NaN to TOPP-RA
         raise TimingError(move_index, float(u_ref[missing[0]]), "no joint values (no inverse kinematics solution)")
-    if path_scale(u_ref, q_ref, limits) == 0.0:
+    if path_scale(q_ref, limits) == 0.0:
         logger.info("move %d changes nothing: one period at rest", move_index)
         return TimedMove(np.array([0.0, 1.0]), q_ref[[0, -1]], period_s, 0.0, 0.0)
     scale_v = scale_a = 1.0
@@ -249,7 +248,7 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
         tcp = _tcp_ratio(u, limits, period_s)
         worst_v = max(speed, tcp) / _SPEED_MARGIN
         worst_a = max(accel / _ACCEL_MARGIN,
-                      end_step_ratio(q, period_s, limits.acceleration_rad_s2) / _END_STEP_MARGIN)
+                      end_step_ratio(q, period_s, limits.acceleration_rad_s2))  # may reach its bound exactly
         if worst_v <= 1.0 and worst_a <= 1.0:
             return TimedMove(u, q, duration, speed, accel)
         if worst_v > _DISCONTINUOUS or worst_a > _DISCONTINUOUS:

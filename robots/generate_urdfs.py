@@ -3,8 +3,9 @@
 The kinematics (joint origins, axes, the link_6 -> tool0 transform) and the limits are the
 published numbers of the registry, written with full precision. Visual geometry is simple
 cylinders sized from the link offsets; masses and inertias are *estimates* (solid cylinders
-of steel-like density scaled to the link length), good enough for a viewer and for order-of-
-magnitude torques, not for control.
+of steel-like density scaled to the link length), good enough for a viewer, not for torques.
+Each file's header says so in a line singplan reads (:data:`NO_DYNAMICS_MARK`): these arms have
+no published dynamics, so singplan reports no torques for them and refuses ``limits.torque_scale``.
 
     python robots/generate_urdfs.py            # rewrite all URDFs
     python robots/generate_urdfs.py --check    # exit 1 if a URDF on disk is out of date
@@ -35,6 +36,8 @@ COLOURS = [
     (0.85, 0.30, 0.30),
 ]
 EFFORT_DEFAULT_NM = 1000.0  # placeholder where the data sheet gives none (marked in the header)
+# read by singplan/dynamics.py (same text there): estimated inertias are no basis for torques
+NO_DYNAMICS_MARK = "singplan: no published dynamics"
 
 
 def _rotation_z_to(v: np.ndarray) -> np.ndarray:
@@ -140,6 +143,7 @@ def urdf_text(name: str, spec: dict) -> str:
         header.append(f"     Effort limits are placeholders ({EFFORT_DEFAULT_NM:g} N m): no published figure. -->")
     else:
         header.append("     Effort limits from the data sheet. -->")
+    header.insert(-1, f"     {NO_DYNAMICS_MARK}: masses and inertias are estimates; no torques are computed.")
     first_newline = body.index("\n") + 1 if body.startswith("<?xml") else 0
     return body[:first_newline] + "\n".join(header) + "\n" + body[first_newline:]
 

@@ -30,6 +30,7 @@ from singplan.crossing import (
     MoveContext,
     WristJoint,
 )
+from singplan.dynamics import TorqueLimit, effort_limits_nm, require_dynamics
 from singplan.errors import JointLimitError, PlanningError, SingularityError, UnreachableError
 from singplan.ik import solve_all
 from singplan.jointmap import JointMap, JointPart
@@ -88,6 +89,8 @@ def load_task_robot(task: Task) -> Robot:
     tool = pin.SE3(rpy_deg_to_rotation(task.tool_rpy_deg), np.asarray(task.tool_xyz, dtype=float))
     robot = load_robot(task.robot, tip=task.tip, tool=tool)
     check_against_robot(task, robot)
+    if task.limits.torque_scale is not None:
+        require_dynamics(robot)
     acc = np.asarray(task.limits.acceleration_rad_s2, dtype=float)
     robot.acceleration_rad_s2 = np.broadcast_to(acc, (robot.n_joints,)).copy()
     return robot
@@ -133,12 +136,17 @@ def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: 
                    traj: Trajectory) -> None:
     """The last gate: no plan is returned whose own samples break a limit (whatever the cause)."""
     _check_positions(robot, planned, timed, traj)
+    unlimited = () if task.limits.torque_scale is not None else ("max_torque_ratio",)  # reported, not a limit
     over = {k: v for k, v in traj.metrics.items()  # `not <=`: a NaN ratio is a violation too
-            if k.startswith("max_") and k.endswith("_ratio") and isinstance(v, float) and not v <= 1.0 + _ROUND_OFF}
+            if k.startswith("max_") and k.endswith("_ratio") and isinstance(v, float) and not v <= 1.0 + _ROUND_OFF
+            and k not in unlimited}
     if not over:
         return
     vmax, amax = robot.velocity_rad_s * task.limits.velocity_scale, robot.acceleration_rad_s2
-    k = _worst_joint_sample(traj.q, traj.period, vmax, amax)
+    if list(over) == ["max_torque_ratio"]:
+        k = round(float(traj.metrics["max_torque_at_s"]) / traj.period)
+    else:
+        k = _worst_joint_sample(traj.q, traj.period, vmax, amax)
     m, k_move = _move_of_sample(timed, k)
     pm = planned[m]
     figures = ", ".join(f"{name} {value:.4f}" for name, value in over.items())
@@ -269,8 +277,10 @@ def _start_joints(task: Task, robot: Robot) -> np.ndarray:
 
 def _limits(robot: Robot, task: Task, move: Move, length_m: float) -> MoveLimits:
     scale = task.limits.velocity_scale * (move.velocity_scale if move.kind == "ptp" else 1.0)
+    torque = (TorqueLimit(robot, effort_limits_nm(robot) * task.limits.torque_scale)
+              if task.limits.torque_scale is not None else None)
     return MoveLimits(robot.velocity_rad_s * scale, robot.acceleration_rad_s2, length_m,
-                      move.speed_m_s if move.kind != "ptp" else None)
+                      move.speed_m_s if move.kind != "ptp" else None, torque)
 
 
 def _plan_move(robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3, q_start: np.ndarray,

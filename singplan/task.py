@@ -18,6 +18,7 @@ joints_deg                             -3600 .. 3600        deg (and the URDF li
 lin/circ speed                         0.0001 .. 10         m/s
 ptp velocity_scale, limits.velocity_   0.001 .. 1           fraction of the URDF limits
 limits.acceleration                    0.01 .. 10000        rad/s^2
+limits.torque_scale                    0.001 .. 1           fraction of the URDF efforts
 singularity.position_tolerance_mm      0.0001 .. 1000       mm
 singularity.orientation_tolerance_deg  0.001 .. 180         deg
 singularity.zone wrist/elbow_deg       0.001 .. 90          deg
@@ -76,6 +77,7 @@ JOINT_DEG = Range(-3600.0, 3600.0, "deg")
 SPEED_M_S = Range(1e-4, 10.0, "m/s")
 VELOCITY_SCALE = Range(1e-3, 1.0, "")
 ACCELERATION_RAD_S2 = Range(1e-2, 1e4, "rad/s^2")
+TORQUE_SCALE = Range(1e-3, 1.0, "")
 POSITION_TOLERANCE_MM = Range(1e-4, 1000.0, "mm")
 ORIENTATION_TOLERANCE_DEG = Range(1e-3, 180.0, "deg")
 ZONE_ANGLE_DEG = Range(1e-3, 90.0, "deg")
@@ -127,6 +129,7 @@ class SingularitySettings:
 class Limits:
     velocity_scale: float = 1.0
     acceleration_rad_s2: tuple[float, ...] = (10.0,)  # one value for all joints, or one per joint
+    torque_scale: float | None = None  # fraction of the URDF efforts, enforced; None: torques not limited
 
 
 @dataclass(frozen=True)
@@ -166,7 +169,9 @@ class Task:
             "moves": [_move_mapping(m) for m in self.moves],
             "singularity": {**asdict(self.singularity), "zone": asdict(self.singularity.zone)},
             "limits": {"velocity_scale": self.limits.velocity_scale,
-                       "acceleration": acc[0] if len(acc) == 1 else list(acc)},
+                       "acceleration": acc[0] if len(acc) == 1 else list(acc),
+                       **({"torque_scale": self.limits.torque_scale} if self.limits.torque_scale is not None
+                          else {})},
             "output": {"period": self.period_s},
         }
         if self.tip:
@@ -608,7 +613,7 @@ def _singularity(value: Any) -> SingularitySettings:
 
 
 def _limits(value: Any) -> Limits:
-    _check_keys("limits", value, optional=("velocity_scale", "acceleration"))
+    _check_keys("limits", value, optional=("velocity_scale", "acceleration", "torque_scale"))
     acc = value.get("acceleration", 10.0)
     if isinstance(acc, Sequence) and not isinstance(acc, (str, bytes)):
         if not acc or len(acc) > MAX_JOINTS:
@@ -616,8 +621,9 @@ def _limits(value: Any) -> Limits:
         accel = tuple(_number(f"limits.acceleration[{i}]", a, ACCELERATION_RAD_S2) for i, a in enumerate(acc))
     else:
         accel = (_number("limits.acceleration", acc, ACCELERATION_RAD_S2),)
+    torque = _number("limits.torque_scale", value["torque_scale"], TORQUE_SCALE) if "torque_scale" in value else None
     return Limits(velocity_scale=_scale("limits.velocity_scale", value.get("velocity_scale", 1.0)),
-                  acceleration_rad_s2=accel)
+                  acceleration_rad_s2=accel, torque_scale=torque)
 
 
 def _output_period(value: Any) -> float:

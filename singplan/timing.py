@@ -29,6 +29,7 @@ import toppra.algorithm as ta_algo
 import toppra.constraint as ta_constraint
 
 from singplan.budget import check_move_samples
+from singplan.dynamics import PathDynamics, TorqueLimit, move_torque_ratio
 from singplan.errors import PlanningError
 from singplan.jointmap import JointMap
 from singplan.task import MAX_OUTPUT_SAMPLES
@@ -41,6 +42,7 @@ _TIGHTEN_PASSES = 8
 _SPEED_MARGIN = 0.999  # ratios the samples must stay under
 _ACCEL_MARGIN = 0.995
 _TCP_MARGIN = 0.999
+_TORQUE_MARGIN = 0.995
 _DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
 
@@ -67,6 +69,7 @@ class TimedMove:
         q: joint values [rad], shape (K + 1, n); first and last samples at rest.
         duration_s: K * period.
         speed_ratio, accel_ratio: largest |qd| / limit and |qdd| / limit on the samples.
+        torque_ratio: largest |tau| / limit on the samples (0 when the move has no torque limit).
     """
 
     u: np.ndarray  # (K+1,)
@@ -74,6 +77,7 @@ class TimedMove:
     duration_s: float
     speed_ratio: float
     accel_ratio: float
+    torque_ratio: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -84,6 +88,7 @@ class MoveLimits:
     acceleration_rad_s2: np.ndarray  # (n,)
     length_m: float  # 0 for PTP or a pure reorientation: no TCP speed cap
     tcp_speed_m_s: float | None
+    torque: TorqueLimit | None = None  # limits.torque_scale: TOPP-RA's torque constraint, checked on the samples
 
 
 def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
@@ -131,7 +136,7 @@ def path_scale(q: np.ndarray, limits: MoveLimits) -> float:
     return max(travel, limits.length_m)
 
 
-def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale_v: float, scale_a: float,
+def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tuple[float, float, float],
                     move_index: int) -> _Profile:
     """TOPP-RA on the move made dimensionless.
 
@@ -140,8 +145,10 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale_v: f
     tolerances ("not controllable"). So the joints (and the TCP's arc length) are divided by
     the move's size L and time by ``tau = sqrt(L / a)``, the time the slowest-accelerating joint
     needs to cover L: derivatives, path speeds and the duration are then all of order one
-    whatever the size of the move, and the result is exact in the original units.
+    whatever the size of the move, and the result is exact in the original units. ``scale``
+    multiplies the velocity, acceleration and torque limits (the tightening passes).
     """
+    scale_v, scale_a, scale_t = scale
     length = path_scale(q, limits)
     amax = limits.acceleration_rad_s2 * scale_a
     tau = math.sqrt(length / float(np.min(amax)))
@@ -153,6 +160,8 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale_v: f
     amax_1 = np.append(amax * tau**2 / length, _UNLIMITED)
     constraints = [ta_constraint.JointVelocityConstraint(np.stack([-vmax_1, vmax_1], axis=1)),
                    ta_constraint.JointAccelerationConstraint(np.stack([-amax_1, amax_1], axis=1))]
+    if limits.torque is not None:
+        constraints.append(_torque_constraint(limits.torque, q[0], length, tau, scale_t))
     instance = ta_algo.TOPPRA(constraints, path, gridpoints=_grid(u))
     instance.compute_parameterization(0.0, 0.0)
     data = instance.problem_data
@@ -161,9 +170,18 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale_v: f
         where = "" if at is not None else "; TOPP-RA did not say where: the path's steepest point"
         raise TimingError(move_index, at if at is not None else _steepest_at(u, q, vmax[:-1]),
                           f"TOPP-RA found no feasible time-parameterisation ({data.return_code.value}; the "
-                          f"joint velocity and acceleration limits cannot hold the path there{where})")
+                          f"joint velocity{', acceleration and torque' if limits.torque else ' and acceleration'} "
+                          f"limits cannot hold the path there{where})")
     sd = np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0) / tau  # du/dt in real time
     return _Profile(np.asarray(data.gridpoints, dtype=float), sd)
+
+
+def _torque_constraint(limit: TorqueLimit, q0: np.ndarray, length: float, tau_s: float,
+                       scale_t: float) -> ta_constraint.JointTorqueConstraint:
+    """TOPP-RA's torque constraint on the dimensionless path: |tau| <= limit x scale_t, none on the arc length."""
+    bound = np.append(limit.limit_nm * scale_t, _UNLIMITED)
+    return ta_constraint.JointTorqueConstraint(PathDynamics(limit, q0, length, tau_s),
+                                               np.stack([-bound, bound], axis=1), np.zeros(len(bound)))
 
 
 def _infeasible_at(data: ta_algo.ParameterizationData) -> float | None:
@@ -239,27 +257,33 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
     if path_scale(q_ref, limits) == 0.0:
         logger.info("move %d changes nothing: one period at rest", move_index)
         return TimedMove(np.array([0.0, 1.0]), q_ref[[0, -1]], period_s, 0.0, 0.0)
-    scale_v = scale_a = 1.0
+    scale_v = scale_a = scale_t = 1.0
     for _ in range(_TIGHTEN_PASSES):
-        profile = _toppra_profile(u_ref, q_ref, limits, scale_v, scale_a, move_index)
+        profile = _toppra_profile(u_ref, q_ref, limits, (scale_v, scale_a, scale_t), move_index)
         u, duration = _sample(profile, period_s, move_index, max_samples)
         q = jmap.evaluate(u)
         speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
+        torque, torque_at = move_torque_ratio(limits.torque, q, period_s) if limits.torque else (0.0, 0)
         tcp = _tcp_ratio(u, limits, period_s)
         worst_v = max(speed, tcp) / _SPEED_MARGIN
         worst_a = max(accel / _ACCEL_MARGIN,
                       end_step_ratio(q, period_s, limits.acceleration_rad_s2))  # may reach its bound exactly
-        if worst_v <= 1.0 and worst_a <= 1.0:
-            return TimedMove(u, q, duration, speed, accel)
+        worst_t = torque / _TORQUE_MARGIN
+        if worst_v <= 1.0 and worst_a <= 1.0 and worst_t <= 1.0:
+            return TimedMove(u, q, duration, speed, accel, torque)
         if worst_v > _DISCONTINUOUS or worst_a > _DISCONTINUOUS:
             break  # not a grid effect: the joint map jumps somewhere; tightening cannot help
-        logger.debug("move %d: samples at x%.4f speed, x%.4f accel; tightening", move_index, speed, accel)
+        logger.debug("move %d: samples at x%.4f speed, x%.4f accel, x%.4f torque; tightening", move_index, speed,
+                     accel, torque)
         scale_v *= min(1.0, 1.0 / worst_v) * (0.998 if worst_v > 1.0 else 1.0)
         scale_a *= min(1.0, 1.0 / worst_a) * (0.995 if worst_a > 1.0 else 1.0)
+        scale_t *= min(1.0, 1.0 / worst_t) * (0.995 if worst_t > 1.0 else 1.0)
     ends = end_step_ratio(q, period_s, limits.acceleration_rad_s2)
-    raise TimingError(move_index, float(u[_worst_sample(q, period_s, limits)]),
+    worst_k = torque_at if worst_t > max(worst_v, worst_a) else _worst_sample(q, period_s, limits)
+    raise TimingError(move_index, float(u[worst_k]),
                       f"could not keep the joint limits on the output samples (speed x{speed:.3f}, "
-                      f"acceleration x{accel:.3f}, end steps x{ends:.3f} after tightening)")
+                      f"acceleration x{accel:.3f}, end steps x{ends:.3f}"
+                      f"{f', torque x{torque:.3f}' if limits.torque else ''} after tightening)")
 
 
 def _worst_sample(q: np.ndarray, period_s: float, limits: MoveLimits) -> int:

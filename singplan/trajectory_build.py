@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from singplan.configuration import distances_batch, labels_from_distances
+from singplan.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.path import CartesianPiece, rotation_angle
 from singplan.robot import Robot
 from singplan.singularity import Zone
@@ -59,7 +60,7 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
     metrics = {"max_position_error_mm": worst_pos * 1e3, "max_orientation_error_deg": math.degrees(worst_ori),
                "max_joint_speed_ratio": speed, "max_joint_accel_ratio": accel, "duration_s": float(t[-1]),
                "planning_time_s": planning_time_s, "samples": len(t), "method": task.singularity.method,
-               "crossings": crossings}
+               "crossings": crossings, **_torque_metrics(robot, task, q)}
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
     samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all),
                "distances": distances}
@@ -68,6 +69,22 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
 
 
 _CHUNK = 65_536  # programmed poses formed at once (128 bytes a sample)
+
+
+def _torque_metrics(robot: Robot, task: Task, q: np.ndarray) -> dict[str, Any]:
+    """Inverse-dynamics torques of the samples against the efforts x ``limits.torque_scale`` (1 if unset).
+
+    A robot without dynamics gets the reason instead (no torque is invented for it).
+    """
+    reason = no_dynamics_reason(robot)
+    if reason is not None:
+        return {"torques": f"not computed: {reason}"}
+    limit_nm = effort_limits_nm(robot) * (task.limits.torque_scale or 1.0)
+    peaks, _ = trajectory_torques(robot, q, task.period_s, limit_nm)
+    return {"max_torque_ratio": peaks.ratio, "max_torque_at_s": peaks.sample * task.period_s,
+            "max_torque_joint": robot.joint_names[peaks.joint],
+            "peak_torque_Nm": dict(zip(robot.joint_names, peaks.peak_nm.tolist(), strict=True)),
+            "torque_limit_Nm": dict(zip(robot.joint_names, limit_nm.tolist(), strict=True))}
 
 
 class _Labels:

@@ -116,7 +116,7 @@ def trajectory_torques(robot: Robot, q: np.ndarray, period_s: float, limit_nm: n
     n = q.shape[1]
     peak = np.zeros(n)
     best = (0.0, 0, 0)
-    ratios = np.empty_like(q) if series else None
+    ratios = np.empty(q.shape, dtype=np.float32) if series else None  # for plots: half the memory
     for c in range(0, len(q), _CHUNK):
         end = min(c + _CHUNK, len(q))
         qd, qdd = _central_differences(q, c, end, period_s, ends_from_rest)

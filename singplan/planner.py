@@ -224,7 +224,8 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
     if not results:
         decisive: list[PlanningError | BudgetError] = [
             exc for _, exc in failures if isinstance(exc, (UnreachableError, BudgetError))]
-        if len(failures) == 1 or decisive:  # the path itself fails, or the task is too large: no method can help
+        if len(failures) == 1 or decisive or len({str(exc) for _, exc in failures}) == 1:
+            # the path itself fails, or the task is too large, or every method met the same wall: no method can help
             raise (decisive or [failures[0][1]])[0]
         raise PlanningError(f"move {i} ({move.kind}): no method could plan it: "
                             + "; ".join(f"{name}: {exc}" for name, exc in failures))

@@ -3,8 +3,8 @@
 Plots (matplotlib, embedded as SVG, so the page needs no network and no other file): joint
 positions with their limits, joint speed against the limit, the signed singular distances
 with the detection thresholds, the position and orientation deviation from the programmed
-path with the tolerances, and the TCP speed against the programmed speed. Crossing segments
-are shaded on every time plot.
+path with the tolerances, the TCP speed against the programmed speed, and for a robot with
+dynamics the joint torques against their limits. Crossing segments are shaded on every time plot.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from numpy.typing import ArrayLike
 
+from singplan.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.robot import Robot
 from singplan.trajectory import Trajectory
 
@@ -87,6 +88,22 @@ def _speed_ratio(traj: Trajectory, vmax: np.ndarray) -> Callable[[plt.Figure], N
         ax.axhline(1.0, color="r", ls="--", lw=0.8)
         ax.set_xlabel("t [s]")
         ax.set_ylabel("|qd| / limit")
+        ax.legend(fontsize=7, ncol=len(traj.joint_names))
+    return draw
+
+
+def _torque_ratio(traj: Trajectory, robot: Robot, scale: float) -> Callable[[plt.Figure], None]:
+    _, ratios = trajectory_torques(robot, traj.q, traj.period, effort_limits_nm(robot) * scale, series=True)
+    assert ratios is not None
+
+    def draw(fig: plt.Figure) -> None:
+        ax = fig.add_subplot(1, 1, 1)
+        _shade(ax, traj)
+        for j, name in enumerate(traj.joint_names):
+            ax.plot(*_envelope(traj.t, ratios[:, j]), lw=1, label=name)
+        ax.axhline(1.0, color="r", ls="--", lw=0.8)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("|tau| / limit")
         ax.legend(fontsize=7, ncol=len(traj.joint_names))
     return draw
 
@@ -175,7 +192,12 @@ def _tables(traj: Trajectory) -> str:
                  for s in traj.segments if s.kind == "crossing"]
     m = traj.metrics
     metrics = [[k, f"{m[k]:.6g}"] for k in ("duration_s", "max_position_error_mm", "max_orientation_error_deg",
-                                            "max_joint_speed_ratio", "max_joint_accel_ratio", "planning_time_s")]
+                                            "max_joint_speed_ratio", "max_joint_accel_ratio", "max_torque_ratio",
+                                            "planning_time_s") if isinstance(m.get(k), (int, float))]
+    metrics += [[f"peak torque {name} [N m]", f"{value:.4g} of {m['torque_limit_Nm'][name]:.4g}"]
+                for name, value in m.get("peak_torque_Nm", {}).items()]
+    if "torques" in m:
+        metrics.append(["torques", str(m["torques"])])
     return ("<h2>Moves</h2>" + _table(["move", "kind", "t0 [s]", "t1 [s]", "config before", "config after"], moves)
             + "<h2>Crossings</h2>" + (_table(["move", "singularity", "method", "time [s]", "configuration",
                                               "max pos dev [mm]", "max ori dev [deg]", "time lost [s]"], crossings)
@@ -203,6 +225,12 @@ def report_html(traj: Trajectory, robot: Robot) -> str:
          3.3),
         ("tcp", "TCP speed against the programmed speed (dashed).", _tcp_speed(traj, step_m), 3.0),
     ]
+    limits = traj.task.get("limits", {})
+    if no_dynamics_reason(robot) is None:
+        scale = limits.get("torque_scale")
+        limit = "effort x torque_scale" if scale is not None else "URDF effort, not enforced: no limits.torque_scale"
+        figures.append(("torque", f"Joint torque (inverse dynamics of the samples) as a fraction of its limit "
+                                  f"({limit}).", _torque_ratio(traj, robot, float(scale or 1.0)), 3.0))
     body = "".join(f'<figure id="plot-{key}">{_svg(draw, h)}<figcaption>{html.escape(cap)}</figcaption></figure>'
                    for key, cap, draw, h in figures)
     title = f"singplan report: {traj.robot}, {traj.duration_s:.3f} s"

@@ -36,7 +36,18 @@ def summary(traj: Trajectory, task: Task) -> str:
     lines.append(f"metrics: position error {m['max_position_error_mm']:.5f} mm, orientation error "
                  f"{m['max_orientation_error_deg']:.5f} deg, joint speed x{m['max_joint_speed_ratio']:.3f}, "
                  f"joint accel x{m['max_joint_accel_ratio']:.3f}, planning {m['planning_time_s']:.2f} s")
+    lines.append(_torque_line(traj, task))
     return "\n".join(lines) + "\n"
+
+
+def _torque_line(traj: Trajectory, task: Task) -> str:
+    """The torque figures: the peak against the limit, or why there are none."""
+    m = traj.metrics
+    if "max_torque_ratio" not in m:
+        return f"torques: {m.get('torques', 'not computed')}"
+    scale = task.limits.torque_scale
+    limit = f"effort x{scale:g} (enforced)" if scale is not None else "the URDF effort (not enforced: no torque_scale)"
+    return f"torques: peak x{m['max_torque_ratio']:.3f} of {limit} at {m['max_torque_joint']}"
 
 
 def _choice(alternatives: list[dict[str, object]]) -> str:

@@ -166,6 +166,8 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tup
     instance.compute_parameterization(0.0, 0.0)
     data = instance.problem_data
     if data.return_code != ta_algo.ParameterizationReturnCode.Ok or data.sd_vec is None:
+        if limits.torque is not None:
+            _check_holding_torque(limits.torque, u, q, move_index)
         at = _infeasible_at(data)
         where = "" if at is not None else "; TOPP-RA did not say where: the path's steepest point"
         raise TimingError(move_index, at if at is not None else _steepest_at(u, q, vmax[:-1]),
@@ -182,6 +184,19 @@ def _torque_constraint(limit: TorqueLimit, q0: np.ndarray, length: float, tau_s:
     bound = np.append(limit.limit_nm * scale_t, _UNLIMITED)
     return ta_constraint.JointTorqueConstraint(PathDynamics(limit, q0, length, tau_s),
                                                np.stack([-bound, bound], axis=1), np.zeros(len(bound)))
+
+
+def _check_holding_torque(limit: TorqueLimit, u: np.ndarray, q: np.ndarray, move_index: int) -> None:
+    """Raise TimingError where merely holding the arm still (gravity) takes more than the torque limit."""
+    zero = np.zeros(q.shape[1])
+    for k in range(len(q)):
+        ratio = np.abs(limit.rnea(q[k], zero, zero)) / limit.limit_nm
+        j = int(np.argmax(ratio))
+        if ratio[j] > 1.0:
+            name = limit.robot.joint_names[j]
+            raise TimingError(move_index, float(u[k]), f"holding the arm against gravity takes "
+                                                       f"{ratio[j] * limit.limit_nm[j]:.1f} N m at {name}, over its "
+                                                       f"limit of {limit.limit_nm[j]:.1f} N m (effort x torque_scale)")
 
 
 def _infeasible_at(data: ta_algo.ParameterizationData) -> float | None:
@@ -277,7 +292,8 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
                      accel, torque)
         scale_v *= min(1.0, 1.0 / worst_v) * (0.998 if worst_v > 1.0 else 1.0)
         scale_a *= min(1.0, 1.0 / worst_a) * (0.995 if worst_a > 1.0 else 1.0)
-        scale_t *= min(1.0, 1.0 / worst_t) * (0.995 if worst_t > 1.0 else 1.0)
+        if worst_t > 1.0:
+            scale_t *= 0.995 / worst_t
     ends = end_step_ratio(q, period_s, limits.acceleration_rad_s2)
     worst_k = torque_at if worst_t > max(worst_v, worst_a) else _worst_sample(q, period_s, limits)
     raise TimingError(move_index, float(u[worst_k]),

@@ -1,0 +1,181 @@
+"""Inverse dynamics along trajectories, limits.torque_scale, and arms without published dynamics."""
+
+from __future__ import annotations
+
+import io
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import yaml
+
+from singplan.cli import main
+from singplan.dynamics import effort_limits_nm, has_inertias, no_dynamics_reason, trajectory_torques
+from singplan.errors import TaskError
+from singplan.planner import plan
+from singplan.robot import bundled_robots, load_robot
+from singplan.task import parse_task
+
+VERIFY = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"
+# A UR5 PTP (shoulder pan 90 deg, arm raised) then a LIN; at 40 rad/s^2 the unconstrained timing
+# drives the shoulder to ~0.9 of its 150 N m effort, so torque_scale 0.45 binds.
+UR5_TASK: dict[str, Any] = {
+    "robot": "ur5",
+    "start": {"joints_deg": [0, -90, 90, -90, -90, 0]},
+    "moves": [{"ptp": {"to": {"joints_deg": [90, -30, 30, -90, -90, 0]}}},
+              {"lin": {"to": {"xyz": [0.3, 0.3, 0.4], "rpy_deg": [180, 0, 0]}, "speed": 1.0}}],
+    "limits": {"acceleration": 40.0},
+}
+
+
+def _with_scale(scale: float) -> dict[str, Any]:
+    return {**UR5_TASK, "limits": {**UR5_TASK["limits"], "torque_scale": scale}}
+
+
+def _sine_samples(robot, count: int, period_s: float) -> np.ndarray:
+    """Joint samples q (count, n) of a smooth motion inside the limits (seeded phases)."""
+    rng = np.random.default_rng(7)
+    mid, half = (robot.lower_rad + robot.upper_rad) / 2, (robot.upper_rad - robot.lower_rad) / 4
+    phase = rng.uniform(0, 2 * np.pi, robot.n_joints)
+    t = np.arange(count)[:, None] * period_s
+    return mid + 0.8 * np.minimum(half, 1.5) * np.sin(2.0 * t + phase)
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_rnea_torques_match_mass_matrix_and_nonlinear_effects_of_the_full_urdf(name: str) -> None:
+    """tau = M(q) qdd + nle(q, qd) from CRBA on the URDF as written (fingers included, at rest)."""
+    robot = load_robot(name)
+    period = 0.004
+    q = _sine_samples(robot, 200, period)
+    peaks, ratios = trajectory_torques(robot, q, period, effort_limits_nm(robot), series=True)
+    full = pin.buildModelFromUrdf(str(robot.urdf_path))
+    data = full.createData()
+    idx = [full.joints[full.getJointId(j)].idx_v for j in robot.joint_names]
+    worst = 0.0
+    for k in range(1, len(q) - 1):
+        qf, vf, af = pin.neutral(full), np.zeros(full.nv), np.zeros(full.nv)
+        qf[idx] = q[k]
+        vf[idx] = (q[k + 1] - q[k - 1]) / (2 * period)
+        af[idx] = (q[k + 1] - 2 * q[k] + q[k - 1]) / period**2
+        mass = pin.crba(full, data, qf)
+        mass = np.triu(mass) + np.triu(mass, 1).T  # CRBA fills the upper triangle
+        tau = (mass @ af + pin.nonLinearEffects(full, data, qf, vf))[idx]
+        expected = np.abs(tau) / effort_limits_nm(robot)
+        assert ratios is not None
+        worst = max(worst, float(np.max(np.abs(ratios[k] - expected) * effort_limits_nm(robot))))
+    assert worst < 1e-3  # N m; the series is float32 (7 digits of a ~100 N m torque)
+    # the two end samples are at rest: the torque holds the arm against gravity
+    gravity = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), q[0])
+    assert ratios is not None
+    np.testing.assert_allclose(ratios[0], np.abs(gravity) / effort_limits_nm(robot), rtol=1e-5, atol=1e-7)
+    assert peaks.ratio == pytest.approx(float(ratios.max()), rel=1e-6)
+
+
+def test_peaks_do_not_depend_on_the_chunk_size(monkeypatch: pytest.MonkeyPatch) -> None:
+    import singplan.dynamics as dynamics
+
+    robot = load_robot("ur5")
+    q = _sine_samples(robot, 301, 0.004)
+    whole, _ = trajectory_torques(robot, q, 0.004, effort_limits_nm(robot))
+    monkeypatch.setattr(dynamics, "_CHUNK", 64)
+    chunked, _ = trajectory_torques(robot, q, 0.004, effort_limits_nm(robot))
+    assert (chunked.sample, chunked.joint) == (whole.sample, whole.joint)
+    np.testing.assert_allclose(chunked.peak_nm, whole.peak_nm, rtol=1e-12)
+
+
+def test_only_urdfs_with_real_inertias_have_dynamics(tmp_path: Path) -> None:
+    assert has_inertias(load_robot("ur5")) and has_inertias(load_robot("panda"))
+    industrial = [name for name, e in bundled_robots().items() if e.urdf_file is not None]
+    assert len(industrial) == 10
+    for name in industrial:
+        robot = load_robot(name)
+        assert "no published dynamics" in str(no_dynamics_reason(robot)), name
+        # the same file by path, and a copy of it elsewhere, say the same
+        copy = tmp_path / f"{name}.urdf"
+        copy.write_text(robot.urdf_path.read_text())
+        assert not has_inertias(load_robot(str(robot.urdf_path))) and not has_inertias(load_robot(str(copy)))
+    # a URDF without the mark and without inertias: the reason names a joint
+    text = load_robot("abb_irb2400").urdf_path.read_text()
+    bare = "".join(part.split("</inertial>")[-1] for part in text.split("<inertial>"))
+    bare = bare.replace("singplan: no published dynamics", "")
+    (tmp_path / "bare.urdf").write_text(bare)
+    assert "no mass for the link moved by joint_1" in str(no_dynamics_reason(load_robot(str(tmp_path / "bare.urdf"))))
+
+
+def _plan_cli(task: dict[str, Any], folder: Path) -> tuple[int, str]:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "task.yaml").write_text(yaml.safe_dump(task, sort_keys=False))
+    err = io.StringIO()
+    code = main(["plan", str(folder / "task.yaml"), "-o", str(folder / "out"), "--quiet"], out=io.StringIO(), err=err)
+    return code, err.getvalue()
+
+
+def _checker(folder: Path) -> subprocess.CompletedProcess[str]:
+    if not VERIFY.is_file():
+        if os.environ.get("CI") == "true":
+            raise RuntimeError(f"CI=true but the independent checker is missing at {VERIFY}")
+        pytest.skip(f"no independent checker at {VERIFY}")
+    return subprocess.run([sys.executable, str(VERIFY), str(folder / "task.yaml"), str(folder / "out"), "--quiet"],
+                          capture_output=True, text=True, timeout=300, check=False)
+
+
+def test_torque_scale_binds_slows_the_plan_and_passes_the_checker(tmp_path: Path) -> None:
+    free = plan(parse_task(UR5_TASK))
+    bound = plan(parse_task(_with_scale(0.45)))
+    # unconstrained, the shoulder would need more than 0.45 of its effort
+    assert free.metrics["max_torque_ratio"] > 0.45 * 1.5
+    assert bound.metrics["max_torque_ratio"] <= 1.0
+    assert bound.duration_s > free.duration_s + 0.05
+    limit = bound.metrics["torque_limit_Nm"]["shoulder_lift_joint"]
+    assert limit == pytest.approx(0.45 * 150.0)
+    assert bound.metrics["peak_torque_Nm"]["shoulder_lift_joint"] <= limit
+    code, err = _plan_cli(_with_scale(0.45), tmp_path / "bound")
+    assert code == 0, err
+    result = _checker(tmp_path / "bound")
+    assert result.returncode == 0, result.stdout
+
+
+def test_without_torque_scale_torques_are_reported_not_enforced(tmp_path: Path) -> None:
+    code, err = _plan_cli(UR5_TASK, tmp_path / "free")
+    assert code == 0, err
+    page = (tmp_path / "free" / "out" / "report.html").read_text()
+    assert 'id="plot-torque"' in page and page.count("<svg") == 6
+    assert "not enforced" in page
+
+
+def test_a_torque_limit_below_the_holding_torque_is_no_plan(tmp_path: Path) -> None:
+    code, err = _plan_cli(_with_scale(0.3), tmp_path / "weak")
+    assert code == 3
+    assert "holding the arm against gravity" in err and "shoulder_lift_joint" in err and "move 0 (ptp)" in err
+
+
+def test_torque_scale_on_an_arm_without_published_dynamics_is_bad_input(tmp_path: Path) -> None:
+    task = {"robot": "kuka_kr6_r900_2", "start": {"joints_deg": [0, -90, 90, 0, 30, 0]},
+            "moves": [{"ptp": {"to": {"joints_deg": [10, -90, 90, 0, 30, 0]}}}], "limits": {"torque_scale": 0.5}}
+    code, err = _plan_cli(task, tmp_path / "kuka")
+    assert code == 2
+    assert "limits.torque_scale" in err and "no published dynamics" in err
+    assert not (tmp_path / "kuka" / "out").exists()
+    del task["limits"]
+    code, err = _plan_cli(task, tmp_path / "kuka_free")
+    assert code == 0, err
+    assert "torque" not in " ".join(k for k in plan(parse_task(task)).metrics if k.startswith("max_"))
+
+
+@pytest.mark.parametrize("value", [0, -0.5, 1.5, "half", None, float("nan"), True])
+def test_torque_scale_must_be_a_fraction(value: object) -> None:
+    with pytest.raises(TaskError) as info:
+        parse_task(_with_scale(value))  # type: ignore[arg-type]
+    assert info.value.field == "limits.torque_scale"
+
+
+def test_torque_scale_round_trips_through_the_mapping() -> None:
+    task = parse_task(_with_scale(0.7))
+    assert task.limits.torque_scale == 0.7
+    assert parse_task(task.to_mapping()).limits.torque_scale == 0.7
+    assert "torque_scale" not in parse_task(UR5_TASK).to_mapping()["limits"]

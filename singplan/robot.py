@@ -309,19 +309,30 @@ def default_tip(model: pin.Model) -> str:
 
     The chain ends at its deepest revolute joint; its end links are those fixed to that joint
     (Pinocchio merges fixed joints into the body they hang on), which leaves out fingers and
-    other joints branching off. The last of them in the file is the chain's last link.
+    other joints branching off. The last link is the one most fixed joints away from that
+    joint (the first in the file among equals).
     """
     revolute = [j for j in range(1, model.njoints) if model.joints[j].shortname().removeprefix("JointModel")
                 in ("RX", "RY", "RZ", "RevoluteUnaligned")]
     if not revolute:
         return model.frames[len(model.frames) - 1].name
     end = max(revolute, key=lambda j: len(model.supports[j]))
-    links = [f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == end]
+    links = [k for k, f in enumerate(model.frames) if f.type == pin.FrameType.BODY and f.parentJoint == end]
     for wanted in TIP_NAMES:
-        named = [name for name in links if name == wanted or name.endswith("_" + wanted)]
+        named = [model.frames[k].name for k in links
+                 if model.frames[k].name == wanted or model.frames[k].name.endswith("_" + wanted)]
         if named:
-            return named[-1]
-    return links[-1]
+            return named[0]
+    return model.frames[max(links, key=lambda k: _fixed_depth(model, k))].name
+
+
+def _fixed_depth(model: pin.Model, frame_id: int) -> int:
+    """How many frames lie between a frame and its joint (fixed joints and the links they carry)."""
+    depth = 0
+    while model.frames[frame_id].type != pin.FrameType.JOINT and frame_id > 0:
+        frame_id = model.frames[frame_id].parentFrame
+        depth += 1
+    return depth
 
 
 def _reduce_to_chain(model: pin.Model, tip: str, urdf_path: Path) -> pin.Model:

@@ -96,7 +96,7 @@ class Recognition:
         return "; ".join(f"not {name}: {why}" for name, why in self.rejected)
 
 
-class _NotFamily(Exception):
+class _NotFamilyError(Exception):
     """The chain does not have a family's structure (the message says what is missing)."""
 
 
@@ -137,8 +137,11 @@ def _recognise(model: pin.Model, tip_frame_id: int) -> Recognition:
         try:
             params = derive(model, tip_frame_id)
             residual_m, residual_rad = _verify(model, tip_frame_id, params)
-        except _NotFamily as exc:
+        except _NotFamilyError as exc:
             rejected.append((name, str(exc)))
+            continue
+        except ArithmeticError as exc:  # a degenerate chain (zero-length links) the checks let through
+            rejected.append((name, f"degenerate geometry ({type(exc).__name__})"))
             continue
         if isinstance(params, OpwParameters):
             return Recognition("opw", opw=params, residual_m=residual_m, residual_rad=residual_rad,
@@ -164,9 +167,9 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-def _require(condition: bool, why: str) -> None:
-    if not condition:
-        raise _NotFamily(why)
+def _require(condition: bool | np.bool_, why: str) -> None:
+    if not bool(condition):
+        raise _NotFamilyError(why)
 
 
 def _meet(p1: np.ndarray, d1: np.ndarray, p2: np.ndarray, d2: np.ndarray) -> np.ndarray | None:
@@ -174,6 +177,8 @@ def _meet(p1: np.ndarray, d1: np.ndarray, p2: np.ndarray, d2: np.ndarray) -> np.
     w = p1 - p2
     b = float(d1 @ d2)
     denom = 1.0 - b * b
+    if denom < _AXIS_TOL:
+        return None  # parallel
     t1 = (b * float(d2 @ w) - float(d1 @ w)) / denom
     t2 = (float(d2 @ w) - b * float(d1 @ w)) / denom
     x1, x2 = p1 + t1 * d1, p2 + t2 * d2
@@ -221,7 +226,8 @@ def _derive_opw(model: pin.Model, tip_frame_id: int) -> OpwParameters:
     wrist = _meet(p[3], a[3], p[4], a[4])
     _require(wrist is not None, "axes 4 and 5 do not meet (no spherical wrist)")
     assert wrist is not None
-    _require(np.linalg.norm(np.cross(a[5], wrist - p[5])) <= _POINT_TOL_M, "axis 6 does not pass through the wrist centre")
+    _require(np.linalg.norm(np.cross(a[5], wrist - p[5])) <= _POINT_TOL_M,
+             "axis 6 does not pass through the wrist centre")
     _require(np.linalg.norm(np.cross(a[2], a[3])) > _AXIS_TOL and abs(a[3] @ a[2]) <= _AXIS_TOL,
              "axis 4 is not perpendicular to axis 3")
     y = _unit(a[1])
@@ -233,10 +239,12 @@ def _derive_opw(model: pin.Model, tip_frame_id: int) -> OpwParameters:
     upper = p[2] - p[1]
     t2 = math.atan2(float(upper @ x), float(upper @ z))
     c2 = math.hypot(float(upper @ x), float(upper @ z))
+    _require(c2 > _POINT_TOL_M, "axes 2 and 3 coincide")
     fore_axis = a[3] * _sign(float(a[3] @ (wrist - p[2])))  # axis 4 pointing out to the wrist centre
     t23 = math.atan2(float(fore_axis @ x), float(fore_axis @ z))
     R_0c = _rz(t1) @ _ry(t23)
     fore = R_0c.T @ (wrist - p[2])
+    _require(math.hypot(fore[0], fore[2]) > _POINT_TOL_M, "the wrist centre is on axis 3")
     tip_z = tip.rotation[:, 2]
     _require(np.linalg.norm(np.cross(tip_z, a[5])) <= _AXIS_TOL, "the tip frame's z axis is not along axis 6")
     c4 = float((tip.translation - wrist) @ tip_z)
@@ -274,7 +282,9 @@ def _derive_ur(model: pin.Model, tip_frame_id: int) -> UrParameters:
     _require(abs(a[1] @ a[0]) <= _AXIS_TOL, "axis 2 is not perpendicular to axis 1")
     _require(abs(a[4] @ a[3]) <= _AXIS_TOL and abs(a[5] @ a[4]) <= _AXIS_TOL,
              "axes 4, 5 and 6 are not successively perpendicular")
-    return UrParameters.from_model(model, tip_frame_id)
+    params = UrParameters.from_model(model, tip_frame_id)
+    _require(min(abs(params.l2), abs(params.l3)) > _POINT_TOL_M, "an arm link of zero length")
+    return params
 
 
 def closed_form_batch(params: OpwParameters | UrParameters, T_base_tip: np.ndarray) -> np.ndarray:
@@ -298,7 +308,7 @@ def verification_samples(model: pin.Model) -> np.ndarray:
 def _verify(model: pin.Model, tip_frame_id: int, params: OpwParameters | UrParameters) -> tuple[float, float]:
     """Worst (position [m], rotation [rad]) FK error of the closed form's branch nearest each sample.
 
-    Raises _NotFamily when the closed form loses a sample's branch or misses its pose.
+    Raises _NotFamilyError when the closed form loses a sample's branch or misses its pose.
     """
     data = model.createData()
     samples = verification_samples(model)
@@ -313,14 +323,14 @@ def _verify(model: pin.Model, tip_frame_id: int, params: OpwParameters | UrParam
         dist = np.where(np.isnan(diff).any(axis=1), np.inf, diff.max(axis=1))
         k = int(np.argmin(dist))
         if not dist[k] <= _BRANCH_TOL_RAD:
-            raise _NotFamily(f"the closed form does not recover the joints {np.round(q, 4).tolist()} "
+            raise _NotFamilyError(f"the closed form does not recover the joints {np.round(q, 4).tolist()} "
                              f"(nearest branch {float(dist[k]):.3g} rad away)")
         pin.framesForwardKinematics(model, data, sols[k])
         error = pin.SE3(T).actInv(data.oMf[tip_frame_id])
         worst_m = max(worst_m, float(np.linalg.norm(error.translation)))
         worst_rad = max(worst_rad, float(np.linalg.norm(pin.log3(error.rotation))))
     if not (worst_m <= VERIFY_TOL_M and worst_rad <= VERIFY_TOL_RAD):
-        raise _NotFamily(f"the closed form misses the URDF's FK by {worst_m:.3g} m / {worst_rad:.3g} rad")
+        raise _NotFamilyError(f"the closed form misses the URDF's FK by {worst_m:.3g} m / {worst_rad:.3g} rad")
     return worst_m, worst_rad
 
 

@@ -316,3 +316,18 @@ def test_robots_lists_the_recognised_family() -> None:
     rows = {r["name"]: r for r in json.loads(out.getvalue())}
     assert rows["ur5"]["family"] == "ur" and rows["panda"]["family"] == "seven"
     assert all(rows[name]["family"] == "opw" for name in OPW_NAMES)
+
+
+def test_a_user_urdf_named_like_a_bundled_arm_is_replayed_as_itself(tmp_path: Path) -> None:
+    from types import SimpleNamespace
+
+    from singplan.viewer import robot_of
+
+    tree = _tree("abb_irb2400")
+    _joint(tree.getroot(), "joint_6").find("origin").set("xyz", "0.2 0.0 0.0")  # type: ignore[union-attr]
+    user = _write(tree, tmp_path / "abb_irb2400.urdf")
+    traj = SimpleNamespace(robot="abb_irb2400", urdf=str(user), tip="tool0", tool={"xyz": [0, 0, 0]})
+    assert robot_of(traj).urdf_path == user  # type: ignore[arg-type]
+    bundled = SimpleNamespace(robot="abb_irb2400", urdf=str(load_robot("abb_irb2400").urdf_path), tip="tool0",
+                              tool={"xyz": [0, 0, 0]})
+    assert robot_of(bundled).urdf_path == load_robot("abb_irb2400").urdf_path  # type: ignore[arg-type]

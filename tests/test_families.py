@@ -331,3 +331,28 @@ def test_a_user_urdf_named_like_a_bundled_arm_is_replayed_as_itself(tmp_path: Pa
     bundled = SimpleNamespace(robot="abb_irb2400", urdf=str(load_robot("abb_irb2400").urdf_path), tip="tool0",
                               tool={"xyz": [0, 0, 0]})
     assert robot_of(bundled).urdf_path == load_robot("abb_irb2400").urdf_path  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("name", ["abb_irb2400", "fanuc_m10ia"])
+def test_a_variant_keeps_its_branch_at_the_closed_forms_boundaries(name: str, tmp_path: Path) -> None:
+    """q = 0, the straightened elbow, q5 = 0 and |q5| = 1e-9 (OPW coordinates) on a re-conventioned arm."""
+    tree = _tree(name)
+    _flip_axis(tree.getroot(), "joint_5")
+    _shift_zero(tree.getroot(), "joint_3", 0.2)
+    robot = load_robot(_write(tree, tmp_path / f"{name}_boundary.urdf"))
+    p = robot.opw
+    assert p is not None
+    straight = -math.atan2(p.a2, p.c3)  # OPW q3 where the elbow distance is 0
+    mid_opw = (robot.lower_rad + robot.upper_rad) / 2 * p.signs - p.offsets + np.array([0.3, 0.1, 0.1, 0.4, 0.6, -0.2])
+    opw_points = [np.where(np.arange(6) == k, value, mid_opw)
+                  for k, value in ((2, straight), (4, 0.0), (4, 1e-9), (4, -1e-9))]
+    points = [q for q in [np.zeros(6), *((np.array(v) + p.offsets) * p.signs for v in opw_points)]
+              if robot.within_limits(q)]
+    assert len(points) >= (5 if name == "fanuc_m10ia" else 4)  # the IRB 2400 cannot straighten its elbow
+    for q in points:
+        target = robot.fk(q)
+        sols = solve_all(robot, target, seed=q)
+        assert np.min(np.max(np.abs(sols.q - q), axis=1)) < 1e-6  # the seeded branch, not a jump
+        for s in sols.q:
+            error = target.actInv(robot.fk(s))
+            assert np.linalg.norm(error.translation) < 1e-9 and np.linalg.norm(pin.log3(error.rotation)) < 1e-9

@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from singplan.cli import main
+from singplan.configuration import _frames, _signed_distances, classify, distances_batch
 from singplan.families import VERIFY_TOL_M, VERIFY_TOL_RAD, recognise
 from singplan.ik import solve_all
 from singplan.planner import plan
@@ -207,6 +208,29 @@ def test_every_convention_at_once_still_plans_the_twins_path(tmp_path: Path) -> 
     np.testing.assert_allclose(variant.fk(q_variant).homogeneous, T_variant.homogeneous, atol=1e-12)
     a, b = solve_all(twin, T), solve_all(variant, T_variant)
     assert sorted(a.labels) == sorted(b.labels) and len(a) == len(b) > 0
+
+
+def test_a_variant_has_its_twins_labels_and_closed_form_distances(tmp_path: Path, rng) -> None:
+    """Labels are geometry: a joint-1 zero, flipped wrist axes and a turned base change none of them."""
+    tree = _tree("kuka_kr6_r900_2")
+    root = tree.getroot()
+    _shift_zero(root, "joint_1", -1.2)
+    _flip_axis(root, "joint_1")
+    _flip_axis(root, "joint_5")
+    _shift_zero(root, "joint_4", 0.5)
+    _new_base(root, 0.1, 0.8)
+    variant, twin = load_robot(_write(tree, tmp_path / "kr6_labels.urdf")), load_robot("kuka_kr6_r900_2")
+    q_variant = rng.uniform(np.maximum(variant.lower_rad, -math.pi), np.minimum(variant.upper_rad, math.pi),
+                            size=(200, 6))
+    q_twin = q_variant.copy()
+    q_twin[:, 0] = -q_variant[:, 0] - 1.2  # undo the flip, then the zero shift
+    q_twin[:, 3] += 0.5
+    q_twin[:, 4] = -q_variant[:, 4]
+    closed = distances_batch(variant, q_variant)
+    frames = np.array([_signed_distances(*_frames(variant, q)) for q in q_variant])
+    np.testing.assert_allclose(closed, frames, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(closed, distances_batch(twin, q_twin), rtol=0, atol=1e-12)
+    assert [classify(variant, q).label for q in q_variant] == [classify(twin, q).label for q in q_twin]
 
 
 def test_a_wrist_offset_arm_is_general6_and_says_why(tmp_path: Path) -> None:

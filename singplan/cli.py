@@ -9,6 +9,7 @@ SINGPLAN_DEBUG=1 asks for it).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -26,6 +27,7 @@ import pinocchio as pin
 from singplan.compiled import kernels_cached
 from singplan.configuration import singularity_distances
 from singplan.errors import InputError, SingplanError
+from singplan.families import VERIFY_SAMPLES, crossing_methods
 from singplan.ik import solve_all
 from singplan.outputs import check_output_dir
 from singplan.planner import detect, load_task_robot, plan
@@ -52,7 +54,7 @@ def _robot_rows() -> list[dict[str, object]]:
     for name, entry in bundled_robots().items():
         robot = load_robot(name)
         rows.append({"name": name, "display_name": entry.display_name, "dof": robot.n_joints,
-                     "family": entry.family, "reach_m": round(_reach_m(robot), 4), "tip": entry.tip,
+                     "family": robot.family, "reach_m": round(_reach_m(robot), 4), "tip": entry.tip,
                      "urdf": str(robot.urdf_path), "source": _source(entry)})
     return rows
 
@@ -72,6 +74,52 @@ def cmd_robots(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     out.write(f"{'name':22s} {'DOF':>3s} {'family':7s} {'reach [m]':>9s}  source\n")
     for r in rows:
         out.write(f"{r['name']!s:22s} {r['dof']!s:>3s} {r['family']!s:7s} {r['reach_m']:>9.3f}  {r['source']}\n")
+    return 0
+
+
+def _info(robot: Robot) -> dict[str, object]:
+    """What `singplan info` shows: family and its verified parameters, tip, joints, crossing methods."""
+    rec = robot.recognition
+    params: dict[str, object] | None = None
+    if rec.opw is not None:
+        p = rec.opw
+        params = {"a1": p.a1, "a2": p.a2, "b": p.b, "c1": p.c1, "c2": p.c2, "c3": p.c3, "c4": p.c4,
+                  "offsets_deg": [round(math.degrees(v), 9) for v in p.offsets_rad],
+                  "sign_corrections": list(p.sign_corrections)}
+    elif rec.ur is not None:
+        params = dataclasses.asdict(rec.ur)
+    joints = [{"name": name, "lower_deg": math.degrees(lo), "upper_deg": math.degrees(hi),
+               "velocity_deg_s": math.degrees(v)}
+              for name, lo, hi, v in zip(robot.joint_names, robot.lower_rad, robot.upper_rad, robot.velocity_rad_s,
+                                         strict=True)]
+    methods = [{"method": m, "applies": not why, "note": why} for m, why in crossing_methods(rec.family).items()]
+    return {"robot": robot.name, "urdf": str(robot.urdf_path), "family": rec.family, "parameters": params,
+            "verification": {"samples": VERIFY_SAMPLES, "residual_m": rec.residual_m,
+                             "residual_rad": rec.residual_rad} if params is not None else None,
+            "not_recognised_as": dict(rec.rejected), "tip": robot.tip, "joints": joints, "crossing_methods": methods}
+
+
+def cmd_info(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    info = _info(load_robot(args.robot, tip=args.tip))
+    if args.json:
+        out.write(json.dumps(info, indent=2) + "\n")
+        return 0
+    out.write(f"{info['robot']}: {info['urdf']}\nfamily: {info['family']}\n")
+    params = info["parameters"]
+    if isinstance(params, dict):
+        out.write("parameters: " + ", ".join(f"{k} {v}" for k, v in params.items()) + "\n")
+        check = info["verification"]
+        assert isinstance(check, dict)
+        out.write(f"verified by FK on {check['samples']} random joint values: {check['residual_m']:.2g} m, "
+                  f"{check['residual_rad']:.2g} rad\n")
+    for name, why in dict(info["not_recognised_as"]).items():  # type: ignore[call-overload]
+        out.write(f"not {name}: {why}\n")
+    out.write(f"tip: {info['tip']}\n{'joint':24s} {'lower [deg]':>11s} {'upper [deg]':>11s} {'speed [deg/s]':>13s}\n")
+    for j in info["joints"]:  # type: ignore[attr-defined]
+        out.write(f"{j['name']:24s} {j['lower_deg']:11.2f} {j['upper_deg']:11.2f} {j['velocity_deg_s']:13.2f}\n")
+    out.write("crossing methods:\n")
+    for m in info["crossing_methods"]:  # type: ignore[attr-defined]
+        out.write(f"  {m['method']:12s} {'yes' if m['applies'] else 'no':3s} {m['note']}\n")
     return 0
 
 
@@ -218,6 +266,11 @@ def build_parser() -> argparse.ArgumentParser:
     robots = sub.add_parser("robots", help="list the bundled robots")
     robots.add_argument("--json", action="store_true", help="machine-readable output")
     robots.set_defaults(func=cmd_robots)
+    info = sub.add_parser("info", help="a robot's kinematic family, parameters, tip, joints and crossing methods")
+    info.add_argument("robot", help="bundled robot name or path to a URDF")
+    info.add_argument("--tip", default=None, help="frame the tool hangs on (default: the robot's)")
+    info.add_argument("--json", action="store_true", help="machine-readable output")
+    info.set_defaults(func=cmd_info)
     ik = sub.add_parser("ik", help="every IK solution of a TCP pose, with labels and singular distances")
     ik.add_argument("robot", help="bundled robot name or path to a URDF")
     ik.add_argument("--xyz", type=float, nargs=3, required=True, metavar=("X", "Y", "Z"), help="TCP position [m]")

@@ -4,8 +4,9 @@ The labels are defined from geometry, not from joint values, so one definition s
 arm whatever its joint signs and offsets. With the joint frames of Pinocchio:
 
 * ``up`` is axis 1, oriented from the base towards the shoulder; ``forward`` is the x axis of
-  link 1 (the direction the arm points at its zero pose, as in every ROS-Industrial URDF),
-  made perpendicular to ``up``; ``n = up x forward`` is the normal of the arm plane.
+  link 1 (the direction the arm points at its zero pose, as in every ROS-Industrial URDF) or,
+  for an OPW arm, the x axis of its OPW frame turning with joint 1 (whatever the URDF's zero
+  pose), made perpendicular to ``up``; ``n = up x forward`` is the normal of the arm plane.
 * The **wrist point** ``w`` is where axes 5 and 6 meet (the wrist centre of a spherical
   wrist; for a UR arm the origin of the wrist-3 joint).
 * **Shoulder** distance [m]: ``(w - o1) . forward``, the signed distance of the wrist point
@@ -36,7 +37,6 @@ import pinocchio as pin
 
 from singplan.compiled import jit
 from singplan.errors import TaskError
-from singplan.ik_ur import ur_parameters
 from singplan.path import cross3
 from singplan.robot import Robot
 
@@ -89,6 +89,7 @@ class _Reference(NamedTuple):
     sign5: float
     sign6: float
     wrist_in_link5: np.ndarray  # (3,) wrist point in joint 5's frame
+    forward_in_link1: np.ndarray  # (3,) the arm's forward direction in joint 1's frame
     elbow_joint: int  # 0: elbow point is the wrist point; k: origin of joint k
 
 
@@ -129,8 +130,14 @@ def _reference(robot: Robot) -> _Reference:
     up = z1 if float(z1 @ origins[1]) >= 0 else -z1  # origins are relative to the base origin
     wrist = _closest_point_on_first(origins[4], axes[4], origins[5], axes[5])
     wrist_in_link5 = np.array(robot.data.oMi[5].actInv(wrist))
-    forward = _forward(robot, up)
-    tool0 = robot.fk_tip(q0).translation
+    forward_in_link1 = _forward_in_link1(robot)
+    # the signs are read at the OPW zero where there is one: the same arm pose whatever the file's zero
+    q_ref = q0 if robot.opw is None else robot.opw.offsets * robot.opw.signs
+    if robot.opw is not None:
+        origins, axes = _axes_and_origins(robot, q_ref)
+        wrist = np.array(robot.data.oMi[5].act(wrist_in_link5))
+    forward = _forward(robot, up, forward_in_link1)
+    tool0 = robot.fk_tip(q_ref).translation
     elbow_joint = 4 if robot.family == "ur" else 0
     sign4 = 1.0 if float(axes[3] @ (wrist - origins[2])) >= 0 else -1.0
     sign6 = 1.0 if float(axes[5] @ (tool0 - wrist)) >= 0 else -1.0
@@ -141,11 +148,22 @@ def _reference(robot: Robot) -> _Reference:
         if abs(dot) > 0.5:
             sign5 = 1.0 if dot > 0 else -1.0
             break
-    return _Reference(up, sign4, sign5, sign6, wrist_in_link5, elbow_joint)
+    return _Reference(up, sign4, sign5, sign6, wrist_in_link5, forward_in_link1, elbow_joint)
 
 
-def _forward(robot: Robot, up: np.ndarray) -> np.ndarray:
-    x1 = robot.data.oMi[1].rotation[:, 0]
+def _forward_in_link1(robot: Robot) -> np.ndarray:
+    """x of joint 1's frame; for an OPW arm the OPW x axis (the arm plane at q1_opw = 0), in that frame.
+
+    Read with robot.data at q = 0.
+    """
+    if robot.opw is None:
+        return np.array([1.0, 0.0, 0.0])
+    t1 = -robot.opw.offsets_rad[0]  # OPW angle of joint 1 at the robot's zero
+    return robot.data.oMi[1].rotation.T @ np.array([math.cos(t1), math.sin(t1), 0.0])
+
+
+def _forward(robot: Robot, up: np.ndarray, forward_in_link1: np.ndarray) -> np.ndarray:
+    x1 = robot.data.oMi[1].rotation @ forward_in_link1
     f = x1 - float(x1 @ up) * up
     return f / np.linalg.norm(f)
 
@@ -154,7 +172,7 @@ def _frames(robot: Robot, q: np.ndarray) -> tuple[_Reference, _Frames]:
     ref = _reference(robot)
     origins, axes = _axes_and_origins(robot, q)
     wrist = np.array(robot.data.oMi[5].act(ref.wrist_in_link5))
-    return ref, _Frames(origins, axes, wrist, _forward(robot, ref.up))
+    return ref, _Frames(origins, axes, wrist, _forward(robot, ref.up, ref.forward_in_link1))
 
 
 def _signed_distances(ref: _Reference, fr: _Frames) -> tuple[float, float, float]:
@@ -215,8 +233,8 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     p = robot.opw
-    if p is None and robot.family == "ur":
-        ur = ur_parameters(robot)
+    ur = robot.ur
+    if p is None and ur is not None:
         return _ur_distances(np.ascontiguousarray(q), ur.l2, ur.l3, ur.d5)
     if p is None:
         return np.array([_signed_distances(*_frames(robot, qk)) for qk in q]).reshape(-1, 3)

@@ -11,6 +11,8 @@ Three solvers share one API (:func:`solve_all`, :func:`closed_form_branches`):
   branches. :func:`opw_batch` evaluates all eight for N poses at once (a compiled loop,
   :mod:`singplan.opw`).
 * **UR closed form** (:mod:`singplan.ik_ur`) for the ur_description layout, eight branches.
+
+Which applies is :attr:`Robot.family`, recognised and verified from the chain (:mod:`singplan.families`).
 * **Numeric** (Pinocchio, damped Newton on the SE(3) log error) for any other chain, seeded
   once per branch (e.g. URDFs given by path).
 
@@ -32,7 +34,7 @@ import pinocchio as pin
 from singplan import opw
 from singplan.compiled import jit
 from singplan.configuration import classify
-from singplan.ik_ur import ur_batch, ur_parameters
+from singplan.ik_ur import ur_batch
 from singplan.robot import OpwParameters, Robot
 
 TWO_PI = 2.0 * math.pi
@@ -184,7 +186,7 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
     range exceeds +-180 deg have several). With a seed, each branch gives the variant nearest
     the seed, and at a wrist singularity the seed's q4 is kept.
     """
-    if robot.opw is not None or (robot.family == "ur" and robot.tip == "tool0"):
+    if robot.family in ("opw", "ur"):
         rows, branches = _closed_form_candidates(robot, T_base_tcp, seed)
     else:
         rows, branches = _numeric_candidates(robot, T_base_tcp, seed)
@@ -214,8 +216,8 @@ def closed_form_branches(robot: Robot, T_base_tcp: np.ndarray, seeds: np.ndarray
         seeds_opw = None if seeds is None else _to_opw(p, np.asarray(seeds, dtype=float).reshape(len(T_flange), -1))
         return opw_batch(p, T_flange, None if seeds_opw is None else seeds_opw[:, 3],
                          None if seeds_opw is None else seeds_opw[:, 0])
-    if robot.family == "ur" and robot.tip == "tool0":
-        return ur_batch(ur_parameters(robot), T_flange, seeds)
+    if robot.ur is not None:
+        return ur_batch(robot.ur, T_flange, seeds)
     return np.full((len(T_flange), 0, robot.n_joints), np.nan)
 
 

@@ -22,12 +22,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
+import pinocchio as pin
 
 from singplan.compiled import jit
-from singplan.robot import Robot
+
+if TYPE_CHECKING:  # robot.py recognises families with this module's solver
+    from singplan.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -47,18 +50,25 @@ class UrParameters:
 
     @classmethod
     def from_robot(cls, robot: Robot) -> UrParameters:
-        jp = [robot.model.jointPlacements[i].translation for i in range(1, 7)]
-        tip = robot.model.frames[robot.tip_frame_id].placement.translation
-        R2 = robot.model.jointPlacements[2].rotation
+        return cls.from_model(robot.model, robot.tip_frame_id)
+
+    @classmethod
+    def from_model(cls, model: pin.Model, tip_frame_id: int) -> UrParameters:
+        """Read from the joint placements of a chain in the ur_description layout (not checked here:
+        :mod:`singplan.families` verifies the closed form against the chain's FK)."""
+        jp = [model.jointPlacements[i].translation for i in range(1, 7)]
+        tip = model.frames[tip_frame_id].placement.translation
+        R2 = model.jointPlacements[2].rotation
         return cls(d1=float(jp[0][2]), shoulder_y=float(jp[1][1]), lateral=float(jp[1][1] + jp[2][1] + jp[4][1]),
                    l2=float(jp[2][2]), l3=float(jp[3][2]), wrist_y=float(jp[4][1]), d5=float(jp[5][2]),
                    d6=float(tip[1]), elbow_y=float(jp[2][1]), shoulder_turn=math.atan2(R2[0, 2], R2[0, 0]))
 
 
-@lru_cache(maxsize=64)
 def ur_parameters(robot: Robot) -> UrParameters:
-    """:meth:`UrParameters.from_robot`, read once per robot (the solvers ask on every call)."""
-    return UrParameters.from_robot(robot)
+    """The UR parameters :mod:`singplan.families` recognised and verified for ``robot``."""
+    if robot.ur is None:
+        raise ValueError(f"{robot.name} is not a UR-type arm (family {robot.family})")
+    return robot.ur
 
 
 # |sin q5| under which a (= q2 + q3 + q4 + pi) keeps the seed's value [rad]: the pose then

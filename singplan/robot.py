@@ -21,6 +21,8 @@ import pinocchio as pin
 import yaml
 
 from singplan.errors import RobotModelError, UnknownNameError
+from singplan.families import Family, OpwParameters, Recognition, recognise
+from singplan.ik_ur import UrParameters
 
 logger = logging.getLogger(__name__)
 
@@ -41,45 +43,17 @@ def robots_dir() -> Path:
 
 
 @dataclass(frozen=True)
-class OpwParameters:
-    """Ortho-parallel wrist geometry (Brandstoetter, Angerer, Hofbaur 2014) [m, rad].
-
-    Joint conversion: ``q_robot = (q_opw + offsets_rad) * sign_corrections``.
-    """
-
-    a1: float
-    a2: float
-    b: float
-    c1: float
-    c2: float
-    c3: float
-    c4: float
-    offsets_rad: tuple[float, ...]
-    sign_corrections: tuple[float, ...]
-
-    @cached_property
-    def offsets(self) -> np.ndarray:
-        """``offsets_rad`` as an array (6,), for the joint conversions of many samples."""
-        return np.array(self.offsets_rad, dtype=float)
-
-    @cached_property
-    def signs(self) -> np.ndarray:
-        """``sign_corrections`` as an array (6,)."""
-        return np.array(self.sign_corrections, dtype=float)
-
-
-@dataclass(frozen=True)
 class RobotEntry:
     """One robot of the registry (``singplan robots``)."""
 
     name: str
     display_name: str
-    family: str  # "opw" | "ur" | "generic"
+    family: str  # as written in robots.yaml: a test reference for the recognition (singplan.families)
     tip: str
     sources: tuple[str, ...]
     urdf_file: str | None = None  # bundled URDF name, relative to robots_dir()
     example_robot_data: str | None = None  # loader name in example-robot-data
-    opw: OpwParameters | None = None
+    opw: OpwParameters | None = None  # robots.yaml's published parameters: a test reference only
 
     def urdf_path(self) -> Path:
         """Absolute path of the URDF (bundled, or resolved from example-robot-data)."""
@@ -151,16 +125,24 @@ class Robot:
     def n_joints(self) -> int:
         return int(self.model.nq)
 
+    @cached_property
+    def recognition(self) -> Recognition:
+        """The kinematic family read from the chain and its tip (:mod:`singplan.families`, cached)."""
+        return recognise(self.model, self.tip_frame_id)
+
     @property
-    def family(self) -> str:
-        return self.entry.family if self.entry is not None else "generic"
+    def family(self) -> Family:
+        return self.recognition.family
 
     @property
     def opw(self) -> OpwParameters | None:
-        """OPW parameters when the tip is the registry's default tip, else None."""
-        if self.entry is None or self.entry.opw is None or self.tip != self.entry.tip:
-            return None
-        return self.entry.opw
+        """Verified OPW parameters of the chain to the tip, or None when it is not an OPW arm."""
+        return self.recognition.opw
+
+    @property
+    def ur(self) -> UrParameters | None:
+        """Verified UR parameters of the chain to the tip, or None when it is not a UR-type arm."""
+        return self.recognition.ur
 
     def with_tool(self, T_tip_tcp: pin.SE3) -> Robot:
         """The same robot with another tool (a new Data, the model is shared)."""
@@ -318,6 +300,41 @@ def _urdfdom_reason(messages: str) -> str:
     return "; ".join(errors[:2])
 
 
+TIP_NAMES = ("tool0", "flange", "tcp")  # in this order of preference, also with a prefix ("ur_tool0")
+
+
+def default_tip(model: pin.Model) -> str:
+    """The tip of a URDF given by path (DESIGN "Robots"): a link named ``tool0``, ``flange`` or
+    ``tcp`` (or ending in ``_tool0`` ...) at the end of the chain, else the chain's last link.
+
+    The chain ends at its deepest revolute joint; its end links are those fixed to that joint
+    (Pinocchio merges fixed joints into the body they hang on), which leaves out fingers and
+    other joints branching off. The last link is the one most fixed joints away from that
+    joint (the first in the file among equals).
+    """
+    revolute = [j for j in range(1, model.njoints) if model.joints[j].shortname().removeprefix("JointModel")
+                in ("RX", "RY", "RZ", "RevoluteUnaligned")]
+    if not revolute:
+        return model.frames[len(model.frames) - 1].name
+    end = max(revolute, key=lambda j: len(model.supports[j]))
+    links = [k for k, f in enumerate(model.frames) if f.type == pin.FrameType.BODY and f.parentJoint == end]
+    for wanted in TIP_NAMES:
+        named = [model.frames[k].name for k in links
+                 if model.frames[k].name == wanted or model.frames[k].name.endswith("_" + wanted)]
+        if named:
+            return named[0]
+    return model.frames[max(links, key=lambda k: _fixed_depth(model, k))].name
+
+
+def _fixed_depth(model: pin.Model, frame_id: int) -> int:
+    """How many frames lie between a frame and its joint (fixed joints and the links they carry)."""
+    depth = 0
+    while model.frames[frame_id].type != pin.FrameType.JOINT and frame_id > 0:
+        frame_id = model.frames[frame_id].parentFrame
+        depth += 1
+    return depth
+
+
 def _reduce_to_chain(model: pin.Model, tip: str, urdf_path: Path) -> pin.Model:
     """Lock every joint that is not on the base -> tip chain (e.g. gripper fingers)."""
     frames = [f.name for f in model.frames]
@@ -391,7 +408,7 @@ def load_robot(name_or_urdf: str | Path, tip: str | None = None, tool: pin.SE3 |
 
     Args:
         name_or_urdf: a registry name (``singplan robots``) or a path to a ``.urdf`` file.
-        tip: frame the tool hangs on; default the registry's tip, or the URDF's last frame.
+        tip: frame the tool hangs on; default the registry's tip, else :func:`default_tip`.
         tool: ``T_tip_tcp``; default identity.
 
     The chain from the URDF's root link to the tip must have :data:`SUPPORTED_JOINT_COUNTS`
@@ -411,7 +428,7 @@ def load_robot(name_or_urdf: str | Path, tip: str | None = None, tool: pin.SE3 |
         raise UnknownNameError("robot", text, sorted(registry))
     urdf_path = entry.urdf_path() if entry is not None else Path(text).expanduser().resolve()
     model = _load_model(urdf_path)
-    tip_name = tip or (entry.tip if entry is not None else model.frames[len(model.frames) - 1].name)
+    tip_name = tip or (entry.tip if entry is not None else default_tip(model))
     model = _reduce_to_chain(model, tip_name, urdf_path)
     _check_limits(model, urdf_path)
     name = entry.name if entry is not None else urdf_path.stem

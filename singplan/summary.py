@@ -10,8 +10,8 @@ from singplan.trajectory import Trajectory
 
 def summary(traj: Trajectory, task: Task) -> str:
     """Multi-line text: one line per move, one per crossing, then the metrics."""
-    lines = [f"{traj.robot}: {len(task.moves)} move(s), {traj.duration_s:.3f} s, {len(traj.t)} samples "
-             f"at {traj.period * 1e3:g} ms"]
+    lines = [f"{traj.robot} (tip {traj.tip}): {len(task.moves)} move(s), {traj.duration_s:.3f} s, "
+             f"{len(traj.t)} samples at {traj.period * 1e3:g} ms"]
     for i, move in enumerate(task.moves):
         segs = [s for s in traj.segments if s.move == i]
         t0, t1 = segs[0].t0, segs[-1].t1

@@ -325,10 +325,16 @@ def _describe(seg: Segment) -> tuple[str, str]:
 
 
 def robot_of(traj: Trajectory) -> Robot:
-    """The robot a trajectory was planned for (bundled name, else its URDF), with its tool."""
+    """The robot a trajectory was planned for, with its tool: its URDF, or the bundled arm of that
+    name when it was planned from the bundled URDF (or that file is gone, e.g. another install).
+
+    A user's URDF whose file name matches a bundled arm is drawn as itself, not as the bundled arm.
+    """
     rpy = np.asarray(traj.tool.get("rpy_deg", [0, 0, 0]), dtype=float)
     tool = pin.SE3(rpy_deg_to_rotation(rpy), np.asarray(traj.tool.get("xyz", [0, 0, 0]), dtype=float))
-    source = traj.robot if traj.robot in bundled_robots() else traj.urdf
+    entry = bundled_robots().get(traj.robot)
+    bundled = entry is not None and (str(entry.urdf_path()) == traj.urdf or not Path(traj.urdf).is_file())
+    source = traj.robot if bundled else traj.urdf
     return load_robot(source, tip=traj.tip, tool=tool)
 
 

@@ -63,7 +63,7 @@ def test_pure_reorientation_lin_turns_on_the_spot() -> None:
     assert traj.metrics["max_orientation_error_deg"] < 1e-6
 
 
-def test_a_urdf_given_by_path_plans_with_the_numeric_solver(tmp_path: Path) -> None:
+def test_a_urdf_given_by_path_plans(tmp_path: Path) -> None:
     urdf = load_robot("ur5").urdf_path
     doc = {"robot": str(urdf), "tip": "tool0", "start": {"joints_deg": [10, -70, 90, -30, 40, 20]},
            "moves": [{"ptp": {"to": {"joints_deg": [20, -60, 80, -20, 50, 30]}, "velocity_scale": 0.5}}]}

@@ -80,7 +80,7 @@ def test_unknown_tip_frame_names_file_and_frame() -> None:
     assert "flange_x" in str(info.value) and "abb_irb2400.urdf" in str(info.value) and "tool0" in str(info.value)
 
 
-def test_urdf_by_path_uses_its_last_frame(robots) -> None:
+def test_urdf_by_path_takes_the_default_tip_rule(robots) -> None:
     robot = load_robot(robots["abb_irb2400"].urdf_path)
     assert robot.name == "abb_irb2400" and robot.tip == "tool0"
 

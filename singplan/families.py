@@ -1,0 +1,342 @@
+"""Kinematic families recognised from the chain itself, whatever the URDF's conventions.
+
+A 6R chain is ``opw`` (ortho-parallel with a spherical wrist, Brandstoetter, Angerer and
+Hofbaur 2014) or ``ur`` (axes 2-4 parallel, the ur_description layout of
+:mod:`singplan.ik_ur`) when that closed form reproduces the URDF's forward kinematics,
+else ``general6``; 7R chains are ``seven``, 5R chains ``five``.
+
+The OPW parameters are read from the joint axes and origins in the base frame at q = 0 and
+the tip pose, in the conventions of :class:`OpwParameters`: the zero pose of the file, its
+axis directions and any fixed joints become the offsets and sign corrections. Every
+recognition is then verified: for seeded random joint values inside the limits, the
+closed form solves the tip pose Pinocchio computes, and its branch nearest the sample must
+reproduce that pose to :data:`VERIFY_TOL_M` / :data:`VERIFY_TOL_RAD`. A closed form that does
+not reproduce the URDF is rejected (the record says why) and the arm is ``general6``.
+
+Recognition costs a few ms; it is cached per chain (joint placements, kinds, limits, tip).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Literal
+
+import numpy as np
+import pinocchio as pin
+
+from singplan import opw
+from singplan.ik_ur import UrParameters, ur_batch
+
+Family = Literal["opw", "ur", "general6", "five", "seven"]
+VERIFY_TOL_M = 1e-9  # FK of the closed form's branch against Pinocchio [m]
+VERIFY_TOL_RAD = 1e-9  # the same for the orientation [rad]
+VERIFY_SAMPLES = 50
+_VERIFY_SEED = 20261123
+_BRANCH_TOL_RAD = 1e-6  # the sample's own joints must be among the closed form's branches
+_AXIS_TOL = 1e-9  # |sin| or |cos| of an angle taken as 0 (parallel, perpendicular) [-]
+_POINT_TOL_M = 1e-9  # a distance taken as 0 (axes meet, a point on an axis) [m]
+_CACHE_SIZE = 64
+
+
+@dataclass(frozen=True)
+class OpwParameters:
+    """Ortho-parallel wrist geometry (Brandstoetter, Angerer, Hofbaur 2014) [m, rad].
+
+    Joint conversion: ``q_robot = (q_opw + offsets_rad) * sign_corrections``.
+    """
+
+    a1: float
+    a2: float
+    b: float
+    c1: float
+    c2: float
+    c3: float
+    c4: float
+    offsets_rad: tuple[float, ...]
+    sign_corrections: tuple[float, ...]
+
+    @cached_property
+    def offsets(self) -> np.ndarray:
+        """``offsets_rad`` as an array (6,), for the joint conversions of many samples."""
+        return np.array(self.offsets_rad, dtype=float)
+
+    @cached_property
+    def signs(self) -> np.ndarray:
+        """``sign_corrections`` as an array (6,)."""
+        return np.array(self.sign_corrections, dtype=float)
+
+
+@dataclass(frozen=True)
+class Recognition:
+    """What :func:`recognise` found.
+
+    Attributes:
+        family: the kinematic family the planner uses.
+        opw: OPW parameters when ``family == "opw"``.
+        ur: UR parameters when ``family == "ur"``.
+        residual_m, residual_rad: the worst FK error of the verification (0.0 when no closed
+            form was verified).
+        rejected: why each closed form tried was not taken, e.g. ``{"opw": "axes 4 and 5 do
+            not meet ..."}``; empty for an accepted first try.
+    """
+
+    family: Family
+    opw: OpwParameters | None = None
+    ur: UrParameters | None = None
+    residual_m: float = 0.0
+    residual_rad: float = 0.0
+    rejected: tuple[tuple[str, str], ...] = ()
+
+    @property
+    def reason(self) -> str:
+        """The rejections as one sentence ("" when none)."""
+        return "; ".join(f"not {name}: {why}" for name, why in self.rejected)
+
+
+class _NotFamilyError(Exception):
+    """The chain does not have a family's structure (the message says what is missing)."""
+
+
+_cache: dict[bytes, Recognition] = {}
+
+
+def recognise(model: pin.Model, tip_frame_id: int) -> Recognition:
+    """The family of the chain ``model`` (reduced to base -> tip) with the tip frame ``tip_frame_id``."""
+    key = _fingerprint(model, tip_frame_id)
+    found = _cache.get(key)
+    if found is None:
+        if len(_cache) >= _CACHE_SIZE:
+            _cache.clear()
+        found = _cache[key] = _recognise(model, tip_frame_id)
+    return found
+
+
+def _fingerprint(model: pin.Model, tip_frame_id: int) -> bytes:
+    h = hashlib.blake2b(digest_size=20)
+    for j in range(1, model.njoints):
+        h.update(model.joints[j].shortname().encode())
+        h.update(np.ascontiguousarray(model.jointPlacements[j].homogeneous).tobytes())
+    h.update(np.ascontiguousarray(model.frames[tip_frame_id].placement.homogeneous).tobytes())
+    h.update(str(model.frames[tip_frame_id].parentJoint).encode())
+    h.update(np.asarray(model.lowerPositionLimit, dtype=float).tobytes())
+    h.update(np.asarray(model.upperPositionLimit, dtype=float).tobytes())
+    if any(model.joints[j].shortname() == "JointModelRevoluteUnaligned" for j in range(1, model.njoints)):
+        h.update(np.asarray(_axes_and_origins(model, tip_frame_id)[0]).tobytes())
+    return h.digest()
+
+
+def _recognise(model: pin.Model, tip_frame_id: int) -> Recognition:
+    n = model.nq
+    if n != 6:
+        return Recognition("seven" if n == 7 else "five" if n == 5 else "general6")
+    rejected: list[tuple[str, str]] = []
+    for name, derive in (("opw", _derive_opw), ("ur", _derive_ur)):
+        try:
+            params = derive(model, tip_frame_id)
+            residual_m, residual_rad = _verify(model, tip_frame_id, params)
+        except _NotFamilyError as exc:
+            rejected.append((name, str(exc)))
+            continue
+        except ArithmeticError as exc:  # a degenerate chain (zero-length links) the checks let through
+            rejected.append((name, f"degenerate geometry ({type(exc).__name__})"))
+            continue
+        if isinstance(params, OpwParameters):
+            return Recognition("opw", opw=params, residual_m=residual_m, residual_rad=residual_rad,
+                               rejected=tuple(rejected))
+        return Recognition("ur", ur=params, residual_m=residual_m, residual_rad=residual_rad,
+                           rejected=tuple(rejected))
+    return Recognition("general6", rejected=tuple(rejected))
+
+
+def _axes_and_origins(model: pin.Model, tip_frame_id: int,
+                      q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, pin.SE3]:
+    """Unit joint axes (n, 3), joint origins (n, 3) and the tip pose, in the base frame at ``q`` (default 0)."""
+    data = model.createData()
+    q = np.zeros(model.nq) if q is None else q
+    J = pin.computeJointJacobians(model, data, q)  # WORLD frame: the angular rows are the joint axes
+    pin.updateFramePlacements(model, data)
+    axes = np.array([J[3:, model.joints[j].idx_v] for j in range(1, model.njoints)])
+    origins = np.array([data.oMi[j].translation for j in range(1, model.njoints)])
+    return axes, origins, data.oMf[tip_frame_id].copy()
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+def _require(condition: bool | np.bool_, why: str) -> None:
+    if not bool(condition):
+        raise _NotFamilyError(why)
+
+
+def _meet(p1: np.ndarray, d1: np.ndarray, p2: np.ndarray, d2: np.ndarray) -> np.ndarray | None:
+    """The point where two non-parallel lines meet, or None when they pass by each other."""
+    w = p1 - p2
+    b = float(d1 @ d2)
+    denom = 1.0 - b * b
+    if denom < _AXIS_TOL:
+        return None  # parallel
+    t1 = (b * float(d2 @ w) - float(d1 @ w)) / denom
+    t2 = (float(d2 @ w) - b * float(d1 @ w)) / denom
+    x1, x2 = p1 + t1 * d1, p2 + t2 * d2
+    return (x1 + x2) / 2 if np.linalg.norm(x1 - x2) <= _POINT_TOL_M else None
+
+
+def _ry(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _rz(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _sign(x: float) -> float:
+    return 1.0 if x >= 0 else -1.0
+
+
+def _offset(angle_at_zero: float) -> float:
+    """The OPW offset of a joint whose OPW angle is ``angle_at_zero`` at the robot's zero, in (-pi, pi]."""
+    return float(opw.wrap(-angle_at_zero))
+
+
+def _snap(x: float) -> float:
+    """Round-off of a derived length or angle removed (1e-15 of the composed placements)."""
+    return float(round(x, 12))
+
+
+def _derive_opw(model: pin.Model, tip_frame_id: int) -> OpwParameters:
+    """OPW parameters of the chain at q = 0 (see the module docstring and :mod:`singplan.opw`).
+
+    OPW frame: z along axis 1 through the base origin, y along axis 2 (oriented so that the
+    shoulder offset a1 >= 0), the forearm frame ``c = Rz(t1) Ry(t2 + t3)`` with z along axis 4
+    pointing out to the wrist centre; each joint's sign is its axis against the OPW axis it
+    plays, its offset minus its OPW angle at the robot's zero.
+    """
+    a, p, tip = _axes_and_origins(model, tip_frame_id)
+    z = np.array([0.0, 0.0, 1.0])
+    _require(abs(abs(a[0, 2]) - 1.0) <= _AXIS_TOL, "axis 1 is not the base z axis")
+    _require(math.hypot(p[0, 0], p[0, 1]) <= _POINT_TOL_M, "axis 1 does not pass through the base origin")
+    _require(abs(a[1] @ a[0]) <= _AXIS_TOL, "axis 2 is not perpendicular to axis 1")
+    _require(np.linalg.norm(np.cross(a[1], a[2])) <= _AXIS_TOL, "axes 2 and 3 are not parallel")
+    wrist = _meet(p[3], a[3], p[4], a[4])
+    _require(wrist is not None, "axes 4 and 5 do not meet (no spherical wrist)")
+    assert wrist is not None
+    _require(np.linalg.norm(np.cross(a[5], wrist - p[5])) <= _POINT_TOL_M,
+             "axis 6 does not pass through the wrist centre")
+    _require(np.linalg.norm(np.cross(a[2], a[3])) > _AXIS_TOL and abs(a[3] @ a[2]) <= _AXIS_TOL,
+             "axis 4 is not perpendicular to axis 3")
+    y = _unit(a[1])
+    if float(p[1] @ np.cross(y, z)) < -_POINT_TOL_M:
+        y = -y  # the shoulder in front of axis 1: a1 >= 0
+    x = np.cross(y, z)
+    t1 = math.atan2(x[1], x[0])
+    a1, c1 = float(p[1] @ x), float(p[1, 2])
+    upper = p[2] - p[1]
+    t2 = math.atan2(float(upper @ x), float(upper @ z))
+    c2 = math.hypot(float(upper @ x), float(upper @ z))
+    _require(c2 > _POINT_TOL_M, "axes 2 and 3 coincide")
+    fore_axis = a[3] * _sign(float(a[3] @ (wrist - p[2])))  # axis 4 pointing out to the wrist centre
+    t23 = math.atan2(float(fore_axis @ x), float(fore_axis @ z))
+    R_0c = _rz(t1) @ _ry(t23)
+    fore = R_0c.T @ (wrist - p[2])
+    _require(math.hypot(fore[0], fore[2]) > _POINT_TOL_M, "the wrist centre is on axis 3")
+    tip_z = tip.rotation[:, 2]
+    _require(np.linalg.norm(np.cross(tip_z, a[5])) <= _AXIS_TOL, "the tip frame's z axis is not along axis 6")
+    c4 = float((tip.translation - wrist) @ tip_z)
+    _require(np.linalg.norm(tip.translation - wrist - c4 * tip_z) <= _POINT_TOL_M,
+             "the tip frame's origin is not on axis 6")
+    axis5_c = R_0c.T @ a[4]  # = +-Rz(t4) e_y: take the sign that keeps |t4| <= 90 deg
+    t4 = math.atan2(-axis5_c[0], axis5_c[1])
+    s5 = 1.0
+    if abs(t4) > math.pi / 2:
+        t4, s5 = float(opw.wrap(t4 + math.pi)), -1.0
+    R_c4 = R_0c @ _rz(t4)
+    w = R_c4.T @ tip_z
+    t5 = math.atan2(w[0], w[2])
+    M = (R_c4 @ _ry(t5)).T @ tip.rotation
+    t6 = math.atan2(M[1, 0], M[0, 0])
+    signs = [_sign(float(a[0] @ z)), _sign(float(a[1] @ y)), _sign(float(a[2] @ y)), _sign(float(a[3] @ fore_axis)),
+             s5, _sign(float(a[5] @ tip_z))]
+    angles = (t1, t2, t23 - t2, t4, t5, t6)
+    return OpwParameters(a1=_snap(a1), a2=_snap(float(fore[0])), b=_snap(float(wrist @ y)), c1=_snap(c1),
+                         c2=_snap(c2), c3=_snap(float(fore[2])), c4=_snap(c4),
+                         offsets_rad=tuple(_snap_angle(_offset(t)) for t in angles),
+                         sign_corrections=tuple(signs))
+
+
+def _snap_angle(angle_rad: float) -> float:
+    """An offset within round-off of a multiple of 90 deg made exactly that multiple."""
+    quarter = round(angle_rad / (math.pi / 2))
+    return math.radians(90.0 * quarter) if abs(angle_rad - quarter * math.pi / 2) < 1e-12 else angle_rad
+
+
+def _derive_ur(model: pin.Model, tip_frame_id: int) -> UrParameters:
+    """UR parameters from the joint placements (the ur_description layout; verified afterwards)."""
+    a, _p, _tip = _axes_and_origins(model, tip_frame_id)
+    _require(all(np.linalg.norm(np.cross(a[1], a[k])) <= _AXIS_TOL for k in (2, 3)), "axes 2, 3 and 4 are not parallel")
+    _require(abs(a[1] @ a[0]) <= _AXIS_TOL, "axis 2 is not perpendicular to axis 1")
+    _require(abs(a[4] @ a[3]) <= _AXIS_TOL and abs(a[5] @ a[4]) <= _AXIS_TOL,
+             "axes 4, 5 and 6 are not successively perpendicular")
+    params = UrParameters.from_model(model, tip_frame_id)
+    _require(min(abs(params.l2), abs(params.l3)) > _POINT_TOL_M, "an arm link of zero length")
+    return params
+
+
+def closed_form_batch(params: OpwParameters | UrParameters, T_base_tip: np.ndarray) -> np.ndarray:
+    """All eight closed-form branches (N, 8, 6) [rad] of tip poses (N, 4, 4); NaN rows unreachable."""
+    T = np.ascontiguousarray(T_base_tip, dtype=float).reshape(-1, 4, 4)
+    if isinstance(params, UrParameters):
+        return ur_batch(params, T)
+    zeros = np.zeros(len(T))
+    p = params
+    return opw.branches(T, p.a1, p.a2, p.b, p.c1, p.c2, p.c3, p.c4, p.offsets, p.signs, zeros, zeros)
+
+
+def verification_samples(model: pin.Model) -> np.ndarray:
+    """The seeded joint samples (VERIFY_SAMPLES, n) of the verification, inside the limits."""
+    rng = np.random.default_rng(_VERIFY_SEED)
+    lower = np.maximum(np.asarray(model.lowerPositionLimit, dtype=float), -math.pi)
+    upper = np.minimum(np.asarray(model.upperPositionLimit, dtype=float), math.pi)
+    return rng.uniform(lower, upper, size=(VERIFY_SAMPLES, model.nq))
+
+
+def _verify(model: pin.Model, tip_frame_id: int, params: OpwParameters | UrParameters) -> tuple[float, float]:
+    """Worst (position [m], rotation [rad]) FK error of the closed form's branch nearest each sample.
+
+    Raises _NotFamilyError when the closed form loses a sample's branch or misses its pose.
+    """
+    data = model.createData()
+    samples = verification_samples(model)
+    poses = []
+    for q in samples:
+        pin.framesForwardKinematics(model, data, q)
+        poses.append(data.oMf[tip_frame_id].homogeneous)
+    branches = closed_form_batch(params, np.array(poses))
+    worst_m = worst_rad = 0.0
+    for q, T, sols in zip(samples, poses, branches, strict=True):
+        diff = np.abs(np.angle(np.exp(1j * (sols - q))))  # per joint, modulo whole turns
+        dist = np.where(np.isnan(diff).any(axis=1), np.inf, diff.max(axis=1))
+        k = int(np.argmin(dist))
+        if not dist[k] <= _BRANCH_TOL_RAD:
+            raise _NotFamilyError(f"the closed form does not recover the joints {np.round(q, 4).tolist()} "
+                             f"(nearest branch {float(dist[k]):.3g} rad away)")
+        pin.framesForwardKinematics(model, data, sols[k])
+        error = pin.SE3(T).actInv(data.oMf[tip_frame_id])
+        worst_m = max(worst_m, float(np.linalg.norm(error.translation)))
+        worst_rad = max(worst_rad, float(np.linalg.norm(pin.log3(error.rotation))))
+    if not (worst_m <= VERIFY_TOL_M and worst_rad <= VERIFY_TOL_RAD):
+        raise _NotFamilyError(f"the closed form misses the URDF's FK by {worst_m:.3g} m / {worst_rad:.3g} rad")
+    return worst_m, worst_rad
+
+
+def crossing_methods(family: Family) -> dict[str, str]:
+    """Each crossing method and how it serves an arm of ``family`` ("" when fully)."""
+    closed = family in ("opw", "ur")
+    no_closed = "" if closed else "needs a closed form (opw or ur); on this arm it tracks exactly, as exact does"
+    return {"exact": "", "stop": "", "wrist-joint": no_closed, "axis": no_closed, "dls": "", "average": "",
+            "ptp": "", "auto": "" if closed else "compares exact only (no closed form)"}

@@ -1,0 +1,382 @@
+"""Kinematic families recognised from the URDF chain (singplan.families), whatever its conventions."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import yaml
+
+from singplan.cli import main
+from singplan.configuration import _frames, _signed_distances, classify, distances_batch
+from singplan.families import VERIFY_TOL_M, VERIFY_TOL_RAD, recognise
+from singplan.ik import solve_all
+from singplan.planner import plan
+from singplan.robot import bundled_robots, default_tip, load_robot
+from singplan.summary import summary
+from singplan.task import parse_task
+
+from .conftest import OPW_NAMES
+
+ROOT = Path(__file__).resolve().parents[1]
+_AXIS_RPY = {0: "{d} 0 0", 1: "0 {d} 0", 2: "0 0 {d}"}  # a turn about the joint's own axis, as URDF rpy
+
+
+def _wrapped(x: float) -> float:
+    return math.atan2(math.sin(x), math.cos(x))
+
+
+def _assert_fk_reproduced(urdf: Path, rng: np.random.Generator) -> None:
+    """The recognised closed form solves poses of random joints of the URDF, exactly (own check, not the module's)."""
+    robot = load_robot(urdf)
+    lo, hi = np.maximum(robot.lower_rad, -math.pi), np.minimum(robot.upper_rad, math.pi)
+    for q in rng.uniform(lo, hi, size=(20, 6)):
+        target = robot.fk(q)
+        sols = solve_all(robot, target, seed=q)
+        assert any(np.allclose(s, q, atol=1e-7) for s in sols.q)
+        for s in sols.q:
+            error = target.actInv(robot.fk(s))
+            assert np.linalg.norm(error.translation) < 1e-9 and np.linalg.norm(pin.log3(error.rotation)) < 1e-9
+
+
+@pytest.mark.parametrize("name", [*OPW_NAMES, "ur5", "panda"])
+def test_bundled_arms_are_recognised_as_the_registry_says(name: str) -> None:
+    entry = bundled_robots()[name]
+    robot = load_robot(name)
+    rec = robot.recognition
+    assert rec.family == entry.family
+    if rec.family in ("opw", "ur"):
+        assert rec.residual_m <= VERIFY_TOL_M and rec.residual_rad <= VERIFY_TOL_RAD
+    assert rec.opw == entry.opw  # the registry's published parameters: the same conventions, the same numbers
+
+
+def test_recognition_is_cached_per_chain_and_costs_a_few_ms() -> None:
+    import time
+
+    robot = load_robot("abb_irb2400")
+    model = robot.model.copy()
+    start = time.perf_counter()
+    first = recognise(model, robot.tip_frame_id)
+    again = recognise(model, robot.tip_frame_id)
+    assert first is again
+    assert time.perf_counter() - start < 0.5  # generous: a fresh recognition measures ~3 ms here
+
+
+# --- URDF variants: the same arm written with other conventions -----------------------------------
+
+def _tree(name: str) -> ET.ElementTree:
+    return ET.parse(load_robot(name).urdf_path)
+
+
+def _joint(root: ET.Element, name: str) -> ET.Element:
+    return next(j for j in root.iter("joint") if j.get("name") == name)
+
+
+def _flip_axis(root: ET.Element, name: str) -> None:
+    """The joint turns the other way: axis negated, limits mirrored (q_new = -q_old)."""
+    joint = _joint(root, name)
+    axis = joint.find("axis")
+    assert axis is not None
+    axis.set("xyz", " ".join(str(-float(v)) for v in axis.get("xyz", "").split()))
+    limit = joint.find("limit")
+    assert limit is not None
+    lower, upper = float(limit.get("lower", "0")), float(limit.get("upper", "0"))
+    limit.set("lower", str(-upper))
+    limit.set("upper", str(-lower))
+
+
+def _shift_zero(root: ET.Element, name: str, delta_rad: float) -> None:
+    """The joint's zero moved by ``delta_rad`` about its axis (q_new = q_old - delta), limits with it."""
+    joint = _joint(root, name)
+    axis = [float(v) for v in joint.find("axis").get("xyz", "").split()]  # type: ignore[union-attr]
+    k = int(np.argmax(np.abs(axis)))
+    origin = joint.find("origin")
+    assert origin is not None and all(float(v) == 0.0 for v in origin.get("rpy", "0 0 0").split())
+    origin.set("rpy", _AXIS_RPY[k].format(d=delta_rad * math.copysign(1.0, axis[k])))
+    limit = joint.find("limit")
+    assert limit is not None
+    for key in ("lower", "upper"):
+        limit.set(key, str(float(limit.get(key, "0")) - delta_rad))
+
+
+def _insert_fixed(root: ET.Element, name: str, xyz: tuple[float, float, float]) -> None:
+    """A fixed joint and link inserted before the joint (its origin shortened to compensate)."""
+    joint = _joint(root, name)
+    parent = joint.find("parent")
+    origin = joint.find("origin")
+    assert parent is not None and origin is not None
+    assert all(float(v) == 0.0 for v in origin.get("rpy", "0 0 0").split())
+    extra = f"{name}_mount"
+    ET.SubElement(root, "link", name=extra)
+    fixed = ET.SubElement(root, "joint", name=f"{extra}_joint", type="fixed")
+    ET.SubElement(fixed, "parent", link=parent.get("link", ""))
+    ET.SubElement(fixed, "child", link=extra)
+    ET.SubElement(fixed, "origin", xyz=" ".join(map(str, xyz)), rpy="0 0 0")
+    parent.set("link", extra)
+    old = [float(v) for v in origin.get("xyz", "0 0 0").split()]
+    origin.set("xyz", " ".join(str(a - b) for a, b in zip(old, xyz, strict=True)))
+
+
+def _new_base(root: ET.Element, height_m: float, yaw_rad: float) -> None:
+    """A new root link below the old one: the base frame raised and turned about z."""
+    children = {c.get("link") for c in root.iter("child")}
+    old_root = next(link.get("name") for link in root.iter("link") if link.get("name") not in children)
+    ET.SubElement(root, "link", name="floor")
+    fixed = ET.SubElement(root, "joint", name="floor_joint", type="fixed")
+    ET.SubElement(fixed, "parent", link="floor")
+    ET.SubElement(fixed, "child", link=str(old_root))
+    ET.SubElement(fixed, "origin", xyz=f"0 0 {height_m}", rpy=f"0 0 {yaw_rad}")
+
+
+def _write(tree: ET.ElementTree, path: Path) -> Path:
+    tree.write(path)
+    return path
+
+
+def test_an_axis_flipped_arm_is_opw_with_that_sign_flipped(tmp_path: Path, rng) -> None:
+    tree = _tree("fanuc_m10ia")
+    _flip_axis(tree.getroot(), "joint_2")
+    _flip_axis(tree.getroot(), "joint_6")
+    variant = load_robot(_write(tree, tmp_path / "m10ia_flipped.urdf"))
+    twin = bundled_robots()["fanuc_m10ia"].opw
+    assert variant.family == "opw" and variant.opw is not None and twin is not None
+    assert variant.opw.sign_corrections == tuple(s * (-1 if k in (1, 5) else 1)
+                                                 for k, s in enumerate(twin.sign_corrections))
+    assert variant.opw.offsets_rad == twin.offsets_rad
+    assert (variant.opw.a1, variant.opw.a2, variant.opw.c2, variant.opw.c3, variant.opw.c4) == \
+        (twin.a1, twin.a2, twin.c2, twin.c3, twin.c4)
+    _assert_fk_reproduced(variant.urdf_path, rng)
+
+
+@pytest.mark.parametrize(("name", "joint", "delta"), [("abb_irb2400", "joint_1", 0.4), ("abb_irb2400", "joint_3", -0.7),
+                                                      ("kuka_kr6_r900_2", "joint_2", 0.25),
+                                                      ("kuka_kr6_r900_2", "joint_5", 1.1)])
+def test_another_zero_pose_is_opw_with_the_offset_moved(name: str, joint: str, delta: float, tmp_path: Path,
+                                                        rng) -> None:
+    tree = _tree(name)
+    _shift_zero(tree.getroot(), joint, delta)
+    variant = load_robot(_write(tree, tmp_path / f"{name}_zero.urdf"))
+    twin = bundled_robots()[name].opw
+    assert variant.family == "opw" and variant.opw is not None and twin is not None
+    k = int(joint[-1]) - 1
+    # q_old = q_new + delta and q_robot = (q_opw + offset) * sign: the offset moves by -sign * delta
+    assert _wrapped(variant.opw.offsets_rad[k] - (twin.offsets_rad[k] - twin.sign_corrections[k] * delta)) == \
+        pytest.approx(0.0, abs=1e-12)
+    assert variant.opw.sign_corrections == twin.sign_corrections
+    assert variant.opw.c2 == pytest.approx(twin.c2, abs=1e-12) and variant.opw.c4 == pytest.approx(twin.c4, abs=1e-12)
+    _assert_fk_reproduced(variant.urdf_path, rng)
+
+
+def test_extra_fixed_joints_and_a_new_base_link_keep_the_arm_opw(tmp_path: Path, rng) -> None:
+    tree = _tree("kuka_kr120_r2500_pro")
+    root = tree.getroot()
+    _new_base(root, 0.3, 0.6)
+    _insert_fixed(root, "joint_3", (0.4, 0.0, 0.0))
+    _insert_fixed(root, "joint_5", (0.2, 0.0, -0.041))
+    variant = load_robot(_write(tree, tmp_path / "kr120_variant.urdf"))
+    twin = bundled_robots()["kuka_kr120_r2500_pro"].opw
+    assert variant.family == "opw" and variant.opw is not None and twin is not None
+    assert variant.opw.c1 == pytest.approx(twin.c1 + 0.3, abs=1e-12)
+    assert _wrapped(variant.opw.offsets_rad[0] - (twin.offsets_rad[0] - 0.6)) == pytest.approx(0.0, abs=1e-12)
+    for key in ("a1", "a2", "b", "c2", "c3", "c4"):
+        assert getattr(variant.opw, key) == pytest.approx(getattr(twin, key), abs=1e-12)
+    _assert_fk_reproduced(variant.urdf_path, rng)
+
+
+def test_every_convention_at_once_still_plans_the_twins_path(tmp_path: Path) -> None:
+    """Flipped axes, moved zeros, a fixed joint and a raised base: the IK finds the twin's branches."""
+    tree = _tree("abb_irb2400")
+    root = tree.getroot()
+    _flip_axis(root, "joint_4")
+    _shift_zero(root, "joint_2", 0.3)
+    _shift_zero(root, "joint_6", -1.0)
+    _insert_fixed(root, "joint_5", (0.2, 0.0, 0.0))
+    _new_base(root, 0.5, 0.0)
+    variant = load_robot(_write(tree, tmp_path / "irb2400_variant.urdf"))
+    twin = load_robot("abb_irb2400")
+    assert variant.family == "opw"
+    q_twin = np.array([0.3, 0.2, 0.1, 0.5, 0.7, -0.4])
+    q_variant = q_twin * np.array([1, 1, 1, -1, 1, 1]) - np.array([0, 0.3, 0, 0, 0, -1.0])
+    T = twin.fk(q_twin)
+    T_variant = pin.SE3(T.rotation, T.translation + np.array([0, 0, 0.5]))
+    np.testing.assert_allclose(variant.fk(q_variant).homogeneous, T_variant.homogeneous, atol=1e-12)
+    a, b = solve_all(twin, T), solve_all(variant, T_variant)
+    assert sorted(a.labels) == sorted(b.labels) and len(a) == len(b) > 0
+
+
+def test_a_variant_has_its_twins_labels_and_closed_form_distances(tmp_path: Path, rng) -> None:
+    """Labels are geometry: a joint-1 zero, flipped wrist axes and a turned base change none of them."""
+    tree = _tree("kuka_kr6_r900_2")
+    root = tree.getroot()
+    _shift_zero(root, "joint_1", -1.2)
+    _flip_axis(root, "joint_1")
+    _flip_axis(root, "joint_5")
+    _shift_zero(root, "joint_4", 0.5)
+    _new_base(root, 0.1, 0.8)
+    variant, twin = load_robot(_write(tree, tmp_path / "kr6_labels.urdf")), load_robot("kuka_kr6_r900_2")
+    q_variant = rng.uniform(np.maximum(variant.lower_rad, -math.pi), np.minimum(variant.upper_rad, math.pi),
+                            size=(200, 6))
+    q_twin = q_variant.copy()
+    q_twin[:, 0] = -q_variant[:, 0] - 1.2  # undo the flip, then the zero shift
+    q_twin[:, 3] += 0.5
+    q_twin[:, 4] = -q_variant[:, 4]
+    closed = distances_batch(variant, q_variant)
+    frames = np.array([_signed_distances(*_frames(variant, q)) for q in q_variant])
+    np.testing.assert_allclose(closed, frames, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(closed, distances_batch(twin, q_twin), rtol=0, atol=1e-12)
+    assert [classify(variant, q).label for q in q_variant] == [classify(twin, q).label for q in q_twin]
+
+
+def test_a_wrist_offset_arm_is_general6_and_says_why(tmp_path: Path) -> None:
+    tree = _tree("abb_irb2400")
+    origin = _joint(tree.getroot(), "joint_6").find("origin")
+    assert origin is not None
+    origin.set("xyz", "0.085 0.01 0.0")  # axis 6 10 mm beside the wrist centre
+    robot = load_robot(_write(tree, tmp_path / "offset_wrist.urdf"))
+    assert robot.family == "general6" and robot.opw is None and robot.ur is None
+    assert "axis 6 does not pass through the wrist centre" in robot.recognition.reason
+    assert "not ur" in robot.recognition.reason
+
+
+def test_ur5_with_an_extra_fixed_joint_and_a_raised_base_is_ur(tmp_path: Path, rng) -> None:
+    tree = _tree("ur5")
+    root = tree.getroot()
+    _insert_fixed(root, "elbow_joint", (0.0, -0.05, 0.2))
+    _new_base(root, 0.25, 0.0)
+    variant = load_robot(_write(tree, tmp_path / "ur5_variant.urdf"))
+    twin = load_robot("ur5")
+    assert variant.family == "ur" and variant.ur is not None and twin.ur is not None
+    assert variant.ur.d1 == pytest.approx(twin.ur.d1 + 0.25, abs=1e-12)
+    assert variant.ur.l2 == pytest.approx(twin.ur.l2, abs=1e-12)
+    _assert_fk_reproduced(variant.urdf_path, rng)
+
+
+# --- the same URDF by name and by path ------------------------------------------------------------
+
+@pytest.mark.parametrize("task_file", [ROOT / "singplan" / "demo_task.yaml", ROOT / "examples" / "ur5_wrist_auto.yaml"])
+def test_the_same_urdf_plans_identically_by_name_and_by_path(task_file: Path) -> None:
+    doc = yaml.safe_load(task_file.read_text())
+    by_name = plan(parse_task(doc))
+    by_path = plan(parse_task({**doc, "robot": str(load_robot(doc["robot"]).urdf_path)}))
+    assert by_name.duration_s == by_path.duration_s
+    assert by_name.tip == by_path.tip == "tool0"
+    np.testing.assert_allclose(by_path.q, by_name.q, rtol=0, atol=1e-12)
+    crossings = [s.method for s in by_name.segments if s.kind == "crossing"]
+    assert crossings == [s.method for s in by_path.segments if s.kind == "crossing"]
+    assert f"(tip {by_name.tip})" in summary(by_path, parse_task(doc))
+
+
+# --- the tip default rule ---------------------------------------------------------------------------
+
+def test_default_tip_prefers_tool0_then_flange_then_tcp_then_the_last_link(tmp_path: Path) -> None:
+    tree = _tree("abb_irb2400")
+    root = tree.getroot()
+    assert default_tip(load_robot("abb_irb2400").model) == "tool0"
+    path = _write(tree, tmp_path / "a.urdf")
+    assert load_robot(path).tip == "tool0"
+    for link in root.iter("link"):
+        if link.get("name") == "tool0":
+            link.set("name", "gripper_tcp")
+    for joint in root.iter("joint"):
+        child = joint.find("child")
+        if child is not None and child.get("link") == "tool0":
+            child.set("link", "gripper_tcp")
+    ET.SubElement(root, "link", name="camera")  # a side link, not named as a tip
+    camera = ET.SubElement(root, "joint", name="camera_joint", type="fixed")
+    ET.SubElement(camera, "parent", link="link_6")
+    ET.SubElement(camera, "child", link="camera")
+    assert load_robot(_write(tree, tmp_path / "b.urdf")).tip == "gripper_tcp"
+    for link in root.iter("link"):
+        if link.get("name") == "gripper_tcp":
+            link.set("name", "plate")
+    for joint in root.iter("joint"):
+        child = joint.find("child")
+        if child is not None and child.get("link") == "gripper_tcp":
+            child.set("link", "plate")
+    camera.find("parent").set("link", "plate")  # type: ignore[union-attr]
+    assert load_robot(_write(tree, tmp_path / "c.urdf")).tip == "camera"  # the link farthest down the chain
+
+
+def test_panda_by_path_ends_at_its_tcp_not_at_a_finger() -> None:
+    panda = load_robot("panda")
+    assert panda.tip == "panda_hand"  # the registry's default
+    assert load_robot(panda.urdf_path).tip == "panda_hand_tcp"
+
+
+# --- singplan info / robots -------------------------------------------------------------------------
+
+def test_info_shows_family_parameters_tip_joints_and_methods() -> None:
+    out = io.StringIO()
+    assert main(["info", "fanuc_m10ia", "--json"], out=out) == 0
+    info = json.loads(out.getvalue())
+    assert info["family"] == "opw" and info["tip"] == "tool0"
+    assert info["parameters"]["offsets_deg"] == [0.0, 0.0, -90.0, 0.0, 0.0, 180.0]
+    assert info["verification"]["residual_m"] <= VERIFY_TOL_M
+    assert [j["name"] for j in info["joints"]] == [f"joint_{k}" for k in range(1, 7)]
+    assert info["joints"][0]["upper_deg"] == pytest.approx(179.9, abs=1e-9)
+    assert all(m["applies"] for m in info["crossing_methods"])
+    out = io.StringIO()
+    assert main(["info", str(load_robot("panda").urdf_path)], out=out) == 0
+    text = out.getvalue()
+    assert "family: seven" in text and "tip: panda_hand_tcp" in text
+    assert "wrist-joint  no  needs a closed form" in text
+
+
+def test_info_of_an_unknown_robot_is_bad_input() -> None:
+    err = io.StringIO()
+    assert main(["info", "abb_irb9999"], out=io.StringIO(), err=err) == 2
+    assert "abb_irb9999" in err.getvalue()
+
+
+def test_robots_lists_the_recognised_family() -> None:
+    out = io.StringIO()
+    assert main(["robots", "--json"], out=out) == 0
+    rows = {r["name"]: r for r in json.loads(out.getvalue())}
+    assert rows["ur5"]["family"] == "ur" and rows["panda"]["family"] == "seven"
+    assert all(rows[name]["family"] == "opw" for name in OPW_NAMES)
+
+
+def test_a_user_urdf_named_like_a_bundled_arm_is_replayed_as_itself(tmp_path: Path) -> None:
+    from types import SimpleNamespace
+
+    from singplan.viewer import robot_of
+
+    tree = _tree("abb_irb2400")
+    _joint(tree.getroot(), "joint_6").find("origin").set("xyz", "0.2 0.0 0.0")  # type: ignore[union-attr]
+    user = _write(tree, tmp_path / "abb_irb2400.urdf")
+    traj = SimpleNamespace(robot="abb_irb2400", urdf=str(user), tip="tool0", tool={"xyz": [0, 0, 0]})
+    assert robot_of(traj).urdf_path == user  # type: ignore[arg-type]
+    bundled = SimpleNamespace(robot="abb_irb2400", urdf=str(load_robot("abb_irb2400").urdf_path), tip="tool0",
+                              tool={"xyz": [0, 0, 0]})
+    assert robot_of(bundled).urdf_path == load_robot("abb_irb2400").urdf_path  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("name", ["abb_irb2400", "fanuc_m10ia"])
+def test_a_variant_keeps_its_branch_at_the_closed_forms_boundaries(name: str, tmp_path: Path) -> None:
+    """q = 0, the straightened elbow, q5 = 0 and |q5| = 1e-9 (OPW coordinates) on a re-conventioned arm."""
+    tree = _tree(name)
+    _flip_axis(tree.getroot(), "joint_5")
+    _shift_zero(tree.getroot(), "joint_3", 0.2)
+    robot = load_robot(_write(tree, tmp_path / f"{name}_boundary.urdf"))
+    p = robot.opw
+    assert p is not None
+    straight = -math.atan2(p.a2, p.c3)  # OPW q3 where the elbow distance is 0
+    mid_opw = (robot.lower_rad + robot.upper_rad) / 2 * p.signs - p.offsets + np.array([0.3, 0.1, 0.1, 0.4, 0.6, -0.2])
+    opw_points = [np.where(np.arange(6) == k, value, mid_opw)
+                  for k, value in ((2, straight), (4, 0.0), (4, 1e-9), (4, -1e-9))]
+    points = [q for q in [np.zeros(6), *((np.array(v) + p.offsets) * p.signs for v in opw_points)]
+              if robot.within_limits(q)]
+    assert len(points) >= (5 if name == "fanuc_m10ia" else 4)  # the IRB 2400 cannot straighten its elbow
+    for q in points:
+        target = robot.fk(q)
+        sols = solve_all(robot, target, seed=q)
+        assert np.min(np.max(np.abs(sols.q - q), axis=1)) < 1e-6  # the seeded branch, not a jump
+        for s in sols.q:
+            error = target.actInv(robot.fk(s))
+            assert np.linalg.norm(error.translation) < 1e-9 and np.linalg.norm(pin.log3(error.rotation)) < 1e-9

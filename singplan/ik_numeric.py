@@ -34,6 +34,7 @@ from singplan.robot import Robot
 TWO_PI = 2.0 * math.pi
 _HALTON_PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37)
 _SAME_BRANCH_RAD = 1e-6  # two converged solutions closer than this (mod 2*pi) are one branch
+_FAR_COST = 1e-4  # squared log error [m^2, rad^2] of a run given up half way
 _SLIDE_ITERATIONS = 60  # null-space steps of a redundant arm toward the seed (each halves the gap)
 
 
@@ -52,7 +53,7 @@ class NumericIkOptions:
     min_seeds: int = 24
     patience: int = 24
     max_seeds: int = 200
-    max_iterations: int = 40
+    max_iterations: int = 100
     tol: float = 1e-12
 
 
@@ -109,30 +110,40 @@ def solve_lm(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray,
              options: NumericIkOptions = NumericIkOptions()) -> np.ndarray | None:
     """Levenberg-Marquardt inside the joint limits from ``seed``; the solution [rad] or None.
 
-    A step is kept only when it lowers the error (the damping shrinks tenfold) and otherwise
-    retried with ten times the damping; a run whose damping exceeds 1e6 is stuck (at a limit or
-    in a local minimum) and given up.
+    The damping follows Nielsen's rule (K. Madsen, H. B. Nielsen, O. Tingleff, "Methods for
+    non-linear least squares problems", 2004): it shrinks by how well the linear model
+    predicted the step's gain, and doubles its growth after each refused step, which keeps
+    the iteration moving through the ill-conditioned region near a singular pose. A run still
+    far from any solution half way through its iterations is given up.
     """
     lower, upper = robot.lower_rad, robot.upper_rad
     T_target_tip = _tip_target(robot, T_base_tcp)
     q = into_limits(np.asarray(seed, dtype=float), lower, upper)
     err, T = _error(robot, T_target_tip, q)
-    norm, damping = float(np.linalg.norm(err)), 1e-2
+    cost, damping, growth = float(err @ err), 1e-2, 2.0
     J = _error_jacobian(robot, T_target_tip, q, T)
-    for _ in range(options.max_iterations):
-        if norm < options.tol:
+    for iteration in range(options.max_iterations):
+        if cost < options.tol ** 2:
             return q
-        q_new = into_limits(q + damped_step(J, err, damping), lower, upper)
+        if iteration == options.max_iterations // 2 and cost > _FAR_COST:
+            return None
+        step = damped_step(J, err, damping)
+        q_new = into_limits(q + step, lower, upper)
         err_new, T_new = _error(robot, T_target_tip, q_new)
-        norm_new = float(np.linalg.norm(err_new))
-        if norm_new < norm:
-            q, err, norm, damping = q_new, err_new, norm_new, max(damping * 0.1, 1e-15)
+        cost_new = float(err_new @ err_new)
+        predicted = cost - float(np.sum((err - J @ step) ** 2))
+        gain = (cost - cost_new) / predicted if predicted > 0.0 else -1.0
+        if gain > 0.0:
+            q, err, cost = q_new, err_new, cost_new
+            damping *= max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)
+            growth = 2.0
             J = _error_jacobian(robot, T_target_tip, q, T_new)
         else:
-            damping *= 10.0
-            if damping > 1e6:
+            damping *= growth
+            growth *= 2.0
+            if damping > 1e12:
                 return None
-    return q if norm < options.tol else None
+    return q if cost < options.tol ** 2 else None
 
 
 def halton(count: int, dim: int, skip: int = 1) -> np.ndarray:

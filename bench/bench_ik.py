@@ -36,8 +36,8 @@ from singplan.ik import closed_form_branches, opw_batch, solve_all
 from singplan.ik_numeric import all_branches
 from singplan.robot import Robot, load_robot, robots_dir
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from tests.test_ik_numeric import brute_force_branches  # noqa: E402  (the reference lives with its tests)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the reference lives with its tests
+from tests.test_ik_numeric import brute_force_branches, found_in, has_variant_inside
 
 
 def _oracle(robot: Robot) -> OpwRobot:
@@ -140,15 +140,6 @@ def offset_wrist_robot(folder: Path) -> Robot:
     return load_robot(path)
 
 
-def _same(a: np.ndarray, b: np.ndarray) -> bool:
-    return bool(np.all(np.abs(np.angle(np.exp(1j * (a - b)))) < 1e-6))
-
-
-def _inside(robot: Robot, q: np.ndarray) -> bool:
-    two_pi = 2.0 * np.pi
-    return bool(np.all(np.ceil((robot.lower_rad - q) / two_pi - 1e-12) <= np.floor((robot.upper_rad - q) / two_pi + 1e-12)))
-
-
 def measure_numeric(robot: Robot, n_poses: int, seed: int = 11) -> dict[str, float]:
     """ms per all_branches call (median, max) and branches found / reference over random FK poses."""
     rng = np.random.default_rng(seed)
@@ -156,14 +147,14 @@ def measure_numeric(robot: Robot, n_poses: int, seed: int = 11) -> dict[str, flo
     for _ in range(n_poses):
         T = robot.fk(rng.uniform(robot.lower_rad, robot.upper_rad))
         closed = closed_form_branches(robot, T.homogeneous[None])[0]
-        reference = ([c for c in closed if np.all(np.isfinite(c)) and _inside(robot, c)] if closed.shape[0]
+        reference = ([c for c in closed if np.all(np.isfinite(c)) and has_variant_inside(robot, c)] if closed.shape[0]
                      else brute_force_branches(robot, T, rng))
         t0 = time.perf_counter()
         rows, _ = all_branches(robot, T)
         times_ms.append((time.perf_counter() - t0) * 1e3)
         reference_total += len(reference)
-        found += sum(any(_same(b, r) for r in rows) for b in reference)
-        extra += sum(not any(_same(r, b) for b in reference) for r in rows)
+        found += sum(found_in(b, rows) for b in reference)
+        extra += sum(not found_in(r, reference) for r in rows)
     return {"poses": n_poses, "found": found, "reference": reference_total, "extra": extra,
             "median_ms": float(np.median(times_ms)), "max_ms": float(np.max(times_ms))}
 

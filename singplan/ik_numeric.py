@@ -236,8 +236,9 @@ def all_branches(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = No
         robot: any serial arm with n >= 6 joints.
         T_base_tcp: the target TCP pose.
         seed: tried first; with a redundant arm, each configuration keeps its point nearest it.
-        label: configuration label of a joint vector; redundant arms (n > 6) need it to tell
-            configurations apart (a 6R arm's branches are told apart by their joints).
+        label: configuration label of a joint vector; a redundant arm (n > 6) gives one
+            solution per label (one in all without it); a 6R arm's branches are told apart
+            by their joints.
         options: seed counts and convergence.
 
     Returns:
@@ -245,7 +246,8 @@ def all_branches(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = No
         each, the index of the seed it came from (0 = the caller's seed when given).
     """
     redundant = robot.n_joints > 6
-    found = _Found(key=label if redundant else None, seed=seed, rows=[], origins=[], keys=[])
+    key = (label or _one_configuration) if redundant else None
+    found = _Found(key=key, seed=seed, rows=[], origins=[], keys=[])
     pending: list[np.ndarray] = [] if seed is None else [np.asarray(seed, dtype=float)]
     tried, box_tried, quiet = 0, 0, 0
     box = _box_seeds(robot, options)
@@ -254,14 +256,18 @@ def all_branches(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = No
         q = solve_lm(robot, T_base_tcp, next(box) if is_box else pending.pop(0), options)
         new = q is not None and found.add(q, tried)
         tried += 1
-        if new and not redundant:
+        if new and robot.n_joints == 6:
             pending.extend(flips(found.rows[-1]))
         if is_box:
             box_tried += 1
             quiet = 0 if new else quiet + 1
-    if redundant and seed is not None and label is not None:
-        return _nearest_per_label(robot, T_base_tcp, found, np.asarray(seed, dtype=float), label, options)
+    if key is not None and seed is not None:
+        return _nearest_per_label(robot, T_base_tcp, found, np.asarray(seed, dtype=float), key, options)
     return found.rows, found.origins
+
+
+def _one_configuration(q: np.ndarray) -> str:
+    return ""  # a redundant arm searched without labels: one solution
 
 
 def _nearest_per_label(robot: Robot, T_base_tcp: pin.SE3, found: _Found, seed: np.ndarray,

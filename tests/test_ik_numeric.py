@@ -80,19 +80,19 @@ def brute_force_branches(robot: Robot, T: pin.SE3, rng: np.random.Generator) -> 
         q = q + scale[:, None] * step
     branches: list[np.ndarray] = []
     for qk in _wrap(q):
-        if max(_pose_error(robot, qk, T)) < POSE_TOL and _has_variant_inside(robot, qk) and not any(
+        if max(_pose_error(robot, qk, T)) < POSE_TOL and has_variant_inside(robot, qk) and not any(
                 np.all(np.abs(_wrap(qk - b)) < SAME_RAD) for b in branches):
             branches.append(qk)
     return branches
 
 
-def _has_variant_inside(robot: Robot, q: np.ndarray) -> bool:
+def has_variant_inside(robot: Robot, q: np.ndarray) -> bool:
     k_lo = np.ceil((robot.lower_rad - q) / TWO_PI - 1e-12)
     k_hi = np.floor((robot.upper_rad - q) / TWO_PI + 1e-12)
     return bool(np.all(k_lo <= k_hi))
 
 
-def _found(branch: np.ndarray, rows: list[np.ndarray]) -> bool:
+def found_in(branch: np.ndarray, rows: list[np.ndarray]) -> bool:
     return any(np.all(np.abs(_wrap(branch - r)) < SAME_RAD) for r in rows)
 
 
@@ -136,7 +136,7 @@ def test_finds_every_reference_branch_of_an_offset_wrist_arm(offset_wrist_robot:
             assert max(_pose_error(robot, q, T)) < POSE_TOL
         assert len(reference) >= 1  # the pose came from FK inside the limits
         reference_total += len(reference)
-        found_total += sum(_found(b, rows) for b in reference)
+        found_total += sum(found_in(b, rows) for b in reference)
     assert found_total == reference_total, f"found {found_total} of {reference_total} reference branches"
 
 
@@ -148,10 +148,10 @@ def test_same_branches_as_the_closed_form_on_opw_arms(name: str) -> None:
     for _ in range(15):
         T = robot.fk(rng.uniform(robot.lower_rad, robot.upper_rad))
         closed = [c for c in closed_form_branches(robot, T.homogeneous[None])[0]
-                  if np.all(np.isfinite(c)) and _has_variant_inside(robot, c)]
+                  if np.all(np.isfinite(c)) and has_variant_inside(robot, c)]
         rows, _ = all_branches(robot, T)
         assert len(rows) == len(closed)
-        assert all(_found(c, rows) for c in closed)
+        assert all(found_in(c, rows) for c in closed)
 
 
 def test_unreachable_pose_gives_no_branch_and_is_deterministic() -> None:
@@ -203,3 +203,5 @@ def test_panda_solutions_are_exact_distinct_and_nearest_first() -> None:
     # the seed's own neighbourhood: the nearest solution lies on the seed's symmetric plane (q1 = q3 = q5 = 0)
     assert np.allclose(sols.q[0][[0, 2, 4]], 0.0, atol=1e-6)
     assert into_limits(sols.q[0], robot.lower_rad, robot.upper_rad) == pytest.approx(sols.q[0])
+    unlabelled, _ = all_branches(robot, T, seed)  # without labels: one point of the family, the nearest found
+    assert len(unlabelled) == 1 and max(_pose_error(robot, unlabelled[0], T)) < POSE_TOL

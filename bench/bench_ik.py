@@ -8,6 +8,12 @@ For N = 1, 100 and 10 000 random poses of one arm, in one run on one machine:
 - py-opw-kinematics ``inverse`` in a loop (all branches of one pose per call);
 - py-opw-kinematics ``batch_inverse`` (one branch per pose, nearest the previous).
 Times are the best of ``--repeat`` runs, in microseconds per pose.
+
+    python bench/bench_ik.py --numeric [--poses 30] [--write docs/kinematics.md]
+
+The numeric all-branch solver (singplan.ik_numeric) on arms without and with a closed form:
+milliseconds per call and the branches it finds against a reference (the closed form inside
+the limits, or for the offset-wrist arm the brute force of tests/test_ik_numeric.py).
 """
 
 from __future__ import annotations
@@ -26,8 +32,12 @@ from py_opw_kinematics import KinematicModel
 from py_opw_kinematics import Robot as OpwRobot
 from scipy.spatial.transform import RigidTransform
 
-from singplan.ik import opw_batch, solve_all
-from singplan.robot import Robot, load_robot
+from singplan.ik import closed_form_branches, opw_batch, solve_all
+from singplan.ik_numeric import all_branches
+from singplan.robot import Robot, load_robot, robots_dir
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the reference lives with its tests
+from tests.test_ik_numeric import brute_force_branches, found_in, has_variant_inside
 
 
 def _oracle(robot: Robot) -> OpwRobot:
@@ -120,13 +130,77 @@ def write_section(path: Path, text: str, mark: str = "bench_ik") -> None:
     path.write_text(new)
 
 
+def offset_wrist_robot(folder: Path) -> Robot:
+    """The FANUC M-10iA with axis 6 moved 50 mm off axis 5 (as in tests/test_ik_numeric.py)."""
+    text = (robots_dir() / "fanuc_m10ia.urdf").read_text()
+    old = '<origin xyz="0.1 0.0 0.0" rpy="0.0 -0.0 0.0"/>\n    <axis xyz="-1.0 0.0 0.0"/>'
+    assert text.count(old) == 1
+    path = folder / "fanuc_m10ia_offset_wrist.urdf"
+    path.write_text(text.replace(old, old.replace("0.1 0.0 0.0", "0.1 0.0 0.05")))
+    return load_robot(path)
+
+
+def measure_numeric(robot: Robot, n_poses: int, seed: int = 11) -> dict[str, float]:
+    """ms per all_branches call (median, max) and branches found / reference over random FK poses."""
+    rng = np.random.default_rng(seed)
+    times_ms, found, reference_total, extra = [], 0, 0, 0
+    for _ in range(n_poses):
+        T = robot.fk(rng.uniform(robot.lower_rad, robot.upper_rad))
+        closed = closed_form_branches(robot, T.homogeneous[None])[0]
+        reference = ([c for c in closed if np.all(np.isfinite(c)) and has_variant_inside(robot, c)] if closed.shape[0]
+                     else brute_force_branches(robot, T, rng))
+        t0 = time.perf_counter()
+        rows, _ = all_branches(robot, T)
+        times_ms.append((time.perf_counter() - t0) * 1e3)
+        reference_total += len(reference)
+        found += sum(found_in(b, rows) for b in reference)
+        extra += sum(not found_in(r, reference) for r in rows)
+    return {"poses": n_poses, "found": found, "reference": reference_total, "extra": extra,
+            "median_ms": float(np.median(times_ms)), "max_ms": float(np.max(times_ms))}
+
+
+def numeric_table(rows: dict[str, dict[str, float]]) -> str:
+    lines = [
+        "### Numeric all-branch IK (`singplan.ik_numeric.all_branches`)",
+        "",
+        f"Machine: {machine()}; Python {platform.python_version()}, pin {version('pin')}. "
+        "Random poses = FK of uniform random joints inside the limits (seed 11).",
+        "",
+        "| arm | reference | poses | branches found / reference | not in reference | ms per call (median) | ms (max) |",
+        "|---|---|---:|---:|---:|---:|---:|",
+    ]
+    for name, r in rows.items():
+        ref = "brute force (1000 random starts)" if "offset" in name else "closed form inside limits"
+        lines.append(f"| {name} | {ref} | {r['poses']} | {r['found']} / {r['reference']} | {r['extra']} "
+                     f"| {r['median_ms']:.1f} | {r['max_ms']:.1f} |")
+    return "\n".join(lines)
+
+
+def main_numeric(n_poses: int, write: Path | None) -> int:
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        arms = {"fanuc_m10ia with axis 6 offset 50 mm": offset_wrist_robot(Path(folder)),
+                "fanuc_m10ia": load_robot("fanuc_m10ia"), "kuka_kr6_r900_2": load_robot("kuka_kr6_r900_2"),
+                "ur5": load_robot("ur5")}
+        text = numeric_table({name: measure_numeric(robot, n_poses) for name, robot in arms.items()})
+    sys.stdout.write(text + "\n")
+    if write:
+        write_section(write, text, mark="bench_ik_numeric")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", default="kuka_kr6_r900_2")
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--sizes", type=int, nargs="+", default=[1, 100, 10_000])
     parser.add_argument("--write", type=Path, default=None, help="update this markdown file")
+    parser.add_argument("--numeric", action="store_true", help="the numeric all-branch solver instead")
+    parser.add_argument("--poses", type=int, default=30, help="random poses per arm (--numeric)")
     args = parser.parse_args(argv)
+    if args.numeric:
+        return main_numeric(args.poses, args.write)
     text = table(args.robot, measure(args.robot, args.sizes, args.repeat))
     sys.stdout.write(text + "\n")
     if args.write:

@@ -11,10 +11,10 @@ Three solvers share one API (:func:`solve_all`, :func:`closed_form_branches`):
   branches. :func:`opw_batch` evaluates all eight for N poses at once (a compiled loop,
   :mod:`singplan.opw`).
 * **UR closed form** (:mod:`singplan.ik_ur`) for the ur_description layout, eight branches.
+* **Numeric** (:mod:`singplan.ik_numeric`: Levenberg-Marquardt on the SE(3) log error from
+  quasi-random and branch-flipped seeds, inside the joint limits) for any other chain.
 
 Which applies is :attr:`Robot.family`, recognised and verified from the chain (:mod:`singplan.families`).
-* **Numeric** (Pinocchio, damped Newton on the SE(3) log error) for any other chain, seeded
-  once per branch (e.g. URDFs given by path).
 
 At an exactly wrist-singular pose (q5 = 0) only q4 + q6 is determined. singplan keeps q4
 at the seed's value (0 without a seed) and gives the rest to q6, so no branch is lost and
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from singplan import opw
+from singplan import ik_numeric, opw
 from singplan.compiled import jit
 from singplan.configuration import classify
 from singplan.ik_ur import ur_batch
@@ -228,54 +228,10 @@ def _closed_form_candidates(robot: Robot, T_base_tcp: pin.SE3,
     return [sols[k] for k in keep], keep
 
 
-def _branch_seeds(robot: Robot, T_base_tcp: pin.SE3) -> list[np.ndarray]:
-    """Seeds spread over the branches: q1 toward / away from the target, elbow and wrist +-."""
-    p = T_base_tcp.translation
-    base_yaw = math.atan2(p[1], p[0])
-    seeds = []
-    for q1 in (base_yaw, base_yaw + math.pi, base_yaw - math.pi / 2, base_yaw + math.pi / 2):
-        for q3 in (1.2, -1.2):
-            for q5 in (1.0, -1.0):
-                q = np.zeros(robot.n_joints)
-                q[0], q[2 % robot.n_joints] = q1, q3
-                if robot.n_joints >= 5:
-                    q[1], q[4] = -1.0 if q3 > 0 else 1.0, q5
-                seeds.append(np.clip(q, robot.lower_rad, robot.upper_rad))
-    return seeds
-
-
 def _numeric_candidates(robot: Robot, T_base_tcp: pin.SE3,
                         seed: np.ndarray | None) -> tuple[list[np.ndarray], list[int]]:
-    seeds = ([np.asarray(seed, dtype=float)] if seed is not None else []) + _branch_seeds(robot, T_base_tcp)
-    rows: list[np.ndarray] = []
-    branches: list[int] = []
-    for k, s in enumerate(seeds):
-        q = solve_newton(robot, T_base_tcp, s)
-        if q is not None and not any(np.allclose(wrap_to_pi(q - r), 0.0, atol=1e-7) for r in rows):
-            rows.append(wrap_to_pi(q))
-            branches.append(k)
-    return rows, branches
+    rows, origins = ik_numeric.all_branches(robot, T_base_tcp, seed, label=lambda q: classify(robot, q).label)
+    return [wrap_to_pi(q) for q in rows], origins
 
 
-def solve_newton(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray, tol: float = 1e-12,
-                 max_iterations: int = 60) -> np.ndarray | None:
-    """Damped Newton on the pose error ``log6(T(q)^-1 T_target)`` from ``seed``.
-
-    Returns the converged joint values [rad], or None when it does not converge.
-    Steps are taken in the local TCP frame with a Levenberg-Marquardt damping that vanishes
-    as the error does, so convergence is quadratic away from singularities.
-    """
-    q = np.array(seed, dtype=float)
-    model, data, fid = robot.model, robot.data, robot.tip_frame_id
-    T_target_tip = T_base_tcp * robot.T_tip_tcp.inverse()
-    for _ in range(max_iterations):
-        pin.forwardKinematics(model, data, q)
-        T = pin.updateFramePlacement(model, data, fid)
-        err = pin.log6(T.actInv(T_target_tip)).vector
-        norm = float(np.linalg.norm(err))
-        if norm < tol:
-            return q
-        J = -pin.Jlog6(T_target_tip.actInv(T)) @ pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
-        damping = min(1e-2, norm) ** 2
-        q = q - J.T @ np.linalg.solve(J @ J.T + damping * np.eye(6), err)
-    return None
+solve_newton = ik_numeric.newton  # the seeded per-sample solve (tracking, joint maps)

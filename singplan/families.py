@@ -337,6 +337,6 @@ def _verify(model: pin.Model, tip_frame_id: int, params: OpwParameters | UrParam
 def crossing_methods(family: Family) -> dict[str, str]:
     """Each crossing method and how it serves an arm of ``family`` ("" when fully)."""
     closed = family in ("opw", "ur")
-    no_closed = "" if closed else "needs a closed form (opw or ur); on this arm it tracks exactly, as exact does"
+    no_closed = "" if closed else "needs a closed form (opw or ur), which this arm does not have"
     return {"exact": "", "stop": "", "wrist-joint": no_closed, "axis": no_closed, "dls": "", "average": "",
-            "ptp": "", "auto": "" if closed else "compares exact only (no closed form)"}
+            "ptp": "", "auto": "" if closed else "compares exact only: wrist-joint and axis need a closed form"}

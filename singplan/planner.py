@@ -32,6 +32,7 @@ from singplan.crossing import (
 )
 from singplan.dynamics import TorqueLimit, effort_limits_nm, require_dynamics
 from singplan.errors import JointLimitError, PlanningError, SingularityError, UnreachableError
+from singplan.families import crossing_methods
 from singplan.ik import solve_all
 from singplan.jointmap import JointMap, JointPart
 from singplan.path import CartesianPiece, make_circ, make_lin, rpy_deg_to_rotation
@@ -206,10 +207,15 @@ def _timed(robot: Robot, pm: PlannedMove, period_s: float, max_samples: int) -> 
 
 def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
              methods: list[CrossingMethod], max_samples: int) -> tuple[PlannedMove, TimedMove]:
-    """Plan and time the move with each method; keep the fastest within the tolerances."""
+    """Plan and time the move with each method; keep the fastest within the tolerances.
+
+    A method this arm's family cannot use is never run in disguise: it is listed as infeasible
+    with the reason, and asked for alone it is refused where the move meets a zone.
+    """
     results: list[tuple[PlannedMove, TimedMove]] = []
     failures: list[tuple[str, PlanningError | BudgetError]] = []
-    for method in methods:
+    serving, refused = _serving(robot, methods)
+    for method in serving or [Exact()]:  # with nothing to cross, any method gives exact's motion
         if results and not results[0][0].zones:
             break  # nothing to cross: every method gives this same motion
         try:
@@ -221,6 +227,9 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
             failures.append((method.name, exc))
             continue
         results.append((replace(pm, method=method.name, variant=_variant(method)), tm))
+    if not serving and results and results[0][0].zones:
+        raise _refusal(robot, results[0][0], refused)
+    failures += [(name, PlanningError(f"{name} {why} (this arm is {robot.family})")) for name, why in refused.items()]
     if not results:
         decisive: list[PlanningError | BudgetError] = [
             exc for _, exc in failures if isinstance(exc, (UnreachableError, BudgetError))]
@@ -235,6 +244,23 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
                          + [{"method": name, "feasible": False, "reason": str(exc)} for name, exc in failures])
     best_pm, best_tm = results[0]
     return replace(best_pm, alternatives=alternatives if len(methods) > 1 else ()), best_tm
+
+
+def _serving(robot: Robot, methods: list[CrossingMethod]) -> tuple[list[CrossingMethod], dict[str, str]]:
+    """The methods that can serve this arm's family, and why each other one cannot (by name)."""
+    notes = crossing_methods(robot.family)
+    return ([m for m in methods if not notes.get(m.name)],
+            {m.name: notes[m.name] for m in methods if notes.get(m.name)})
+
+
+def _refusal(robot: Robot, pm: PlannedMove, refused: dict[str, str]) -> SingularityError:
+    """The error for a move that meets a zone with only methods this arm cannot use."""
+    zone = pm.zones[0]
+    name, why = next(iter(refused.items()))
+    where = pm.piece.describe(zone.u_closest) if pm.piece is not None else "its start"
+    return SingularityError(f"move {pm.index} ({pm.kind}): {name} cannot cross the {zone.kind} zone at {where}: "
+                            f"it {why} (this arm is {robot.family}); use exact or auto",
+                            move=pm.index, kind=zone.kind, s_m=zone.u_closest * pm.limits.length_m)
 
 
 def _variant(method: CrossingMethod) -> str:

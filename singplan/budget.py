@@ -20,10 +20,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 
 from singplan.errors import TaskError
-from singplan.path import CartesianPiece, make_circ, make_lin, rpy_deg_to_rotation
+from singplan.path import move_piece, move_target
 from singplan.robot import Robot
 from singplan.task import MAX_OUTPUT_SAMPLES, Move, Task
 
@@ -113,10 +112,10 @@ def estimate_moves(task: Task, robot: Robot, q_start: np.ndarray, step_m: float,
                     samples = _ptp_samples(task, robot, move, q, q_to)
                 q, T = q_to, robot.fk(q_to)
             else:
-                q, T = None, _target(move, T)
+                q, T = None, move_target(move, T)
             out.append(MoveEstimate(i, "ptp", 0, samples, 0.0))
             continue
-        piece = _piece(i, move, T)
+        piece = move_piece(i, move, T)
         periods = piece.length_m / move.speed_m_s / task.period_s
         out.append(MoveEstimate(i, move.kind, piece.sample_count(step_m, step_rad) + 1, _whole(periods),
                                 piece.length_m))
@@ -201,15 +200,3 @@ def _ptp_samples(task: Task, robot: Robot, move: Move, q_from: np.ndarray, q_to:
     return _whole(float(np.max(np.abs(q_to - q_from) / v_rad_s)) / task.period_s)
 
 
-def _target(move: Move, T_start: pin.SE3) -> pin.SE3:
-    assert move.to is not None
-    rotation = rpy_deg_to_rotation(move.to.rpy_deg) if move.to.rpy_deg is not None else T_start.rotation
-    return pin.SE3(rotation, np.asarray(move.to.xyz, dtype=float))
-
-
-def _piece(i: int, move: Move, T_start: pin.SE3) -> CartesianPiece:
-    """The same geometry as the planner's (a degenerate CIRC is refused here already)."""
-    field_name = f"moves[{i}].{move.kind}"
-    if move.kind == "lin":
-        return make_lin(T_start, _target(move, T_start), field_name)
-    return make_circ(T_start, np.asarray(move.via_xyz, dtype=float), _target(move, T_start), field_name)

@@ -12,12 +12,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from singplan.compiled import jit
 from singplan.errors import TaskError
+
+if TYPE_CHECKING:  # only read here; task's own imports reach this module, so no runtime import
+    from singplan.task import Move
 
 AMBIGUOUS_ROTATION_RAD = math.pi - 1e-6
 
@@ -181,3 +185,18 @@ def _checked_rotation(T_start: pin.SE3, T_end: pin.SE3, field: str) -> float:
         raise TaskError(f"{field}.to.rpy_deg", f"the orientation turns {math.degrees(angle):.4f} deg: a 180 deg "
                                                "turn is ambiguous (which way round?); split the move")
     return angle
+
+
+def move_target(move: Move, T_start: pin.SE3) -> pin.SE3:
+    """A move's Cartesian target; without ``rpy_deg`` the orientation is held from ``T_start``."""
+    assert move.to is not None  # LIN / CIRC, or a PTP to a pose
+    rotation = rpy_deg_to_rotation(move.to.rpy_deg) if move.to.rpy_deg is not None else T_start.rotation
+    return pin.SE3(rotation, np.asarray(move.to.xyz, dtype=float))
+
+
+def move_piece(i: int, move: Move, T_start: pin.SE3) -> CartesianPiece:
+    """The LIN / CIRC geometry of move ``i`` starting at ``T_start`` (the planner's, the budget's, the replay's)."""
+    field_name = f"moves[{i}].{move.kind}"
+    if move.kind == "lin":
+        return make_lin(T_start, move_target(move, T_start), field_name)
+    return make_circ(T_start, np.asarray(move.via_xyz, dtype=float), move_target(move, T_start), field_name)

@@ -35,11 +35,11 @@ from singplan.errors import JointLimitError, PlanningError, SingularityError, Un
 from singplan.families import crossing_methods
 from singplan.ik import solve_all
 from singplan.jointmap import JointMap, JointPart
-from singplan.path import CartesianPiece, make_circ, make_lin, rpy_deg_to_rotation
+from singplan.path import CartesianPiece, move_piece, move_target, rpy_deg_to_rotation
 from singplan.robot import Robot, load_robot
 from singplan.singularity import DistanceFunction, Zone, distances_along, find_zones, thresholds_si
 from singplan.task import Move, Task, check_against_robot, load_task
-from singplan.timing import MoveLimits, TimedMove, TimingError, time_move
+from singplan.timing import MoveLimits, TimedMove, TimingError, time_move, worst_sample
 from singplan.tracking import BranchCandidates, TrackedPath, track
 from singplan.trajectory import Trajectory
 from singplan.trajectory_build import build_trajectory, sample_deviations
@@ -147,7 +147,7 @@ def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: 
     if list(over) == ["max_torque_ratio"]:
         k = round(float(traj.metrics["max_torque_at_s"]) / traj.period)
     else:
-        k = _worst_joint_sample(traj.q, traj.period, vmax, amax)
+        k = worst_sample(traj.q, traj.period, vmax, amax)
     m, k_move = _move_of_sample(timed, k)
     pm = planned[m]
     figures = ", ".join(f"{name} {value:.4f}" for name, value in over.items())
@@ -176,17 +176,6 @@ def _move_of_sample(timed: list[TimedMove], k: int) -> tuple[int, int]:
     ends = np.cumsum([len(tm.q) - 1 for tm in timed])
     m = min(int(np.searchsorted(ends, k)), len(timed) - 1)
     return m, k - (int(ends[m - 1]) if m > 0 else 0)
-
-
-def _worst_joint_sample(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.ndarray) -> int:
-    """The sample of q (K, n) whose speed or acceleration ratio is the largest."""
-    if len(q) < 3:
-        return 0
-    qd = np.diff(q, axis=0) / period_s
-    v = np.max(np.abs(qd) / vmax, axis=1)
-    a = np.max(np.abs(np.diff(qd, axis=0)) / period_s / amax, axis=1)
-    over = np.concatenate([[v[0]], np.maximum(np.maximum(v[:-1], v[1:]), a), [v[-1]]])
-    return int(np.argmax(over))
 
 
 def _where(robot: Robot, pm: PlannedMove, u: float) -> str:
@@ -316,31 +305,19 @@ def _plan_move(robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3, q
         q_target = _ptp_target(robot, i, move, q_start)
         part = JointPart("ptp", np.array([0.0, 1.0]), np.array([q_start, q_target]))
         return PlannedMove(i, "ptp", JointMap(robot, None, [part]), _limits(robot, task, move, 0.0))
-    return _plan_cartesian(robot, task, i, move, plan_move_piece(i, move, T_start), q_start, method)
-
-
-def plan_move_piece(i: int, move: Move, T_start: pin.SE3) -> CartesianPiece:
-    """The LIN / CIRC geometry of a move starting at ``T_start``."""
-    assert move.to is not None
-    field_name = f"moves[{i}].{move.kind}"
-    rotation = rpy_deg_to_rotation(move.to.rpy_deg) if move.to.rpy_deg is not None else T_start.rotation
-    T_end = pin.SE3(rotation, np.asarray(move.to.xyz, dtype=float))
-    if move.kind == "lin":
-        return make_lin(T_start, T_end, field_name)
-    return make_circ(T_start, np.asarray(move.via_xyz, dtype=float), T_end, field_name)
+    return _plan_cartesian(robot, task, i, move, move_piece(i, move, T_start), q_start, method)
 
 
 def _ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.ndarray:
     if move.to_joints_deg is not None:
         return np.radians(np.asarray(move.to_joints_deg, dtype=float))
-    assert move.to is not None
-    R = rpy_deg_to_rotation(move.to.rpy_deg) if move.to.rpy_deg is not None else robot.fk(q_start).rotation
-    sols = solve_all(robot, pin.SE3(R, np.asarray(move.to.xyz, dtype=float)), seed=q_start)
+    target = move_target(move, robot.fk(q_start))
+    sols = solve_all(robot, target, seed=q_start)
     keep = [k for k, label in enumerate(sols.labels) if move.config in ("auto", "keep", label)]
     if move.config == "keep":
         keep = [k for k in keep if sols.labels[k] == classify(robot, q_start).label]
     if not keep:
-        raise UnreachableError(f"move {i} (ptp): no IK solution for xyz {list(move.to.xyz)} inside the joint "
+        raise UnreachableError(f"move {i} (ptp): no IK solution for xyz {target.translation.tolist()} inside the joint "
                                f"limits in the requested configuration ({move.config}); available: "
                                f"{sorted(set(sols.labels)) or 'none'}", move=i)
     best = min(keep, key=lambda k: float(np.max(np.abs(sols.q[k] - q_start))))
@@ -530,7 +507,7 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
             T = robot.fk(q)
             out.append(MoveZones(i, "ptp", 0.0, ()))
             continue
-        piece = plan_move_piece(i, move, T)
+        piece = move_piece(i, move, T)
         grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
         tracked = track(robot, piece.poses, grid, q)
         _check_tracked(robot, i, move, piece, tracked)

@@ -98,8 +98,9 @@ def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
     # graded toward both ends let the spline and TOPP-RA's grid see it, so the move still stops
     # with every joint at rest instead of the elbow arriving at speed.
     ends = 10.0 ** -np.arange(3.0, 10.0)
-    u = np.unique(np.concatenate([u, ends, 1.0 - ends]))
-    q = jmap.evaluate(u)
+    extra = np.setdiff1d(np.concatenate([ends, 1.0 - ends]), u)  # only these need solving
+    order = np.argsort(np.concatenate([u, extra]), kind="stable")
+    u, q = np.concatenate([u, extra])[order], np.concatenate([q, jmap.evaluate(extra)])[order]
     keep = np.concatenate([[True], np.diff(u) > 1e-12])
     u, q = u[keep], q[keep]
     if len(u) < 4:  # a spline needs a few points; add interior ones (straight PTP lines)
@@ -295,19 +296,21 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
         if worst_t > 1.0:
             scale_t *= 0.995 / worst_t
     ends = end_step_ratio(q, period_s, limits.acceleration_rad_s2)
-    worst_k = torque_at if worst_t > max(worst_v, worst_a) else _worst_sample(q, period_s, limits)
+    worst_k = (torque_at if worst_t > max(worst_v, worst_a)
+               else worst_sample(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2))
     raise TimingError(move_index, float(u[worst_k]),
                       f"could not keep the joint limits on the output samples (speed x{speed:.3f}, "
                       f"acceleration x{accel:.3f}, end steps x{ends:.3f}"
                       f"{f', torque x{torque:.3f}' if limits.torque else ''} after tightening)")
 
 
-def _worst_sample(q: np.ndarray, period_s: float, limits: MoveLimits) -> int:
-    """The sample where speed or acceleration (end steps included) is furthest over its limit."""
-    padded = np.concatenate([q[:1], q, q[-1:]])  # at rest before and after
+def worst_sample(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.ndarray) -> int:
+    """The sample of q (K, n), at rest before and after, whose speed or acceleration is furthest over its limit
+    (end steps included)."""
+    padded = np.concatenate([q[:1], q, q[-1:]])
     qd = np.diff(padded, axis=0) / period_s
-    speed = np.max(np.abs(qd) / limits.velocity_rad_s, axis=1)  # step k -> k+1 of padded
-    accel = np.max(np.abs(np.diff(qd, axis=0)) / period_s / limits.acceleration_rad_s2, axis=1)  # at q[k]
+    speed = np.max(np.abs(qd) / vmax, axis=1)  # step k -> k+1 of padded
+    accel = np.max(np.abs(np.diff(qd, axis=0)) / period_s / amax, axis=1)  # at q[k]
     accel[[0, -1]] *= 2.0  # an end step's bound is amax * period^2 / 2 (end_step_ratio)
     over = np.maximum(accel, np.maximum(speed[:-1], speed[1:]))
     return int(np.argmax(over))

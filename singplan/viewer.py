@@ -39,8 +39,7 @@ from pinocchio.visualize import MeshcatVisualizer
 
 from singplan.errors import InputError, RobotModelError
 from singplan.outputs import check_output_file, text_writer, write_file
-from singplan.path import rpy_deg_to_rotation
-from singplan.planner import plan_move_piece
+from singplan.path import move_piece, rpy_deg_to_rotation
 from singplan.robot import Robot, bundled_robots, load_robot
 from singplan.task import parse_task
 from singplan.trajectory import Segment, Trajectory, load
@@ -241,7 +240,7 @@ def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
             points.append(tcp.between(k0, k1))
             T = robot.fk(traj.q[k1])
             continue
-        piece = plan_move_piece(i, move, T)
+        piece = move_piece(i, move, T)
         points.append(piece.positions(np.linspace(0.0, 1.0, 64)))
         T = piece.T_end
     return np.concatenate(points)

@@ -134,6 +134,17 @@ def _new_base(root: ET.Element, height_m: float, yaw_rad: float) -> None:
     ET.SubElement(fixed, "origin", xyz=f"0 0 {height_m}", rpy=f"0 0 {yaw_rad}")
 
 
+def _rename_link(root: ET.Element, old: str, new: str) -> None:
+    """Rename a link and the joint that makes it its child."""
+    for link in root.iter("link"):
+        if link.get("name") == old:
+            link.set("name", new)
+    for joint in root.iter("joint"):
+        child = joint.find("child")
+        if child is not None and child.get("link") == old:
+            child.set("link", new)
+
+
 def _write(tree: ET.ElementTree, path: Path) -> Path:
     tree.write(path)
     return path
@@ -280,25 +291,13 @@ def test_default_tip_prefers_tool0_then_flange_then_tcp_then_the_last_link(tmp_p
     assert default_tip(load_robot("abb_irb2400").model) == "tool0"
     path = _write(tree, tmp_path / "a.urdf")
     assert load_robot(path).tip == "tool0"
-    for link in root.iter("link"):
-        if link.get("name") == "tool0":
-            link.set("name", "gripper_tcp")
-    for joint in root.iter("joint"):
-        child = joint.find("child")
-        if child is not None and child.get("link") == "tool0":
-            child.set("link", "gripper_tcp")
+    _rename_link(root, "tool0", "gripper_tcp")
     ET.SubElement(root, "link", name="camera")  # a side link, not named as a tip
     camera = ET.SubElement(root, "joint", name="camera_joint", type="fixed")
     ET.SubElement(camera, "parent", link="link_6")
     ET.SubElement(camera, "child", link="camera")
     assert load_robot(_write(tree, tmp_path / "b.urdf")).tip == "gripper_tcp"
-    for link in root.iter("link"):
-        if link.get("name") == "gripper_tcp":
-            link.set("name", "plate")
-    for joint in root.iter("joint"):
-        child = joint.find("child")
-        if child is not None and child.get("link") == "gripper_tcp":
-            child.set("link", "plate")
+    _rename_link(root, "gripper_tcp", "plate")
     camera.find("parent").set("link", "plate")  # type: ignore[union-attr]
     assert load_robot(_write(tree, tmp_path / "c.urdf")).tip == "camera"  # the link farthest down the chain
 

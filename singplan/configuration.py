@@ -23,6 +23,11 @@ arm whatever its joint signs and offsets. With the joint frames of Pinocchio:
 
 Each label is the sign of its distance, so a label flips exactly where its distance
 crosses zero, and there the Jacobian loses rank (tested).
+
+A 7-joint arm (family ``seven``) has none of these: its self-motion joins what would be
+branches of a 6R arm, and its singularities are not the 6R wrist, shoulder and elbow. Its
+distances are NaN and its label is ``-`` (:data:`NO_LABEL`). Holding one joint
+(:mod:`singplan.redundancy`) makes it a 6R chain, labelled by the definitions above.
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ from singplan.robot import Robot
 SHOULDER_LABELS = ("F", "B")
 ELBOW_LABELS = ("U", "D")
 WRIST_LABELS = ("N", "F")
+NO_LABEL = "-"  # an arm without configuration labels (7 joints)
 
 
 @dataclass(frozen=True)
@@ -55,11 +61,20 @@ class Configuration:
 
     @property
     def label(self) -> str:
-        """String form, e.g. ``"F U N"``."""
+        """String form, e.g. ``"F U N"``; ``"-"`` for :data:`UNLABELLED`."""
+        if self == UNLABELLED:
+            return NO_LABEL
         return f"{self.shoulder} {self.elbow} {self.wrist}"
 
     def __str__(self) -> str:
         return self.label
+
+
+UNLABELLED = Configuration(NO_LABEL, NO_LABEL, NO_LABEL)  # the configuration of an arm without labels
+
+
+def _unlabelled(robot: Robot) -> bool:
+    return robot.family == "seven"
 
 
 def parse_configuration(text: str, field: str = "config") -> Configuration:
@@ -194,7 +209,9 @@ def _label(wrist: float, shoulder: float, elbow: float) -> Configuration:
 
 
 def classify(robot: Robot, q: np.ndarray) -> Configuration:
-    """The configuration (shoulder, elbow, wrist) of joint values ``q`` (n,) [rad]."""
+    """The configuration (shoulder, elbow, wrist) of joint values ``q`` (n,) [rad]; UNLABELLED for 7 joints."""
+    if _unlabelled(robot):
+        return UNLABELLED
     ref, fr = _frames(robot, np.asarray(q, dtype=float))
     return _label(*_signed_distances(ref, fr))
 
@@ -206,8 +223,7 @@ def singularity_distances(robot: Robot, q: np.ndarray) -> SingularityDistances:
     method-independent measure of how close ``q`` is to any singularity.
     """
     q = np.asarray(q, dtype=float)
-    ref, fr = _frames(robot, q)
-    wrist, shoulder, elbow = _signed_distances(ref, fr)
+    wrist, shoulder, elbow = (math.nan,) * 3 if _unlabelled(robot) else _signed_distances(*_frames(robot, q))
     sigma = float(np.linalg.svd(robot.jacobian(q), compute_uv=False)[-1])
     return SingularityDistances(wrist, shoulder, elbow, sigma)
 
@@ -232,6 +248,8 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
     per sample.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
+    if _unlabelled(robot):
+        return np.full((len(q), 3), np.nan)
     p = robot.opw
     ur = robot.ur
     if p is None and ur is not None:
@@ -257,11 +275,13 @@ def _opw_distances(q: np.ndarray, signs: np.ndarray, offsets: np.ndarray, a1: fl
 
 
 def labels_from_distances(d: np.ndarray) -> list[str]:
-    """Configuration labels of distance rows (N, 3): the sign of each distance."""
+    """Configuration labels of distance rows (N, 3): the sign of each distance; NO_LABEL for an all-NaN row."""
     shoulder = np.where(d[:, 1] >= 0, "F", "B")
     elbow = np.where(d[:, 2] >= 0, "U", "D")
     wrist = np.where(d[:, 0] >= 0, "N", "F")
-    return [f"{s} {e} {w}" for s, e, w in zip(shoulder.tolist(), elbow.tolist(), wrist.tolist(), strict=True)]
+    none = np.isnan(d).all(axis=1).tolist()
+    return [NO_LABEL if n else f"{s} {e} {w}"
+            for s, e, w, n in zip(shoulder.tolist(), elbow.tolist(), wrist.tolist(), none, strict=True)]
 
 
 @jit

@@ -36,6 +36,7 @@ from singplan.families import crossing_methods
 from singplan.ik import solve_all
 from singplan.jointmap import JointMap, JointPart
 from singplan.path import CartesianPiece, move_piece, move_target, rpy_deg_to_rotation
+from singplan.redundancy import hold_for_task
 from singplan.robot import Robot, load_robot
 from singplan.singularity import DistanceFunction, Zone, distances_along, find_zones, thresholds_si
 from singplan.task import Move, Task, check_against_robot, load_task
@@ -109,15 +110,18 @@ def plan(task: Task | str | Path, method: str | None = None, progress: Progress 
         task = load_task(task)
     if method is not None:
         task = task.with_method(method)
-    robot = load_task_robot(task)
-    q = _start_joints(task, robot)
-    allowance = check_task(task, robot, q, STEP_M, STEP_RAD).output_allowance  # before anything large
+    full = load_task_robot(task)
+    held = hold_for_task(task, full)  # with `redundancy`, the 6R chain is planned like any 6-joint arm
+    robot, arm_task = (held.reduced, held.reduce_task(task)) if held is not None else (full, task)
+    q = _start_joints(arm_task, robot)
+    allowance = check_task(arm_task, robot, q, STEP_M, STEP_RAD).output_allowance  # before anything large
     T = robot.fk(q)
     planned: list[PlannedMove] = []
     timed: list[TimedMove] = []
     left = allowance - 1  # output samples the remaining moves may add (they share their boundary samples)
     for i, move in enumerate(task.moves):
-        pm, tm = _best_of(robot, task, i, move, T, q, candidate_methods(task.singularity.method, move), left)
+        pm, tm = _best_of(robot, arm_task, i, arm_task.moves[i], T, q,
+                          candidate_methods(task.singularity.method, move), left)
         left -= len(tm.q) - 1
         planned.append(pm)
         timed.append(tm)
@@ -125,8 +129,8 @@ def plan(task: Task | str | Path, method: str | None = None, progress: Progress 
         T = pm.piece.T_end if pm.piece is not None else robot.fk(q)
         if progress is not None:
             progress(i + 1, len(task.moves))
-    traj = build_trajectory(robot, task, planned, timed, time.perf_counter() - started)
-    _check_metrics(robot, task, planned, timed, traj)
+    traj = build_trajectory(robot, task, planned, timed, time.perf_counter() - started, held)
+    _check_metrics(full, task, planned, timed, traj)
     return traj
 
 
@@ -495,7 +499,9 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     """
     if not isinstance(task, Task):
         task = load_task(task)
-    robot = load_task_robot(task)
+    full = load_task_robot(task)
+    held = hold_for_task(task, full)
+    robot, task = (held.reduced, held.reduce_task(task)) if held is not None else (full, task)
     thresholds = thresholds_si(task.singularity.zone)
     q = _start_joints(task, robot)
     check_task(task, robot, q, STEP_M, STEP_RAD, timed=False)  # before any path is sampled

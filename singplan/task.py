@@ -133,6 +133,14 @@ class Limits:
 
 
 @dataclass(frozen=True)
+class Redundancy:
+    """A 7-joint arm's redundant joint, held at one value for the whole task (SEEDS 003)."""
+
+    joint: str
+    value_deg: float = 0.0
+
+
+@dataclass(frozen=True)
 class Task:
     """A validated task. ``robot`` is a bundled name or an absolute URDF path."""
 
@@ -147,6 +155,7 @@ class Task:
     singularity: SingularitySettings = field(default_factory=SingularitySettings)
     limits: Limits = field(default_factory=Limits)
     period_s: float = 0.004
+    redundancy: Redundancy | None = None
 
     def with_method(self, method: str) -> Task:
         """The same task planned with another crossing method."""
@@ -176,6 +185,8 @@ class Task:
         }
         if self.tip:
             out["tip"] = self.tip
+        if self.redundancy is not None:
+            out["redundancy"] = asdict(self.redundancy)
         return out
 
 
@@ -354,7 +365,7 @@ def parse_task(doc: Any, base_dir: Path | None = None) -> Task:
     if not isinstance(doc, Mapping):
         raise TaskError("", f"the task must be a mapping of keys, got {type(doc).__name__}")
     _check_keys("", doc, required=("robot", "start", "moves"),
-                optional=("tip", "tool", "singularity", "limits", "output"))
+                optional=("tip", "tool", "singularity", "limits", "output", "redundancy"))
     robot = _robot_ref(doc["robot"], base_dir)
     tip = _string("tip", doc["tip"]) if doc.get("tip") is not None else None
     tool = _optional_mapping(doc, "tool", "")
@@ -369,6 +380,7 @@ def parse_task(doc: Any, base_dir: Path | None = None) -> Task:
         singularity=_singularity(_optional_mapping(doc, "singularity", "")),
         limits=_limits(_optional_mapping(doc, "limits", "")),
         period_s=_output_period(_optional_mapping(doc, "output", "")),
+        redundancy=_redundancy(doc["redundancy"]) if doc.get("redundancy") is not None else None,
     )
 
 
@@ -626,6 +638,14 @@ def _limits(value: Any) -> Limits:
                   acceleration_rad_s2=accel, torque_scale=torque)
 
 
+def _redundancy(value: Any) -> Redundancy:
+    if not isinstance(value, Mapping):
+        raise TaskError("redundancy", f"expected a mapping {{joint: NAME, value_deg: X}}, got {_describe(value)}")
+    _check_keys("redundancy", value, required=("joint",), optional=("value_deg",))
+    return Redundancy(_string("redundancy.joint", value["joint"]),
+                      _number("redundancy.value_deg", value.get("value_deg", 0.0), ANGLE_DEG))
+
+
 def _output_period(value: Any) -> float:
     _check_keys("output", value, optional=("period",))
     return _number("output.period", value.get("period", 0.004), PERIOD_S)
@@ -645,6 +665,20 @@ def check_against_robot(task: Task, robot: Robot) -> None:
     acc = task.limits.acceleration_rad_s2
     if len(acc) not in (1, n):
         raise TaskError("limits.acceleration", f"expected 1 or {n} numbers for {robot.name}, got {len(acc)}")
+    if robot.family == "seven" and task.redundancy is None:
+        _check_no_labels(task, robot)
+
+
+def _check_no_labels(task: Task, robot: Robot) -> None:
+    """A 7-joint arm planned with all its joints has no configuration labels to honour."""
+    named = [("start.config", task.start_config)] if task.start_config else []
+    named += [(f"moves[{i}].{m.kind}.config", m.config) for i, m in enumerate(task.moves)
+              if m.config not in ("auto", "keep")]
+    if named:
+        where, label = named[0]
+        raise TaskError(where, f"{label!r} names a 6-axis configuration; {robot.name} has 7 joints and no "
+                               "configuration labels (hold one joint with `redundancy` to plan it as a 6-axis "
+                               "chain with labels, or leave config out)")
 
 
 def _check_joint_values(where: str, values_deg: tuple[float, ...], robot: Robot) -> None:

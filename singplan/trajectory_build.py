@@ -17,6 +17,7 @@ import numpy as np
 from singplan.configuration import distances_batch, labels_from_distances
 from singplan.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.path import CartesianPiece, rotation_angle
+from singplan.redundancy import HeldJoint
 from singplan.robot import Robot
 from singplan.singularity import Zone
 from singplan.task import Task
@@ -28,11 +29,13 @@ if TYPE_CHECKING:
 
 
 def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed: list[TimedMove],
-                     planning_time_s: float) -> Trajectory:
+                     planning_time_s: float, held: HeldJoint | None = None) -> Trajectory:
+    """The trajectory of the planned moves of ``robot``; with ``held`` (``robot`` is then its 6R chain)
+    the held joint comes back as a constant column, so samples, limits and torques are the 7-joint arm's."""
     period = task.period_s
-    q = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
-    t = np.arange(len(q)) * period
-    distances = distances_batch(robot, q)  # (K, 3)
+    q_planned = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
+    t = np.arange(len(q_planned)) * period
+    distances = distances_batch(robot, q_planned)  # (K, 3): the labels of the chain that was planned
     labels = _Labels(distances)
     segments: list[Segment] = []
     events: list[Event] = []
@@ -54,17 +57,18 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
                           "config_before": s.config_before, "config_after": s.config_after, **s.details}
                          for s in segs if s.kind == "crossing")
         k0 = k1
-    speed, accel = _chunked_ratios(q, period, robot.velocity_rad_s * task.limits.velocity_scale,
-                                   robot.acceleration_rad_s2)
+    arm, q = (held.full, held.expand(q_planned)) if held is not None else (robot, q_planned)
+    speed, accel = _chunked_ratios(q, period, arm.velocity_rad_s * task.limits.velocity_scale,
+                                   arm.acceleration_rad_s2)
     qd, qdd = _chunked_differences(q, period)
     metrics = {"max_position_error_mm": worst_pos * 1e3, "max_orientation_error_deg": math.degrees(worst_ori),
                "max_joint_speed_ratio": speed, "max_joint_accel_ratio": accel, "duration_s": float(t[-1]),
                "planning_time_s": planning_time_s, "samples": len(t), "method": task.singularity.method,
-               "crossings": crossings, **_torque_metrics(robot, task, q)}
+               "crossings": crossings, **_torque_metrics(arm, task, q)}
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
     samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all),
                "distances": distances}
-    return Trajectory(robot.name, str(robot.urdf_path), robot.tip, tool, task.to_mapping(), robot.joint_names,
+    return Trajectory(arm.name, str(arm.urdf_path), arm.tip, tool, task.to_mapping(), arm.joint_names,
                       period, t, q, qd, qdd, tuple(segments), tuple(events), metrics, samples)
 
 
@@ -95,9 +99,10 @@ class _Labels:
     """
 
     def __init__(self, distances: np.ndarray) -> None:
-        signs = distances >= 0  # NaN counts as negative, as in labels_from_distances
+        signs = distances >= 0  # NaN counts as negative, as in labels_from_distances ...
         self.codes = (signs[:, 0] * 1 + signs[:, 1] * 2 + signs[:, 2] * 4).astype(np.int8)
-        rows = np.array([[bit & 1, bit & 2, bit & 4] for bit in range(8)], dtype=float) - 0.5
+        self.codes[np.isnan(distances).all(axis=1)] = 8  # ... but a row with no distance has no label
+        rows = np.array([[bit & 1, bit & 2, bit & 4] for bit in range(8)] + [[np.nan] * 3], dtype=float) - 0.5
         self.table = labels_from_distances(rows)
 
     def __getitem__(self, k: int) -> str:

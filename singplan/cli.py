@@ -31,6 +31,7 @@ from singplan.families import VERIFY_SAMPLES, crossing_methods
 from singplan.ik import solve_all
 from singplan.outputs import check_output_dir
 from singplan.planner import detect, load_task_robot, plan
+from singplan.redundancy import HeldJoint, hold_joint
 from singplan.report import report_html
 from singplan.robot import Robot, RobotEntry, bundled_robots, load_robot
 from singplan.summary import summary
@@ -128,23 +129,41 @@ def _pose(xyz: Sequence[float], rpy_deg: Sequence[float]) -> pin.SE3:
     return pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.asarray(xyz, dtype=float))
 
 
+def _hold(robot: Robot, text: str | None) -> HeldJoint | None:
+    """``--hold JOINT=DEG`` on a 7-joint arm: the joint locked at the value."""
+    if text is None:
+        return None
+    joint, sep, value = text.partition("=")
+    try:
+        value_deg = float(value)
+    except ValueError:
+        value_deg = math.nan
+    if not sep or not math.isfinite(value_deg):
+        raise InputError(f"--hold: expected JOINT=DEG (e.g. {robot.joint_names[-1]}=0), got {text!r}")
+    return hold_joint(robot, joint.strip(), math.radians(value_deg), field="--hold")
+
+
 def cmd_ik(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    robot = load_robot(args.robot, tip=args.tip, tool=_pose(args.tool_xyz, args.tool_rpy_deg))
-    if args.seed_deg is not None and len(args.seed_deg) != robot.n_joints:
-        raise InputError(f"--seed-deg: expected {robot.n_joints} numbers, got {len(args.seed_deg)}")
+    full = load_robot(args.robot, tip=args.tip, tool=_pose(args.tool_xyz, args.tool_rpy_deg))
+    if args.seed_deg is not None and len(args.seed_deg) != full.n_joints:
+        raise InputError(f"--seed-deg: expected {full.n_joints} numbers, got {len(args.seed_deg)}")
+    held = _hold(full, args.hold)
+    robot = held.reduced if held is not None else full  # a held joint leaves a 6R chain: its branches and labels
     # one solution per branch (nearest the seed, default zero) unless every 2*pi variant is asked for
-    seed = None if args.all_variants else np.radians(args.seed_deg or [0.0] * robot.n_joints)
+    seed_full = np.radians(args.seed_deg or [0.0] * full.n_joints)
+    seed = None if args.all_variants else held.reduce(seed_full) if held is not None else seed_full
     target = _pose(args.xyz, args.rpy_deg)
     sols = solve_all(robot, target, seed=seed)
     if len(sols) == 0:
         out.write(f"no solution inside the joint limits for xyz={list(args.xyz)} rpy_deg={list(args.rpy_deg)}\n")
         return 3
-    names = " ".join(f"{n[:9]:>9s}" for n in robot.joint_names)
-    out.write(f"{len(sols)} solution(s) of {robot.name} (joint values in deg)\n")
+    names = " ".join(f"{n[:9]:>9s}" for n in full.joint_names)
+    held_note = f", {held.joint} held at {math.degrees(held.value_rad):g} deg" if held is not None else ""
+    out.write(f"{len(sols)} solution(s) of {robot.name} (joint values in deg{held_note})\n")
     out.write(f"{'config':7s} {names}  wrist[deg] shoulder[mm] elbow[deg] sigma_min\n")
     for q, label in zip(sols.q, sols.labels, strict=True):
         d = singularity_distances(robot, q)
-        joints = " ".join(f"{v:9.3f}" for v in np.degrees(q))
+        joints = " ".join(f"{v:9.3f}" for v in np.degrees(held.expand(q) if held is not None else q))
         out.write(f"{label:7s} {joints}  {math.degrees(d.wrist_rad):10.3f} {d.shoulder_m * 1e3:12.2f} "
                   f"{math.degrees(d.elbow_rad):10.3f} {d.sigma_min:9.4f}\n")
     return 0
@@ -281,6 +300,8 @@ def build_parser() -> argparse.ArgumentParser:
     ik.add_argument("--tip", default=None, help="frame the tool hangs on (default: the robot's)")
     ik.add_argument("--seed-deg", type=float, nargs="+", default=None,
                     help="joint values to stay near: the 2*pi variant nearest them (default all zero)")
+    ik.add_argument("--hold", default=None, metavar="JOINT=DEG",
+                    help="7-joint arms: hold this joint at DEG and list the 6R chain's branches")
     ik.add_argument("--all-variants", action="store_true",
                     help="list every 2*pi variant inside the limits, not one solution per branch")
     ik.set_defaults(func=cmd_ik)

@@ -71,14 +71,14 @@ class HeldJoint:
         return values[:self.index] + values[self.index + 1:]
 
 
-def hold_joint(robot: Robot, joint: str, value_rad: float) -> HeldJoint:
+def hold_joint(robot: Robot, joint: str, value_rad: float, field: str = "redundancy") -> HeldJoint:
     """Lock ``joint`` of a 7-joint ``robot`` at ``value_rad``; the robot itself is left as it is.
 
     Raises:
         TaskError: the robot has no 7 joints, the joint is unknown, or the value is outside its
-            limits (the fields of the task's ``redundancy`` key).
+            limits (named as ``field``, ``field.joint``, ``field.value_deg``).
     """
-    check_redundancy(robot, joint, value_rad)
+    check_redundancy(robot, joint, value_rad, field)
     index = robot.joint_names.index(joint)
     q_lock = pin.neutral(robot.model)
     q_lock[index] = value_rad

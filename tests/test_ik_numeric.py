@@ -184,7 +184,7 @@ def test_cli_ik_solves_the_panda() -> None:
     robot = load_robot("panda")
     T = pin.SE3(pin.rpy.rpyToMatrix(math.pi, 0.0, 0.0), np.array([0.4, 0.0, 0.4]))
     for line in lines[2:]:
-        q = np.radians([float(v) for v in line.split()[3:10]])
+        q = np.radians([float(v) for v in line.split()[-11:-4]])  # label, 7 joints, 4 distance columns
         assert robot.within_limits(q, tol=1e-4)
         assert _pose_error(robot, q, T)[0] < 1e-3  # the printout has 3 decimals [deg]
 
@@ -194,12 +194,9 @@ def test_panda_solutions_are_exact_distinct_and_nearest_first() -> None:
     T = pin.SE3(pin.rpy.rpyToMatrix(math.pi, 0.0, 0.0), np.array([0.4, 0.0, 0.4]))
     seed = np.radians([0.0, 0.0, 0.0, -120.0, 0.0, 120.0, 45.0])
     sols = solve_all(robot, T, seed=seed)
-    assert len(sols) >= 2
+    assert len(sols) == 1 and sols.labels == ("-",)  # a 7R arm has no configuration labels: its nearest point
     for q in sols.q:
         assert robot.within_limits(q) and max(_pose_error(robot, q, T)) < POSE_TOL
-    distances = np.linalg.norm(sols.q - seed, axis=1)
-    assert distances[0] == distances.min()
-    assert len(set(sols.labels)) == len(sols)
     # the seed's own neighbourhood: the nearest solution lies on the seed's symmetric plane (q1 = q3 = q5 = 0)
     assert np.allclose(sols.q[0][[0, 2, 4]], 0.0, atol=1e-6)
     assert into_limits(sols.q[0], robot.lower_rad, robot.upper_rad) == pytest.approx(sols.q[0])

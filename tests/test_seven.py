@@ -4,6 +4,7 @@ no configuration labels, `singplan ik --hold`; plans judged by the independent c
 from __future__ import annotations
 
 import io
+import itertools
 import json
 import math
 import os
@@ -19,6 +20,7 @@ import pytest
 import yaml
 
 from singplan.cli import main
+from singplan.path import move_piece
 from singplan.planner import plan
 from singplan.redundancy import hold_joint
 from singplan.robot import Robot, load_robot
@@ -122,7 +124,7 @@ def test_xarm7_held_lin_passes_the_checker(tmp_path: Path) -> None:
 def _min_norm_reference(robot: Robot, poses: np.ndarray, q0: np.ndarray) -> np.ndarray:
     """q_dot = J^+ x_dot integrated in the poses' small steps (N, 4, 4), each corrected back onto the pose."""
     q, out = q0.copy(), [q0.copy()]
-    for T0, T1 in zip(poses[:-1], poses[1:], strict=True):
+    for T0, T1 in itertools.pairwise(poses):
         twist = np.concatenate([T1[:3, 3] - T0[:3, 3], pin.log3(T1[:3, :3] @ T0[:3, :3].T)])
         q = q + np.linalg.pinv(robot.jacobian(q)) @ twist
         T = robot.fk(q)
@@ -133,8 +135,6 @@ def _min_norm_reference(robot: Robot, poses: np.ndarray, q0: np.ndarray) -> np.n
 
 
 def test_lin_without_redundancy_follows_the_minimum_norm_joint_velocity() -> None:
-    from singplan.path import move_piece
-
     start = [0.0, -45.0, 0.0, -135.0, 0.0, 90.0, 45.0]
     task = parse_task({"robot": "panda", "start": {"joints_deg": start},
                        "moves": [{"lin": {"to": {"xyz": [0.5, 0.2, 0.3]}, "speed": 0.2}}]})

@@ -194,3 +194,42 @@ def test_ik_with_and_without_a_held_joint_reaches_the_issue_pose() -> None:
     assert main([*args, "--hold", "panda_joint3"], out=io.StringIO(), err=err) == 2 and "--hold" in err.getvalue()
     err = io.StringIO()
     assert main([*args, "--hold", "elbow=0"], out=io.StringIO(), err=err) == 2 and "--hold.joint" in err.getvalue()
+
+
+SRS_AXES = ["0 0 1", "0 1 0", "0 0 1", "0 -1 0", "0 0 1", "0 1 0", "0 0 1"]
+SRS_OFFSETS_M = [0.0, 0.34, 0.0, 0.4, 0.0, 0.4, 0.0]  # along z from the previous joint (KUKA iiwa-like)
+
+
+def _srs_urdf(path: Path) -> Path:
+    """A 7R arm with spherical shoulder and wrist (S-R-S): with joint 3 at 0 the rest is an OPW arm."""
+    links = "".join(f'<link name="l{k}"/>' for k in range(8)) + '<link name="tool0"/>'
+    joints = "".join(
+        f'<joint name="a{k + 1}" type="revolute"><parent link="l{k}"/><child link="l{k + 1}"/>'
+        f'<origin xyz="0 0 {SRS_OFFSETS_M[k]}"/><axis xyz="{SRS_AXES[k]}"/>'
+        f'<limit lower="-2.9" upper="2.9" velocity="1.5" effort="100"/></joint>' for k in range(7))
+    joints += ('<joint name="flange" type="fixed"><parent link="l7"/><child link="tool0"/>'
+               '<origin xyz="0 0 0.126"/></joint>')
+    path.write_text(f'<robot name="srs7">{links}{joints}</robot>')
+    return path
+
+
+def test_a_held_srs_arm_is_an_opw_arm_and_auto_crosses_its_wrist_with_wrist_joint(tmp_path: Path) -> None:
+    arm = load_robot(_srs_urdf(tmp_path / "srs7.urdf"))
+    assert hold_joint(arm, "a3", 0.0).reduced.family == "opw"
+    assert hold_joint(arm, "a3", 0.3).reduced.family == "general6"  # axes 2 and 4 no longer parallel
+    task = {"robot": str(arm.urdf_path), "start": {"joints_deg": [0, 30, 0, -70, 10, 20, 0]},
+            "redundancy": {"joint": "a3", "value_deg": 0.0},
+            "moves": [{"lin": {"to": _pose(arm, [10, 35, 0, -60, 10, -20, 0]), "speed": 0.2}}]}  # q6 passes 0
+    traj, _ = _run_checked(tmp_path, task)
+    crossing = next(s for s in traj["segments"] if s["kind"] == "crossing")
+    assert crossing["singularity"] == "wrist" and crossing["method"] == "wrist-joint"
+    assert _held_error_rad(traj, "a3", 0.0) <= HELD_TOL_RAD
+
+
+def test_a_pose_start_is_solved_with_the_joint_held(tmp_path: Path) -> None:
+    task = {"robot": "panda", "start": {"pose": {"xyz": [0.4, 0.1, 0.5], "rpy_deg": [180, 0, 0]}, "config": "F U N"},
+            "redundancy": {"joint": "panda_joint3", "value_deg": 20.0},
+            "moves": [{"lin": {"to": {"xyz": [0.5, 0.0, 0.4]}, "speed": 0.2}}]}
+    traj, _ = _run_checked(tmp_path, task)
+    assert _held_error_rad(traj, "panda_joint3", 20.0) <= HELD_TOL_RAD
+    assert traj["segments"][0]["config_before"] == "F U N"

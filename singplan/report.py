@@ -213,13 +213,15 @@ def report_html(traj: Trajectory, robot: Robot) -> str:
     tcp = robot.tcp_positions(traj.q)  # (K, 3), formed in chunks
     step_m = np.linalg.norm(np.diff(tcp, axis=0), axis=1)  # (K - 1,)
     s_mm = np.concatenate([[0.0], np.cumsum(step_m)]) * 1e3  # (K,)
+    distances = [("distances", "Signed singular distances with the detection thresholds, against time (bottom) and "
+                                "path length (top).",
+                   _distances(traj, [zone.get("wrist_deg", 5.0), zone.get("shoulder_mm", 20.0),
+                                     zone.get("elbow_deg", 5.0)], s_mm), 3.3)
+                  ] if "distances" in traj.samples else []  # none for an arm without labels (7 joints)
     figures = [
         ("joints", "Joint positions [deg] with their limits (dashed); crossings shaded.", _joints(traj, robot), 4.5),
         ("speed", "Joint speed as a fraction of its limit.", _speed_ratio(traj, vmax), 3.0),
-        ("distances", "Signed singular distances with the detection thresholds, against time (bottom) and path "
-                      "length (top).",
-         _distances(traj, [zone.get("wrist_deg", 5.0), zone.get("shoulder_mm", 20.0), zone.get("elbow_deg", 5.0)],
-                    s_mm), 3.3),
+        *distances,
         ("deviation", "Deviation from the programmed path with the tolerances, against time and path length.",
          _deviation(traj, sing.get("position_tolerance_mm", 0.01), sing.get("orientation_tolerance_deg", 5.0), s_mm),
          3.3),

@@ -66,8 +66,9 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
                "planning_time_s": planning_time_s, "samples": len(t), "method": task.singularity.method,
                "crossings": crossings, **_torque_metrics(arm, task, q)}
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
-    samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all),
-               "distances": distances}
+    samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all)}
+    if not np.isnan(distances).all():  # an arm without labels (7 joints) has no singular distances to store
+        samples["distances"] = distances
     return Trajectory(arm.name, str(arm.urdf_path), arm.tip, tool, task.to_mapping(), arm.joint_names,
                       period, t, q, qd, qdd, tuple(segments), tuple(events), metrics, samples)
 

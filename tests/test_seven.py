@@ -149,6 +149,7 @@ def test_lin_without_redundancy_follows_the_minimum_norm_joint_velocity() -> Non
     ref_length = float(np.sum(np.linalg.norm(np.diff(ref, axis=0), axis=1)))
     assert abs(length - ref_length) < 1e-3 * ref_length
     assert {s.config_before for s in traj.segments} == {"-"} and not traj.events
+    assert "distances" not in traj.samples  # no 6R singular distances: nothing (no NaN) stored
 
 
 @pytest.mark.parametrize(("robot", "redundancy", "field", "words"), [

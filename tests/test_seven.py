@@ -22,7 +22,7 @@ import yaml
 from singplan.cli import main
 from singplan.path import move_piece
 from singplan.planner import plan
-from singplan.redundancy import hold_joint
+from singplan.redundancy import HeldJoint, hold_joint
 from singplan.robot import Robot, load_robot
 from singplan.task import parse_task
 
@@ -41,9 +41,11 @@ def _panda_task(moves: list[dict[str, Any]], **extra: Any) -> dict[str, Any]:
             "redundancy": {"joint": "panda_joint3", "value_deg": 0.0}, "moves": moves, **extra}
 
 
-# joint 6 at 180 deg puts the reduced chain's axes 4 and 6 (joints 5 and 7) in line: its wrist singularity
+# With joint 3 held at 0, the chain's configuration label "wrist" flips at joint 6 = 180 deg (joints 5 and 7
+# parallel); its Jacobian is singular near joint 6 = 192 deg (the smallest singular value falls to ~0.001).
+# A LIN and a CIRC from 165 to 195 deg pass both.
 PANDA_START = [0.0, -20.0, 0.0, -110.0, 0.0, 165.0, -45.0]
-PANDA_THROUGH = [10.0, -10.0, 0.0, -100.0, 0.0, 195.0, -45.0]  # the LIN passes the singular pose itself
+PANDA_THROUGH = [10.0, -10.0, 0.0, -100.0, 0.0, 195.0, -45.0]
 PANDA_VIA = [5.0, -12.0, 0.0, -104.0, 4.0, 178.0, -45.0]
 
 
@@ -85,11 +87,14 @@ def test_xarm7_from_example_robot_data_loads_and_holds_a_joint() -> None:
     assert xarm.n_joints == 7  # the arm itself is left as it was
 
 
-@pytest.mark.parametrize("through", [True, False], ids=["through", "near"])
-def test_held_lin_at_the_wrist_zone_passes_the_checker(tmp_path: Path, through: bool) -> None:
+def _smallest_singular_value(held: HeldJoint, q: np.ndarray) -> float:
+    """Smallest singular value of the 6R chain's TCP Jacobian along samples q (K, 7)."""
+    return min(float(np.linalg.svd(held.reduced.jacobian(held.reduce(qk)), compute_uv=False)[-1]) for qk in q)
+
+
+def test_held_lin_through_the_singular_region_passes_the_checker(tmp_path: Path) -> None:
     panda = load_robot("panda")
-    end = PANDA_THROUGH if through else [*PANDA_THROUGH[:4], 12.0, *PANDA_THROUGH[5:]]
-    task = _panda_task([{"lin": {"to": _pose(panda, end), "speed": 0.1}}])
+    task = _panda_task([{"lin": {"to": _pose(panda, PANDA_THROUGH), "speed": 0.1}}])
     traj, _ = _run_checked(tmp_path, task)
     assert traj["joint_names"] == list(panda.joint_names)
     assert traj["task"]["redundancy"] == {"joint": "panda_joint3", "value_deg": 0.0}
@@ -98,6 +103,8 @@ def test_held_lin_at_the_wrist_zone_passes_the_checker(tmp_path: Path, through: 
     crossings = [s for s in traj["segments"] if s["kind"] == "crossing"]
     assert crossings and crossings[0]["singularity"] == "wrist"
     assert traj["metrics"]["max_position_error_mm"] <= 0.01
+    held = hold_joint(panda, "panda_joint3", 0.0)
+    assert _smallest_singular_value(held, np.array(traj["q"])) < 0.005  # the path really passes the singularity
 
 
 def test_held_circ_and_ptp_pass_the_checker(tmp_path: Path) -> None:
@@ -107,6 +114,7 @@ def test_held_circ_and_ptp_pass_the_checker(tmp_path: Path) -> None:
                         {"ptp": {"to": {"joints_deg": list(PANDA_START)}}}])
     traj, _ = _run_checked(tmp_path, task)
     assert _held_error_rad(traj, "panda_joint3", 0.0) <= HELD_TOL_RAD
+    assert _smallest_singular_value(hold_joint(panda, "panda_joint3", 0.0), np.array(traj["q"])) < 0.01
     assert [s["kind"] for s in traj["segments"]][-1] == "ptp"
     assert any(s["kind"] == "crossing" and s["move"] == 0 for s in traj["segments"])
 

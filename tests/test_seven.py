@@ -242,3 +242,15 @@ def test_a_pose_start_is_solved_with_the_joint_held(tmp_path: Path) -> None:
     traj, _ = _run_checked(tmp_path, task)
     assert _held_error_rad(traj, "panda_joint3", 20.0) <= HELD_TOL_RAD
     assert traj["segments"][0]["config_before"] == "F U N"
+
+
+def test_minimum_norm_tracking_past_a_joint_limit_exits_3_naming_move_and_joint(tmp_path: Path) -> None:
+    # turning the hand 195 deg about its axis drives joint 7 (at 45 deg) past its 166 deg limit
+    task = {"robot": "panda", "start": {"joints_deg": [0, -45, 0, -135, 0, 90, 45]},
+            "moves": [{"lin": {"to": {"xyz": [0.35, 0.0, 0.55], "rpy_deg": [180, 0, -150]}, "speed": 0.2}}]}
+    task_file = tmp_path / "task.yaml"
+    task_file.write_text(yaml.safe_dump(task))
+    err = io.StringIO()
+    assert main(["plan", str(task_file), "-o", str(tmp_path / "out")], out=io.StringIO(), err=err) == 3
+    assert "move 0 (lin)" in err.getvalue() and "panda_joint7 to 166.2" in err.getvalue()
+    assert "along the path" in err.getvalue() and not (tmp_path / "out").exists()

@@ -78,7 +78,7 @@ def hold_joint(robot: Robot, joint: str, value_rad: float, field: str = "redunda
         TaskError: the robot has no 7 joints, the joint is unknown, or the value is outside its
             limits (named as ``field``, ``field.joint``, ``field.value_deg``).
     """
-    check_redundancy(robot, joint, value_rad, field)
+    _check_redundancy(robot, joint, value_rad, field)
     index = robot.joint_names.index(joint)
     q_lock = pin.neutral(robot.model)
     q_lock[index] = value_rad
@@ -88,7 +88,7 @@ def hold_joint(robot: Robot, joint: str, value_rad: float, field: str = "redunda
     return HeldJoint(robot, reduced, index, value_rad)
 
 
-def check_redundancy(robot: Robot, joint: str, value_rad: float, field: str = "redundancy") -> None:
+def _check_redundancy(robot: Robot, joint: str, value_rad: float, field: str = "redundancy") -> None:
     """A 7-joint arm, a joint of it, and a value inside that joint's limits."""
     if robot.n_joints != REDUNDANT_JOINTS:
         raise TaskError(field, f"only for {REDUNDANT_JOINTS}-joint arms; {robot.name} has {robot.n_joints} joints")
@@ -125,4 +125,3 @@ def _check_holds(held: HeldJoint, red: Redundancy, where: str, values_deg: tuple
     if abs(math.radians(value) - held.value_rad) > HOLD_TOL_RAD:
         raise TaskError(f"{where}[{held.index}]", f"{held.joint} = {value:g} deg, but redundancy holds it at "
                                                   f"{red.value_deg:g} deg for the whole task")
-

@@ -143,6 +143,11 @@ def _hold(robot: Robot, text: str | None) -> HeldJoint | None:
     return hold_joint(robot, joint.strip(), math.radians(value_deg), field="--hold")
 
 
+def _column(value: float, width: int, decimals: int) -> str:
+    """A number right-aligned, or "-" where there is none (a 7-joint arm's 6R distances)."""
+    return f"{value:{width}.{decimals}f}" if math.isfinite(value) else f"{'-':>{width}s}"
+
+
 def cmd_ik(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     full = load_robot(args.robot, tip=args.tip, tool=_pose(args.tool_xyz, args.tool_rpy_deg))
     if args.seed_deg is not None and len(args.seed_deg) != full.n_joints:
@@ -164,8 +169,9 @@ def cmd_ik(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     for q, label in zip(sols.q, sols.labels, strict=True):
         d = singularity_distances(robot, q)
         joints = " ".join(f"{v:9.3f}" for v in np.degrees(held.expand(q) if held is not None else q))
-        out.write(f"{label:7s} {joints}  {math.degrees(d.wrist_rad):10.3f} {d.shoulder_m * 1e3:12.2f} "
-                  f"{math.degrees(d.elbow_rad):10.3f} {d.sigma_min:9.4f}\n")
+        out.write(f"{label:7s} {joints}  {_column(math.degrees(d.wrist_rad), 10, 3)} "
+                  f"{_column(d.shoulder_m * 1e3, 12, 2)} {_column(math.degrees(d.elbow_rad), 10, 3)} "
+                  f"{d.sigma_min:9.4f}\n")
     return 0
 
 

@@ -23,6 +23,9 @@ arm whatever its joint signs and offsets. With the joint frames of Pinocchio:
 
 Each label is the sign of its distance, so a label flips exactly where its distance
 crosses zero, and there the Jacobian loses rank (tested).
+
+Five-joint arms have their own shoulder and elbow definitions and no wrist flip
+(:mod:`singplan.reduced`).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from singplan import reduced
 from singplan.compiled import jit
 from singplan.errors import TaskError
 from singplan.path import cross3
@@ -195,6 +199,8 @@ def _label(wrist: float, shoulder: float, elbow: float) -> Configuration:
 
 def classify(robot: Robot, q: np.ndarray) -> Configuration:
     """The configuration (shoulder, elbow, wrist) of joint values ``q`` (n,) [rad]."""
+    if reduced.is_reduced(robot):
+        return _label(*reduced.distances(robot, q))
     ref, fr = _frames(robot, np.asarray(q, dtype=float))
     return _label(*_signed_distances(ref, fr))
 
@@ -206,6 +212,8 @@ def singularity_distances(robot: Robot, q: np.ndarray) -> SingularityDistances:
     method-independent measure of how close ``q`` is to any singularity.
     """
     q = np.asarray(q, dtype=float)
+    if reduced.is_reduced(robot):
+        return SingularityDistances(*reduced.distances(robot, q), reduced.sigma_min(robot, q))
     ref, fr = _frames(robot, q)
     wrist, shoulder, elbow = _signed_distances(ref, fr)
     sigma = float(np.linalg.svd(robot.jacobian(q), compute_uv=False)[-1])
@@ -234,6 +242,8 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
     q = np.atleast_2d(np.asarray(q, dtype=float))
     p = robot.opw
     ur = robot.ur
+    if reduced.is_reduced(robot):
+        return reduced.distances_batch(robot, q)
     if p is None and ur is not None:
         return _ur_distances(np.ascontiguousarray(q), ur.l2, ur.l3, ur.d5)
     if p is None:

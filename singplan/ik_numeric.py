@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from singplan import reduced
 from singplan.robot import Robot
 
 TWO_PI = 2.0 * math.pi
@@ -58,7 +59,15 @@ class NumericIkOptions:
 
 
 def damped_step(J: np.ndarray, err: np.ndarray, damping: float) -> np.ndarray:
-    """The step ``dq`` minimising ``|J dq - err|^2 + damping |dq|^2`` (J of shape (6, n), n >= 6)."""
+    """The step ``dq`` minimising ``|J dq - err|^2 + damping |dq|^2`` (J of shape (m, n): 6 rows, or 5 reduced).
+
+    A reduced (five-row) Jacobian may lack rank everywhere (a roll about the tool axis moves
+    nothing it keeps): there the minimum-norm least-squares step of the stacked system is
+    taken, as the normal equations would divide round-off by a vanishing damping.
+    """
+    if J.shape[0] < 6:
+        stacked = np.vstack([J, math.sqrt(damping) * np.eye(J.shape[1])])
+        return np.linalg.lstsq(stacked, np.concatenate([err, np.zeros(J.shape[1])]), rcond=None)[0]
     return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), err)
 
 
@@ -67,14 +76,19 @@ def _tip_target(robot: Robot, T_base_tcp: pin.SE3) -> pin.SE3:
 
 
 def _error(robot: Robot, T_target_tip: pin.SE3, q: np.ndarray) -> tuple[np.ndarray, pin.SE3]:
-    """``log6(T(q)^-1 T_target)`` (tip frame) and the tip pose T(q)."""
+    """``log6(T(q)^-1 T_target)`` (tip frame) and the tip pose T(q); for a five-joint arm the
+    reduced error of :func:`singplan.reduced.error` (position and tool z axis, 5 rows)."""
     pin.forwardKinematics(robot.model, robot.data, q)
     T = pin.updateFramePlacement(robot.model, robot.data, robot.tip_frame_id)
+    if reduced.is_reduced(robot):
+        return reduced.error(T_target_tip * robot.T_tip_tcp, T * robot.T_tip_tcp), T
     return pin.log6(T.actInv(T_target_tip)).vector, T
 
 
 def _error_jacobian(robot: Robot, T_target_tip: pin.SE3, q: np.ndarray, T: pin.SE3) -> np.ndarray:
-    """d(-error)/dq: the Jacobian of ``log6(T_target^-1 T(q))`` (6, n)."""
+    """d(-error)/dq: the Jacobian of ``log6(T_target^-1 T(q))`` (6, n), or the reduced one (5, n)."""
+    if reduced.is_reduced(robot):
+        return reduced.jacobian(robot, q, T.rotation @ robot.T_tip_tcp.rotation)
     J_local = pin.computeFrameJacobian(robot.model, robot.data, q, robot.tip_frame_id, pin.LOCAL)
     return pin.Jlog6(T_target_tip.actInv(T)) @ J_local
 
@@ -233,7 +247,7 @@ def all_branches(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = No
     """Every IK branch of a TCP pose inside the joint limits, by seeded Levenberg-Marquardt.
 
     Args:
-        robot: any serial arm with n >= 6 joints.
+        robot: any serial arm with n >= 5 joints (five: position and tool z axis only).
         T_base_tcp: the target TCP pose.
         seed: tried first; with a redundant arm, each configuration keeps its point nearest it.
         label: configuration label of a joint vector; a redundant arm (n > 6) gives one
@@ -254,6 +268,8 @@ def all_branches(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = No
     while box_tried < options.max_seeds and (box_tried < options.min_seeds or quiet < options.patience):
         is_box = not pending
         q = solve_lm(robot, T_base_tcp, next(box) if is_box else pending.pop(0), options)
+        if q is not None and reduced.is_reduced(robot):
+            q = reduced.settle_free(robot, q, seed)  # a roll about the tool axis stays at the seed's
         new = q is not None and found.add(q, tried)
         tried += 1
         if new and robot.n_joints == 6:

@@ -36,6 +36,9 @@ TWO_PI = 2.0 * math.pi
 _HALTON_PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37)
 _SAME_BRANCH_RAD = 1e-6  # two converged solutions closer than this (mod 2*pi) are one branch
 _FAR_COST = 1e-4  # squared log error [m^2, rad^2] of a run given up half way
+# a five-joint arm's residual accepted where Newton stalls [m, rad]: with the tool axis vertical
+# a pitch-roll arm cannot turn it sideways to first order, so a 1e-8 rad second-order tilt stays
+REDUCED_RESIDUAL = 1e-7
 _SLIDE_ITERATIONS = 60  # null-space steps of a redundant arm toward the seed (each halves the gap)
 
 
@@ -102,11 +105,13 @@ def newton(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray, tol: float = 1e-
     """
     q = np.array(seed, dtype=float)
     T_target_tip = _tip_target(robot, T_base_tcp)
+    previous = math.inf
     for _ in range(max_iterations):
         err, T = _error(robot, T_target_tip, q)
         norm = float(np.linalg.norm(err))
-        if norm < tol:
+        if norm < tol or (reduced.is_reduced(robot) and norm < REDUCED_RESIDUAL and norm > 0.5 * previous):
             return q
+        previous = norm
         q = q + damped_step(_error_jacobian(robot, T_target_tip, q, T), err, min(1e-2, norm) ** 2)
     return None
 

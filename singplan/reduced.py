@@ -25,7 +25,8 @@ positions) from axis 1, measured along ``forward``, the horizontal direction nor
 that points to the arm at q = 0 (``F`` when positive). The elbow distance is the signed angle
 [rad] about ``up x forward`` from the upper arm (origin 2 -> origin 3) to the forearm
 (origin 3 -> wrist point), 0 when the arm is stretched (``U`` when positive: the forearm
-turned down from the upper arm, as the six-axis labels read). Both zones are where the reduced Jacobian of such an arm loses rank.
+turned down from the upper arm, as the six-axis labels read). Both zones are where the
+reduced Jacobian of such an arm loses rank.
 """
 
 from __future__ import annotations

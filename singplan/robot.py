@@ -318,8 +318,8 @@ def default_tip(model: pin.Model) -> str:
     The chain ends at its deepest revolute joint that is not an end effector's (a joint whose
     name contains ``gripper``, ``finger`` or ``jaw``, e.g. the SO-100's revolute jaw); its end
     links are those fixed to that joint (Pinocchio merges fixed joints into the body they hang
-    on), which leaves out fingers and other joints branching off. The last link is the one most fixed joints away from that
-    joint (the first in the file among equals).
+    on), which leaves out fingers and other joints branching off. The last link is the one
+    most fixed joints away from that joint (the first in the file among equals).
     """
     revolute = [j for j in range(1, model.njoints) if model.joints[j].shortname().removeprefix("JointModel")
                 in ("RX", "RY", "RZ", "RevoluteUnaligned")
@@ -392,7 +392,7 @@ def _check_chain(model: pin.Model, chain: list[int], tip: str, urdf_path: Path) 
         if kind not in ("RX", "RY", "RZ", "RevoluteUnaligned"):
             raise RobotModelError(str(urdf_path), f"joint {name!r} is a {kind} joint; singplan needs revolute joints")
     if len(chain) not in SUPPORTED_JOINT_COUNTS:
-        counts = " or ".join(str(n) for n in SUPPORTED_JOINT_COUNTS)
+        counts = ", ".join(str(n) for n in SUPPORTED_JOINT_COUNTS[:-1]) + f" or {SUPPORTED_JOINT_COUNTS[-1]}"
         raise RobotModelError(str(urdf_path), f"{len(chain)} revolute joints from {_root_link(model)} to {tip}; "
                                               f"singplan plans arms with {counts}")
 

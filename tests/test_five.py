@@ -1,0 +1,121 @@
+"""Five-axis arms (SEEDS 002, reduced order): loading, reduced IK, planning, exit codes."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from singplan.cli import main
+from singplan.errors import RobotModelError
+from singplan.configuration import classify
+from singplan.families import crossing_methods
+from singplan.ik import solve_all
+from singplan.reduced import free_joints, z_angles
+from singplan.robot import load_robot, robots_dir
+
+DATA = Path(__file__).parent / "data"
+SCORBOT = DATA / "five_scorbot_er4u.urdf"
+CHECKER = Path("/work/shared/verify/verify_trajectory.py")
+Z_TOL_RAD = np.radians(0.01)
+
+
+def test_scorbot_loads_as_five_with_the_roll_free() -> None:
+    robot = load_robot(str(SCORBOT))
+    assert robot.family == "five" and robot.n_joints == 5 and robot.tip == "tcp"
+    assert free_joints(robot) == (4,)  # the roll turns about the tool axis through the TCP
+    assert crossing_methods("five")["wrist-joint"] and not crossing_methods("five")["exact"]
+
+
+@pytest.mark.parametrize("name", ["so100", "so101"])
+def test_so_arms_leave_the_gripper_joint_out_of_the_chain(name: str) -> None:
+    example_robot_data = pytest.importorskip("example_robot_data")
+    robot = load_robot(example_robot_data.load(name).urdf)
+    assert robot.family == "five" and "gripper" not in robot.joint_names
+    assert robot.tip in ("gripper", "gripper_frame_link")
+
+
+def test_ik_keeps_position_and_tool_axis_and_holds_the_roll_at_the_seed() -> None:
+    robot = load_robot(str(SCORBOT))
+    q = np.radians([20.0, 60.0, -40.0, -20.0, 10.0])
+    T = robot.fk(q)
+    turned = pin.SE3(T.rotation @ pin.rpy.rpyToMatrix(0.0, 0.0, 0.7), T.translation)  # another roll: ignored
+    sols = solve_all(robot, turned, seed=q)
+    assert sorted(sols.labels) == ["F D N", "F U N"]
+    for qk in sols.q:
+        got = robot.fk(qk)
+        assert np.linalg.norm(got.translation - T.translation) < 1e-9
+        assert z_angles(got.rotation[None], T.rotation[None])[0] < 1e-9
+        assert qk[4] == pytest.approx(q[4], abs=1e-12)
+    assert classify(robot, q).label == "F U N"
+
+
+def _plan(task: Path, out: Path) -> dict:
+    assert main(["plan", str(task), "-o", str(out), "--no-report", "--no-replay"]) == 0
+    return json.loads((out / "trajectory.json").read_text())
+
+
+@pytest.mark.parametrize("task", ["five_scorbot_moves.yaml", "five_scorbot_stretched.yaml"])
+def test_scorbot_tasks_plan_and_pass_the_checker(task: str, tmp_path: Path) -> None:
+    shutil.copy(SCORBOT, tmp_path / SCORBOT.name)
+    path = tmp_path / task
+    shutil.copy(DATA / task, path)
+    traj = _plan(path, tmp_path / "out")
+    assert traj["metrics"]["max_orientation_error_deg"] < 0.01
+    if CHECKER.exists():
+        done = subprocess.run([sys.executable, str(CHECKER), str(path), str(tmp_path / "out")],
+                              capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stdout[-2000:]
+
+
+def test_stretched_task_reports_the_elbow_zone(tmp_path: Path) -> None:
+    shutil.copy(SCORBOT, tmp_path / SCORBOT.name)
+    path = tmp_path / "task.yaml"
+    shutil.copy(DATA / "five_scorbot_stretched.yaml", path)
+    traj = _plan(path, tmp_path / "out")
+    kinds = {s["singularity"] for s in traj["segments"] if s["kind"] == "crossing"}
+    assert kinds == {"elbow"}
+
+
+def _task(tmp_path: Path, body: str) -> Path:
+    shutil.copy(SCORBOT, tmp_path / SCORBOT.name)
+    path = tmp_path / "task.yaml"
+    path.write_text(f"robot: {SCORBOT.name}\n" + body)
+    return path
+
+
+def test_unreachable_target_exits_3(tmp_path: Path) -> None:
+    path = _task(tmp_path, "start: {pose: {xyz: [0.40, 0.0, 0.15], rpy_deg: [180, 0, 0]}}\n"
+                           "moves:\n  - lin: {to: {xyz: [0.90, 0.0, 0.15]}, speed: 0.1}\n")
+    assert main(["plan", str(path), "-o", str(tmp_path / "out")]) == 3
+    assert not (tmp_path / "out").exists()
+
+
+def test_malformed_task_exits_2(tmp_path: Path) -> None:
+    path = _task(tmp_path, "start: {joints_deg: [0, 10, 20, 0, 0, 0]}\n"  # six values for five joints
+                           "moves:\n  - lin: {to: {xyz: [0.40, 0.0, 0.15]}, speed: 0.1}\n")
+    assert main(["plan", str(path), "-o", str(tmp_path / "out")]) == 2
+
+
+def test_a_four_joint_chain_is_refused_naming_the_counts(tmp_path: Path) -> None:
+    text = (robots_dir() / "abb_irb2400.urdf").read_text()
+    for joint in ("joint_5", "joint_6"):
+        text = text.replace(f'<joint name="{joint}" type="revolute">', f'<joint name="{joint}" type="fixed">', 1)
+    path = tmp_path / "arm4.urdf"
+    path.write_text(text)
+    with pytest.raises(RobotModelError, match="4 revolute joints from base_link to tool0; singplan plans arms with "
+                                              "5, 6 or 7"):
+        load_robot(str(path))
+
+
+def test_a_five_joint_cut_of_a_six_axis_urdf_loads_as_five(tmp_path: Path) -> None:
+    text = (robots_dir() / "abb_irb2400.urdf").read_text()
+    path = tmp_path / "arm5.urdf"
+    path.write_text(text.replace('<joint name="joint_6" type="revolute">', '<joint name="joint_6" type="fixed">', 1))
+    assert load_robot(str(path)).family == "five"

@@ -130,7 +130,7 @@ def _stalled(robot: Robot, err: np.ndarray, J: np.ndarray) -> bool:
     SO-100's URDF tilts axis 1 by 6e-6 rad: a vertical tool axis is that far out of its arm
     plane away from q1 = 0.)"""
     if not (reduced.is_reduced(robot) and float(np.linalg.norm(err[:3])) < REDUCED_RESIDUAL_M
-            and float(np.linalg.norm(err[3:])) < REDUCED_RESIDUAL_RAD):
+            and float(np.linalg.norm(err[3:])) < REDUCED_RESIDUAL_RAD * reduced.ANGLE_WEIGHT_M):
         return False
     reachable = J @ np.linalg.lstsq(J, err, rcond=1e-10)[0]  # the part joint motion can cancel
     return float(np.linalg.norm(reachable)) < _REACHABLE_TOL

@@ -43,6 +43,7 @@ NO_WRIST_RAD = math.pi  # a five-axis arm's wrist distance: as far from a wrist 
 _FREE_COLUMN_TOL = 1e-9  # a reduced-Jacobian column this small [m, rad per rad] at every sample is free
 _FREE_SAMPLES = 8
 _FREE_SEED = 20261123
+ANGLE_WEIGHT_M = 0.01  # [m/rad] the tool axis's rows count 1 rad as 1 cm: a residual goes to the axis, not the position
 
 
 def is_reduced(robot: Robot) -> bool:
@@ -51,21 +52,33 @@ def is_reduced(robot: Robot) -> bool:
 
 
 def error(T_target_tcp: pin.SE3, T_tcp: pin.SE3) -> np.ndarray:
-    """The reduced error (5,): position [m] in the base frame, then the z-axis rotation [rad]
-    about the TCP's own x and y axes."""
+    """The reduced error (5,): position [m] in the base frame, then the z-axis rotation about
+    the TCP's own x and y axes [rad] times ANGLE_WEIGHT_M.
+
+    A five-axis arm reaches a four-dimensional set of (position, axis) pairs when a joint turns
+    about the tool axis (a pitch-roll wrist keeps the axis in the arm plane), so a target given
+    to a few digits is slightly out of reach; the weight makes the least-squares solution keep
+    the position and leave that residual in the axis, where it is reported."""
     v = T_tcp.rotation.T @ T_target_tcp.rotation[:, 2]  # the wanted z axis in the TCP frame
     sin = math.hypot(float(v[0]), float(v[1]))
     angle = math.atan2(sin, float(v[2]))
     r = np.zeros(2) if sin < 1e-300 else angle / sin * np.array([-v[1], v[0]])
     if sin < 1e-300 and v[2] < 0:  # exactly opposite: any perpendicular axis turns it over
         r = np.array([math.pi, 0.0])
-    return np.concatenate([T_target_tcp.translation - T_tcp.translation, r])
+    return np.concatenate([T_target_tcp.translation - T_tcp.translation, ANGLE_WEIGHT_M * r])
 
 
 def jacobian(robot: Robot, q: np.ndarray, R_tcp: np.ndarray) -> np.ndarray:
-    """d(-error)/dq (5, n): the TCP's linear rows and the x, y rows of its angular velocity in the TCP frame."""
+    """d(-error)/dq (5, n): the TCP's linear rows and the weighted x, y rows of its angular
+    velocity in the TCP frame; the free joints' columns are zero (they never move)."""
+    J = _jacobian(robot, q, R_tcp)
+    J[:, list(free_joints(robot))] = 0.0
+    return J
+
+
+def _jacobian(robot: Robot, q: np.ndarray, R_tcp: np.ndarray) -> np.ndarray:
     J = robot.jacobian(q)
-    return np.vstack([J[:3], (R_tcp.T @ J[3:])[:2]])
+    return np.vstack([J[:3], ANGLE_WEIGHT_M * (R_tcp.T @ J[3:])[:2]])
 
 
 def z_angles(R: np.ndarray, R_want: np.ndarray) -> np.ndarray:
@@ -83,7 +96,7 @@ def free_joints(robot: Robot) -> tuple[int, ...]:
     worst = np.zeros(robot.n_joints)
     for q in rng.uniform(lower, upper, size=(_FREE_SAMPLES, robot.n_joints)):
         R = robot.fk(q).rotation
-        worst = np.maximum(worst, np.abs(jacobian(robot, q, R)).max(axis=0))
+        worst = np.maximum(worst, np.abs(_jacobian(robot, q, R)).max(axis=0) / ANGLE_WEIGHT_M)
     return tuple(int(j) for j in np.nonzero(worst < _FREE_COLUMN_TOL)[0])
 
 
@@ -145,6 +158,7 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
 def sigma_min(robot: Robot, q: np.ndarray) -> float:
     """Smallest singular value of the reduced Jacobian without its free joints' (zero) columns."""
     q = np.asarray(q, dtype=float)
-    J = jacobian(robot, q, robot.fk(q).rotation)
+    J = _jacobian(robot, q, robot.fk(q).rotation)
+    J[3:] /= ANGLE_WEIGHT_M
     kept = [j for j in range(robot.n_joints) if j not in free_joints(robot)]
     return float(np.linalg.svd(J[:, kept], compute_uv=False)[-1])

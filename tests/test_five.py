@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import shutil
 import subprocess
@@ -68,10 +69,36 @@ def test_scorbot_tasks_plan_and_pass_the_checker(task: str, tmp_path: Path) -> N
     shutil.copy(DATA / task, path)
     traj = _plan(path, tmp_path / "out")
     assert traj["metrics"]["max_orientation_error_deg"] < 0.01
+    _checked(path, tmp_path / "out")
+
+
+def _checked(path: Path, out: Path) -> None:
     if CHECKER.exists():
-        done = subprocess.run([sys.executable, str(CHECKER), str(path), str(tmp_path / "out")],
-                              capture_output=True, text=True, timeout=300)
+        done = subprocess.run([sys.executable, str(CHECKER), str(path), str(out)], capture_output=True, text=True,
+                              timeout=300)
         assert done.returncode == 0, done.stdout[-2000:]
+
+
+@pytest.mark.parametrize("name", ["so100", "so101"])
+def test_so_arm_tasks_plan_ignore_the_roll_and_pass_the_checker(name: str, tmp_path: Path) -> None:
+    example_robot_data = pytest.importorskip("example_robot_data")
+    shutil.copy(example_robot_data.load(name).urdf, tmp_path / f"{name}.urdf")
+    path = tmp_path / "task.yaml"
+    shutil.copy(DATA / f"five_{name}_moves.yaml", path)
+    traj = _plan(path, tmp_path / "out")
+    _checked(path, tmp_path / "out")
+    robot = load_robot(str(tmp_path / f"{name}.urdf"), tip=traj["tip"])
+    tool = traj["tool"]
+    robot = robot.with_tool(pin.SE3(pin.rpy.rpyToMatrix(*np.radians(tool["rpy_deg"])), np.array(tool["xyz"])))
+    got = robot.fk(np.array(traj["q"][-1]))
+    target = traj["task"]["moves"][-1]["lin"]["to"]
+    wanted = pin.rpy.rpyToMatrix(*np.radians(target["rpy_deg"]))
+    assert np.linalg.norm(got.translation - np.array(target["xyz"])) < 1e-8
+    assert z_angles(got.rotation[None], wanted[None])[0] < Z_TOL_RAD
+    # the 45 deg turn about the tool axis is not made (the start's own roll differs by a few degrees)
+    assert np.degrees(np.linalg.norm(pin.log3(got.rotation.T @ wanted))) > 30.0
+    if free_joints(robot):  # a free roll stays where it started
+        assert traj["q"][-1][4] == pytest.approx(traj["q"][0][4], abs=1e-12)
 
 
 def test_stretched_task_reports_the_elbow_zone(tmp_path: Path) -> None:
@@ -119,3 +146,13 @@ def test_a_five_joint_cut_of_a_six_axis_urdf_loads_as_five(tmp_path: Path) -> No
     path = tmp_path / "arm5.urdf"
     path.write_text(text.replace('<joint name="joint_6" type="revolute">', '<joint name="joint_6" type="fixed">', 1))
     assert load_robot(str(path)).family == "five"
+
+
+def test_cli_ik_lists_both_elbows_and_info_names_the_family() -> None:
+    out, err = io.StringIO(), io.StringIO()
+    assert main(["ik", str(SCORBOT), "--xyz", "0.450368", "0.163921", "0.615978", "--rpy-deg", "90", "80", "110"], out, err) == 0
+    text = out.getvalue()
+    assert "2 solution(s)" in text and "F U N" in text and "F D N" in text
+    out = io.StringIO()
+    assert main(["info", str(SCORBOT)], out, err) == 0
+    assert "family: five" in out.getvalue() and "wrist-joint" in out.getvalue()

@@ -79,12 +79,26 @@ def _checked(path: Path, out: Path) -> None:
         assert done.returncode == 0, done.stdout[-2000:]
 
 
-@pytest.mark.parametrize("name", ["so100", "so101"])
-def test_so_arm_tasks_plan_ignore_the_roll_and_pass_the_checker(name: str, tmp_path: Path) -> None:
+def _so_task(name: str, task: str, tmp_path: Path) -> Path:
     example_robot_data = pytest.importorskip("example_robot_data")
     shutil.copy(example_robot_data.load(name).urdf, tmp_path / f"{name}.urdf")
     path = tmp_path / "task.yaml"
-    shutil.copy(DATA / f"five_{name}_moves.yaml", path)
+    shutil.copy(DATA / task, path)
+    return path
+
+
+def test_so100_passes_near_the_shoulder_singularity(tmp_path: Path) -> None:
+    path = _so_task("so100", "five_so100_shoulder.yaml", tmp_path)
+    traj = _plan(path, tmp_path / "out")
+    _checked(path, tmp_path / "out")
+    (zone,) = [s for s in traj["segments"] if s["kind"] == "crossing"]
+    assert zone["singularity"] == "shoulder" and zone["min_distance"] == pytest.approx(0.015, abs=1e-4)
+    assert traj["q"][-1][4] == traj["q"][0][4]  # the free roll does not move while axis 1 swings
+
+
+@pytest.mark.parametrize("name", ["so100", "so101"])
+def test_so_arm_tasks_plan_ignore_the_roll_and_pass_the_checker(name: str, tmp_path: Path) -> None:
+    path = _so_task(name, f"five_{name}_moves.yaml", tmp_path)
     traj = _plan(path, tmp_path / "out")
     _checked(path, tmp_path / "out")
     robot = load_robot(str(tmp_path / f"{name}.urdf"), tip=traj["tip"])

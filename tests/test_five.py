@@ -39,7 +39,8 @@ def test_so_arms_leave_the_gripper_joint_out_of_the_chain(name: str) -> None:
     example_robot_data = pytest.importorskip("example_robot_data")
     robot = load_robot(example_robot_data.load(name).urdf)
     assert robot.family == "five" and "gripper" not in robot.joint_names
-    assert robot.tip in ("gripper", "gripper_frame_link")
+    assert robot.tip in ("gripper", "gripper_frame_link")  # the default rule for a URDF by path
+    assert load_robot(name).tip == {"so100": "wrist_roll", "so101": "gripper_frame_link"}[name]  # by name
 
 
 def test_ik_keeps_position_and_tool_axis_and_holds_the_roll_at_the_seed() -> None:
@@ -79,16 +80,15 @@ def _checked(path: Path, out: Path) -> None:
         assert done.returncode == 0, done.stdout[-2000:]
 
 
-def _so_task(name: str, task: str, tmp_path: Path) -> Path:
-    example_robot_data = pytest.importorskip("example_robot_data")
-    shutil.copy(example_robot_data.load(name).urdf, tmp_path / f"{name}.urdf")
+def _so_task(task: str, tmp_path: Path) -> Path:
+    pytest.importorskip("example_robot_data")
     path = tmp_path / "task.yaml"
     shutil.copy(DATA / task, path)
     return path
 
 
 def test_so100_passes_near_the_shoulder_singularity(tmp_path: Path) -> None:
-    path = _so_task("so100", "five_so100_shoulder.yaml", tmp_path)
+    path = _so_task("five_so100_shoulder.yaml", tmp_path)
     traj = _plan(path, tmp_path / "out")
     _checked(path, tmp_path / "out")
     (zone,) = [s for s in traj["segments"] if s["kind"] == "crossing"]
@@ -98,10 +98,10 @@ def test_so100_passes_near_the_shoulder_singularity(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("name", ["so100", "so101"])
 def test_so_arm_tasks_plan_ignore_the_roll_and_pass_the_checker(name: str, tmp_path: Path) -> None:
-    path = _so_task(name, f"five_{name}_moves.yaml", tmp_path)
+    path = _so_task(f"five_{name}_moves.yaml", tmp_path)
     traj = _plan(path, tmp_path / "out")
     _checked(path, tmp_path / "out")
-    robot = load_robot(str(tmp_path / f"{name}.urdf"), tip=traj["tip"])
+    robot = load_robot(name)
     tool = traj["tool"]
     robot = robot.with_tool(pin.SE3(pin.rpy.rpyToMatrix(*np.radians(tool["rpy_deg"])), np.array(tool["xyz"])))
     got = robot.fk(np.array(traj["q"][-1]))

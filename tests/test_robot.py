@@ -155,8 +155,11 @@ def test_supported_joint_counts_is_the_one_place(tmp_path, monkeypatch) -> None:
     import singplan.robot as robot_module
 
     five = _urdf(tmp_path, '<joint name="joint_6" type="revolute">', '<joint name="joint_6" type="fixed">')
-    monkeypatch.setattr(robot_module, "SUPPORTED_JOINT_COUNTS", (5, 6, 7))
     assert load_robot(five).n_joints == 5
+    monkeypatch.setattr(robot_module, "SUPPORTED_JOINT_COUNTS", (6, 7))
+    with pytest.raises(RobotModelError, match="5 revolute joints from base_link to tool0; singplan plans arms with "
+                                              "6 or 7"):
+        load_robot(five)
 
 
 def test_urdf_files_that_are_not_usable(tmp_path) -> None:

@@ -172,3 +172,22 @@ def test_cli_ik_lists_both_elbows_and_info_names_the_family() -> None:
     out = io.StringIO()
     assert main(["info", str(SCORBOT)], out, err) == 0
     assert "family: five" in out.getvalue() and "wrist-joint" in out.getvalue()
+
+
+def test_ptp_to_a_pose_in_the_asked_elbow_configuration(tmp_path: Path) -> None:
+    robot = load_robot(str(SCORBOT))
+    T = robot.fk(np.radians([20.0, 60.0, -40.0, -20.0, 10.0]))
+    xyz = [float(v) for v in T.translation]
+    rpy = [float(v) for v in np.degrees(pin.rpy.matrixToRpy(T.rotation))]
+    # 3 cm in along the arm's own direction: the horizontal tool axis stays in the arm plane
+    azimuth = np.radians(20.0)
+    radial_in = [float(v) for v in T.translation - 0.03 * np.array([np.cos(azimuth), np.sin(azimuth), 0.0])]
+    path = _task(tmp_path, "start: {joints_deg: [0, 60, -40, -20, 0]}\n"
+                           f"moves:\n  - ptp: {{to: {{xyz: {xyz}, rpy_deg: {rpy}}}, config: F D N}}\n"
+                           f"  - lin: {{to: {{xyz: {radial_in}}}, speed: 0.1, config: keep}}\n")
+    traj = _plan(path, tmp_path / "out")
+    _checked(path, tmp_path / "out")
+    ends = {seg["move"]: seg for seg in traj["segments"]}  # each move's last segment
+    assert [ends[i]["config_after"] for i in (0, 1)] == ["F D N", "F D N"]
+    q_ptp_end = np.degrees(traj["q"][round(ends[0]["t1"] / traj["period"])])
+    assert np.allclose(q_ptp_end, [20.0, 20.0, 40.0, -60.0, 0.0], atol=1e-6)  # elbow down; the roll stays at 0

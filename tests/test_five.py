@@ -18,6 +18,7 @@ from singplan.configuration import classify
 from singplan.errors import RobotModelError
 from singplan.families import crossing_methods
 from singplan.ik import solve_all
+from singplan.ik_numeric import solve_lm
 from singplan.reduced import free_joints, z_angles
 from singplan.robot import load_robot, robots_dir
 
@@ -191,3 +192,24 @@ def test_ptp_to_a_pose_in_the_asked_elbow_configuration(tmp_path: Path) -> None:
     assert [ends[i]["config_after"] for i in (0, 1)] == ["F D N", "F D N"]
     q_ptp_end = np.degrees(traj["q"][round(ends[0]["t1"] / traj["period"])])
     assert np.allclose(q_ptp_end, [20.0, 20.0, 40.0, -60.0, 0.0], atol=1e-6)  # elbow down; the roll stays at 0
+
+
+def _same(a: np.ndarray, b: np.ndarray, skip: tuple[int, ...]) -> bool:
+    keep = [j for j in range(len(a)) if j not in skip]
+    return bool(np.all(np.abs(np.angle(np.exp(1j * (a[keep] - b[keep])))) < 1e-6))
+
+
+@pytest.mark.parametrize("name", ["scorbot", "so101"])
+def test_ik_finds_every_branch_a_brute_force_search_finds(name: str) -> None:
+    robot = load_robot(str(SCORBOT)) if name == "scorbot" else load_robot(name)
+    free = free_joints(robot)
+    rng = np.random.default_rng(5)
+    lower, upper = np.maximum(robot.lower_rad, -np.pi), np.minimum(robot.upper_rad, np.pi)
+    for q in rng.uniform(lower, upper, size=(3, 5)):
+        T = robot.fk(q)
+        found = solve_all(robot, T).q
+        assert any(_same(q, row, free) for row in found)
+        for seed in rng.uniform(lower, upper, size=(100, 5)):  # brute force: more seeds than the search's quiet stop
+            brute = solve_lm(robot, T, seed)
+            if brute is not None and robot.within_limits(brute):
+                assert any(_same(brute, row, free) for row in found), np.degrees(brute)

@@ -28,6 +28,9 @@ A 7-joint arm (family ``seven``) has none of these: its self-motion joins what w
 branches of a 6R arm, and its singularities are not the 6R wrist, shoulder and elbow. Its
 distances are NaN and its label is ``-`` (:data:`NO_LABEL`). Holding one joint
 (:mod:`singplan.redundancy`) makes it a 6R chain, labelled by the definitions above.
+
+Five-joint arms have their own shoulder and elbow definitions and no wrist flip
+(:mod:`singplan.reduced`).
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from singplan import reduced
 from singplan.compiled import jit
 from singplan.errors import TaskError
 from singplan.path import cross3
@@ -212,6 +216,8 @@ def classify(robot: Robot, q: np.ndarray) -> Configuration:
     """The configuration (shoulder, elbow, wrist) of joint values ``q`` (n,) [rad]; UNLABELLED for 7 joints."""
     if _unlabelled(robot):
         return UNLABELLED
+    if reduced.is_reduced(robot):
+        return _label(*reduced.distances(robot, q))
     ref, fr = _frames(robot, np.asarray(q, dtype=float))
     return _label(*_signed_distances(ref, fr))
 
@@ -223,7 +229,12 @@ def singularity_distances(robot: Robot, q: np.ndarray) -> SingularityDistances:
     method-independent measure of how close ``q`` is to any singularity.
     """
     q = np.asarray(q, dtype=float)
-    wrist, shoulder, elbow = (math.nan,) * 3 if _unlabelled(robot) else _signed_distances(*_frames(robot, q))
+    if _unlabelled(robot):
+        wrist, shoulder, elbow = (math.nan,) * 3
+    elif reduced.is_reduced(robot):
+        return SingularityDistances(*reduced.distances(robot, q), reduced.sigma_min(robot, q))
+    else:
+        wrist, shoulder, elbow = _signed_distances(*_frames(robot, q))
     sigma = float(np.linalg.svd(robot.jacobian(q), compute_uv=False)[-1])
     return SingularityDistances(wrist, shoulder, elbow, sigma)
 
@@ -252,6 +263,8 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
         return np.full((len(q), 3), np.nan)
     p = robot.opw
     ur = robot.ur
+    if reduced.is_reduced(robot):
+        return reduced.distances_batch(robot, q)
     if p is None and ur is not None:
         return _ur_distances(np.ascontiguousarray(q), ur.l2, ur.l3, ur.d5)
     if p is None:

@@ -336,7 +336,16 @@ def _verify(model: pin.Model, tip_frame_id: int, params: OpwParameters | UrParam
 
 def crossing_methods(family: Family) -> dict[str, str]:
     """Each crossing method and how it serves an arm of ``family`` ("" when fully)."""
+    if family == "five":
+        return _FIVE_METHODS
     closed = family in ("opw", "ur")
     no_closed = "" if closed else "needs a closed form (opw or ur), which this arm does not have"
     return {"exact": "", "stop": "", "wrist-joint": no_closed, "axis": no_closed, "dls": "", "average": "",
             "ptp": "", "auto": "" if closed else "compares exact only: wrist-joint and axis need a closed form"}
+
+
+_NO_WRIST = "needs a spherical wrist (three wrist axes meeting in a point); a five-axis arm has a two-axis wrist"
+_FIVE_METHODS = {"exact": "", "stop": "", "dls": "", "average": "", "ptp": "", "wrist-joint": _NO_WRIST,
+                 "axis": "interpolates one axis while three others keep a full pose component; a five-axis arm "
+                         "keeps position and tool axis only, with no closed form to re-solve them",
+                 "auto": "compares exact only: wrist-joint and axis need a six-axis arm's closed form"}

@@ -29,12 +29,19 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from singplan import reduced
 from singplan.robot import Robot
 
 TWO_PI = 2.0 * math.pi
 _HALTON_PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37)
 _SAME_BRANCH_RAD = 1e-6  # two converged solutions closer than this (mod 2*pi) are one branch
 _FAR_COST = 1e-4  # squared log error [m^2, rad^2] of a run given up half way
+# a five-joint arm's residual accepted where the iteration stalls: 0.1 um and 0.6 mdeg, far
+# inside the 0.01 mm / 0.01 deg the path is held to
+REDUCED_RESIDUAL_M = 1e-7
+REDUCED_RESIDUAL_RAD = 1e-5
+_ROUND_OFF = 1e-15  # [m, rad] an error at round-off: no step can improve it
+_REACHABLE_TOL = 1e-14  # [m, rad]: the reachable part of such a residual is converged
 _SLIDE_ITERATIONS = 60  # null-space steps of a redundant arm toward the seed (each halves the gap)
 
 
@@ -58,7 +65,15 @@ class NumericIkOptions:
 
 
 def damped_step(J: np.ndarray, err: np.ndarray, damping: float) -> np.ndarray:
-    """The step ``dq`` minimising ``|J dq - err|^2 + damping |dq|^2`` (J of shape (6, n), n >= 6)."""
+    """The step ``dq`` minimising ``|J dq - err|^2 + damping |dq|^2`` (J of shape (m, n): 6 rows, or 5 reduced).
+
+    A reduced (five-row) Jacobian may lack rank everywhere (a roll about the tool axis moves
+    nothing it keeps): there the minimum-norm least-squares step of the stacked system is
+    taken, as the normal equations would divide round-off by a vanishing damping.
+    """
+    if J.shape[0] < 6:
+        stacked = np.vstack([J, math.sqrt(damping) * np.eye(J.shape[1])])
+        return np.linalg.lstsq(stacked, np.concatenate([err, np.zeros(J.shape[1])]), rcond=None)[0]
     return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), err)
 
 
@@ -67,14 +82,19 @@ def _tip_target(robot: Robot, T_base_tcp: pin.SE3) -> pin.SE3:
 
 
 def _error(robot: Robot, T_target_tip: pin.SE3, q: np.ndarray) -> tuple[np.ndarray, pin.SE3]:
-    """``log6(T(q)^-1 T_target)`` (tip frame) and the tip pose T(q)."""
+    """``log6(T(q)^-1 T_target)`` (tip frame) and the tip pose T(q); for a five-joint arm the
+    reduced error of :func:`singplan.reduced.error` (position and tool z axis, 5 rows)."""
     pin.forwardKinematics(robot.model, robot.data, q)
     T = pin.updateFramePlacement(robot.model, robot.data, robot.tip_frame_id)
+    if reduced.is_reduced(robot):
+        return reduced.error(T_target_tip * robot.T_tip_tcp, T * robot.T_tip_tcp), T
     return pin.log6(T.actInv(T_target_tip)).vector, T
 
 
 def _error_jacobian(robot: Robot, T_target_tip: pin.SE3, q: np.ndarray, T: pin.SE3) -> np.ndarray:
-    """d(-error)/dq: the Jacobian of ``log6(T_target^-1 T(q))`` (6, n)."""
+    """d(-error)/dq: the Jacobian of ``log6(T_target^-1 T(q))`` (6, n), or the reduced one (5, n)."""
+    if reduced.is_reduced(robot):
+        return reduced.jacobian(robot, q, T.rotation @ robot.T_tip_tcp.rotation)
     J_local = pin.computeFrameJacobian(robot.model, robot.data, q, robot.tip_frame_id, pin.LOCAL)
     return pin.Jlog6(T_target_tip.actInv(T)) @ J_local
 
@@ -88,13 +108,32 @@ def newton(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray, tol: float = 1e-
     """
     q = np.array(seed, dtype=float)
     T_target_tip = _tip_target(robot, T_base_tcp)
-    for _ in range(max_iterations):
+    # a five-joint arm takes one step even under tol: the reference samples a few 1e-9 of the
+    # path apart must agree to round-off, or their slopes differ by 1e-4 (TOPP-RA's spline)
+    floor = _ROUND_OFF if reduced.is_reduced(robot) else tol
+    for iteration in range(max_iterations):
         err, T = _error(robot, T_target_tip, q)
         norm = float(np.linalg.norm(err))
-        if norm < tol:
+        if norm < floor or (norm < tol and iteration > 0):
             return q
-        q = q + damped_step(_error_jacobian(robot, T_target_tip, q, T), err, min(1e-2, norm) ** 2)
+        J = _error_jacobian(robot, T_target_tip, q, T)
+        if _stalled(robot, err, J):
+            return q
+        q = q + damped_step(J, err, min(1e-2, norm) ** 2)
     return None
+
+
+def _stalled(robot: Robot, err: np.ndarray, J: np.ndarray) -> bool:
+    """A five-joint arm at the least-squares solution of an error it cannot cancel: what is left
+    is outside the Jacobian's range (no joint motion reduces it to first order), with the
+    position within REDUCED_RESIDUAL_M and the tool axis within REDUCED_RESIDUAL_RAD. (The
+    SO-100's URDF tilts axis 1 by 6e-6 rad: a vertical tool axis is that far out of its arm
+    plane away from q1 = 0.)"""
+    if not (reduced.is_reduced(robot) and float(np.linalg.norm(err[:3])) < REDUCED_RESIDUAL_M
+            and float(np.linalg.norm(err[3:])) < REDUCED_RESIDUAL_RAD * reduced.ANGLE_WEIGHT_M):
+        return False
+    reachable = J @ np.linalg.lstsq(J, err, rcond=1e-10)[0]  # the part joint motion can cancel
+    return float(np.linalg.norm(reachable)) < _REACHABLE_TOL
 
 
 def into_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
@@ -123,7 +162,7 @@ def solve_lm(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray,
     cost, damping, growth = float(err @ err), 1e-2, 2.0
     J = _error_jacobian(robot, T_target_tip, q, T)
     for iteration in range(options.max_iterations):
-        if cost < options.tol ** 2:
+        if cost < options.tol ** 2 or _stalled(robot, err, J):
             return q
         if iteration == options.max_iterations // 2 and cost > _FAR_COST:
             return None
@@ -142,8 +181,8 @@ def solve_lm(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray,
             damping *= growth
             growth *= 2.0
             if damping > 1e12:
-                return None
-    return q if cost < options.tol ** 2 else None
+                break
+    return q if cost < options.tol ** 2 or _stalled(robot, err, J) else None
 
 
 def halton(count: int, dim: int, skip: int = 1) -> np.ndarray:
@@ -233,7 +272,7 @@ def all_branches(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = No
     """Every IK branch of a TCP pose inside the joint limits, by seeded Levenberg-Marquardt.
 
     Args:
-        robot: any serial arm with n >= 6 joints.
+        robot: any serial arm with n >= 5 joints (five: position and tool z axis only).
         T_base_tcp: the target TCP pose.
         seed: tried first; with a redundant arm, each configuration keeps its point nearest it.
         label: configuration label of a joint vector; a redundant arm (n > 6) gives one
@@ -254,6 +293,8 @@ def all_branches(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = No
     while box_tried < options.max_seeds and (box_tried < options.min_seeds or quiet < options.patience):
         is_box = not pending
         q = solve_lm(robot, T_base_tcp, next(box) if is_box else pending.pop(0), options)
+        if q is not None and reduced.is_reduced(robot):
+            q = reduced.settle_free(robot, q, seed)  # a roll about the tool axis stays at the seed's
         new = q is not None and found.add(q, tried)
         tried += 1
         if new and robot.n_joints == 6:

@@ -436,8 +436,11 @@ def _check_tracked(robot: Robot, i: int, move: Move, piece: CartesianPiece, trac
     k = tracked.gap_index + 1
     u = float(tracked.u[k])
     if not np.all(np.isfinite(tracked.q[k])):
+        what = ("no joint values give that position with the path's tool z axis (five joints keep both only "
+                "where the axis is within the arm's reach)" if robot.n_joints == 5 else
+                "no inverse kinematics solution there")
         raise UnreachableError(f"move {i} ({move.kind}): the path leaves the workspace at {piece.describe(u)}: "
-                               f"no inverse kinematics solution there", move=i)
+                               f"{what}", move=i)
     raise PlanningError(f"move {i} ({move.kind}): no continuous joint motion follows the path at "
                         f"{piece.describe(u)} (the inverse kinematics jumps by "
                         f"{math.degrees(tracked.max_step_rad):.1f} deg)")

@@ -27,7 +27,7 @@ from singplan.ik_ur import UrParameters
 logger = logging.getLogger(__name__)
 
 DEFAULT_ACCELERATION_RAD_S2 = 10.0
-SUPPORTED_JOINT_COUNTS = (6, 7)  # actuated revolute joints from the root to the tip (5-axis arms: later)
+SUPPORTED_JOINT_COUNTS = (5, 6, 7)  # actuated revolute joints from the root to the tip
 MAX_URDF_BYTES = 32 * 1024 * 1024
 VELOCITY_LIMIT_RAD_S = (1e-3, 1e3)  # a joint slower than 0.001 rad/s would make durations overflow
 MAX_JOINT_SPAN_RAD = 8 * math.pi  # 4 turns: the IK lists every 2*pi variant inside the range
@@ -111,7 +111,7 @@ class Robot:
         self.model = model
         self.data = model.createData()
         self.tip = tip
-        self.tip_frame_id = model.getFrameId(tip)
+        self.tip_frame_id = frame_id(model, tip)
         self.T_tip_tcp = T_tip_tcp
         self.T_tcp_tip_h = T_tip_tcp.inverse().homogeneous  # (4, 4): TCP poses -> tip poses, many at a time
         self.entry = entry
@@ -236,6 +236,13 @@ def _rotations_about(axis: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
     return np.eye(3) + s * k + (1.0 - c) * (k @ k)
 
 
+def frame_id(model: pin.Model, name: str) -> int:
+    """The frame named ``name``; the link's where a joint has the same name (the SO-100's ``gripper``)."""
+    if model.existFrame(name, pin.FrameType.BODY):
+        return int(model.getFrameId(name, pin.FrameType.BODY))
+    return int(model.getFrameId(name))
+
+
 def _chain_joint_ids(model: pin.Model, frame_id: int) -> list[int]:
     ids = []
     j = model.frames[frame_id].parentJoint
@@ -301,19 +308,22 @@ def _urdfdom_reason(messages: str) -> str:
 
 
 TIP_NAMES = ("tool0", "flange", "tcp")  # in this order of preference, also with a prefix ("ur_tool0")
+END_EFFECTOR_JOINT_WORDS = ("gripper", "finger", "jaw")  # a revolute joint so named moves a gripper, not the arm
 
 
 def default_tip(model: pin.Model) -> str:
     """The tip of a URDF given by path (DESIGN "Robots"): a link named ``tool0``, ``flange`` or
     ``tcp`` (or ending in ``_tool0`` ...) at the end of the chain, else the chain's last link.
 
-    The chain ends at its deepest revolute joint; its end links are those fixed to that joint
-    (Pinocchio merges fixed joints into the body they hang on), which leaves out fingers and
-    other joints branching off. The last link is the one most fixed joints away from that
-    joint (the first in the file among equals).
+    The chain ends at its deepest revolute joint that is not an end effector's (a joint whose
+    name contains ``gripper``, ``finger`` or ``jaw``, e.g. the SO-100's revolute jaw); its end
+    links are those fixed to that joint (Pinocchio merges fixed joints into the body they hang
+    on), which leaves out fingers and other joints branching off. The last link is the one
+    most fixed joints away from that joint (the first in the file among equals).
     """
     revolute = [j for j in range(1, model.njoints) if model.joints[j].shortname().removeprefix("JointModel")
-                in ("RX", "RY", "RZ", "RevoluteUnaligned")]
+                in ("RX", "RY", "RZ", "RevoluteUnaligned")
+                and not any(word in model.names[j].lower() for word in END_EFFECTOR_JOINT_WORDS)]
     if not revolute:
         return model.frames[len(model.frames) - 1].name
     end = max(revolute, key=lambda j: len(model.supports[j]))
@@ -340,12 +350,29 @@ def _reduce_to_chain(model: pin.Model, tip: str, urdf_path: Path) -> pin.Model:
     frames = [f.name for f in model.frames]
     if not model.existFrame(tip):
         raise UnknownNameError("tip frame", tip, frames, where=str(urdf_path))
-    chain = sorted(_chain_joint_ids(model, model.getFrameId(tip)))
+    chain = sorted(_chain_joint_ids(model, frame_id(model, tip)))
     _check_chain(model, chain, tip, urdf_path)
     others = [j for j in range(1, model.njoints) if j not in chain]
     if not others:
         return model
+    _rename_clashing_joints(model, others)
     return pin.buildReducedModel(model, others, pin.neutral(model))
+
+
+def _rename_clashing_joints(model: pin.Model, joints: list[int]) -> None:
+    """Rename joints about to be locked whose name is also a link's (``gripper`` on the SO-100).
+
+    A locked joint becomes a fixed frame, and Pinocchio refuses to reduce a model where that
+    frame would share its name with the link; the locked joint's name is never used again.
+    """
+    for j in joints:
+        name = model.names[j]
+        if not model.existFrame(name, pin.FrameType.BODY):
+            continue
+        k = model.getFrameId(name, pin.FrameType.JOINT)
+        frame = model.frames[k]
+        frame.name = model.names[j] = f"{name}_locked_joint"
+        model.frames[k] = frame
 
 
 def _check_chain(model: pin.Model, chain: list[int], tip: str, urdf_path: Path) -> None:
@@ -365,7 +392,7 @@ def _check_chain(model: pin.Model, chain: list[int], tip: str, urdf_path: Path) 
         if kind not in ("RX", "RY", "RZ", "RevoluteUnaligned"):
             raise RobotModelError(str(urdf_path), f"joint {name!r} is a {kind} joint; singplan needs revolute joints")
     if len(chain) not in SUPPORTED_JOINT_COUNTS:
-        counts = " or ".join(str(n) for n in SUPPORTED_JOINT_COUNTS)
+        counts = ", ".join(str(n) for n in SUPPORTED_JOINT_COUNTS[:-1]) + f" or {SUPPORTED_JOINT_COUNTS[-1]}"
         raise RobotModelError(str(urdf_path), f"{len(chain)} revolute joints from {_root_link(model)} to {tip}; "
                                               f"singplan plans arms with {counts}")
 

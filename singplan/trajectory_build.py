@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from singplan import reduced
 from singplan.configuration import distances_batch, labels_from_distances
 from singplan.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.path import CartesianPiece, rotation_angle
@@ -134,16 +135,22 @@ def _chunked_differences(q: np.ndarray, period: float) -> tuple[np.ndarray, np.n
 
 def sample_deviations(robot: Robot, piece: CartesianPiece | None, u: np.ndarray,
                       q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Position [m] and orientation [rad] error of each sample q (K, n) against the path at its u."""
+    """Position [m] and orientation [rad] error of each sample q (K, n) against the path at its u
+    (for a five-joint arm the angle between the tool z axes)."""
     if piece is None:
         return np.zeros(len(q)), np.zeros(len(q))
     pos, ori = np.empty(len(q)), np.empty(len(q))
+    five = reduced.is_reduced(robot)
     for c in range(0, len(q), _CHUNK):
         want = piece.poses(u[c:c + _CHUNK])
+        R = np.empty_like(want[:, :3, :3])
         for k, qk in enumerate(q[c:c + _CHUNK]):
             T = robot.fk(qk)
+            R[k] = T.rotation
             pos[c + k] = float(np.linalg.norm(T.translation - want[k, :3, 3]))
-            ori[c + k] = rotation_angle(T.rotation, want[k, :3, :3])
+            ori[c + k] = 0.0 if five else rotation_angle(T.rotation, want[k, :3, :3])
+        if five:  # reduced order: only the tool's z axis is kept (singplan.reduced)
+            ori[c:c + len(R)] = reduced.z_angles(R, want[:, :3, :3])
     return pos, ori
 
 

@@ -132,8 +132,6 @@ def _urdf(tmp_path, old: str, new: str):
     (JOINT_5_LIMIT, JOINT_5_LIMIT.replace("6.283185307179586", "nan"), "joint [joint_5]: velocity value (nan)"),
     (JOINT_5_LIMIT, 'velocity="6" lower="1" upper="1"', "joint 'joint_5' has position limits [1, 1] rad"),
     (JOINT_5_LIMIT, 'velocity="6" lower="-30" upper="30"', "4 turns"),
-    ('<joint name="joint_6" type="revolute">', '<joint name="joint_6" type="fixed">',
-     "5 revolute joints from base_link to tool0; singplan plans arms with 6 or 7"),
     ('<joint name="joint_2" type="revolute">', '<joint name="joint_2" type="prismatic">', "'joint_2' is prismatic"),
     ('<joint name="joint_4" type="revolute">', '<joint name="joint_4" type="continuous">', "'joint_4' is continuous"),
     ('<joint name="joint_4" type="revolute">', '<joint name="joint_4" type="planar">', "'joint_4' is a Planar joint"),
@@ -157,8 +155,11 @@ def test_supported_joint_counts_is_the_one_place(tmp_path, monkeypatch) -> None:
     import singplan.robot as robot_module
 
     five = _urdf(tmp_path, '<joint name="joint_6" type="revolute">', '<joint name="joint_6" type="fixed">')
-    monkeypatch.setattr(robot_module, "SUPPORTED_JOINT_COUNTS", (5, 6, 7))
     assert load_robot(five).n_joints == 5
+    monkeypatch.setattr(robot_module, "SUPPORTED_JOINT_COUNTS", (6, 7))
+    with pytest.raises(RobotModelError, match="5 revolute joints from base_link to tool0; singplan plans arms with "
+                                              "6 or 7"):
+        load_robot(five)
 
 
 def test_urdf_files_that_are_not_usable(tmp_path) -> None:

@@ -81,6 +81,8 @@ class Recognition:
             form was verified).
         rejected: why each closed form tried was not taken, e.g. ``{"opw": "axes 4 and 5 do
             not meet ..."}``; empty for an accepted first try.
+        wrist_misalignment_rad: the smallest angle between axes 4 and 6 that turning joint 5 can
+            reach (0 when they can align: the wrist singularity exists and wrist-joint applies).
     """
 
     family: Family
@@ -89,6 +91,11 @@ class Recognition:
     residual_m: float = 0.0
     residual_rad: float = 0.0
     rejected: tuple[tuple[str, str], ...] = ()
+    wrist_misalignment_rad: float = 0.0
+
+    def crossing_methods(self) -> dict[str, str]:
+        """:func:`crossing_methods` of this arm (its family and wrist geometry)."""
+        return crossing_methods(self.family, self.wrist_misalignment_rad)
 
     @property
     def reason(self) -> str:
@@ -148,7 +155,19 @@ def _recognise(model: pin.Model, tip_frame_id: int) -> Recognition:
                                rejected=tuple(rejected))
         return Recognition("ur", ur=params, residual_m=residual_m, residual_rad=residual_rad,
                            rejected=tuple(rejected))
-    return Recognition("general6", rejected=tuple(rejected))
+    return Recognition("general6", rejected=tuple(rejected), wrist_misalignment_rad=_wrist_misalignment(model, tip_frame_id))
+
+
+def _wrist_misalignment(model: pin.Model, tip_frame_id: int) -> float:
+    """The smallest angle [rad] between axes 4 and 6 as joint 5 turns.
+
+    Turning about axis 5 keeps each axis's angle to it, so axes 4 and 6 can be parallel (and
+    the wrist singular, the zone wrist-joint and axis cross) only when those angles are equal:
+    the result is their difference.
+    """
+    a = _axes_and_origins(model, tip_frame_id)[0]
+    to_axis5 = [math.acos(min(1.0, abs(float(a[k] @ a[4])))) for k in (3, 5)]
+    return abs(to_axis5[0] - to_axis5[1])
 
 
 def _axes_and_origins(model: pin.Model, tip_frame_id: int,
@@ -334,9 +353,25 @@ def _verify(model: pin.Model, tip_frame_id: int, params: OpwParameters | UrParam
     return worst_m, worst_rad
 
 
-def crossing_methods(family: Family) -> dict[str, str]:
-    """Each crossing method and how it serves an arm of ``family`` ("" when fully)."""
-    closed = family in ("opw", "ur")
-    no_closed = "" if closed else "needs a closed form (opw or ur), which this arm does not have"
-    return {"exact": "", "stop": "", "wrist-joint": no_closed, "axis": no_closed, "dls": "", "average": "",
-            "ptp": "", "auto": "" if closed else "compares exact only: wrist-joint and axis need a closed form"}
+_WRIST_ALIGN_TOL_RAD = 1e-6  # axes 4 and 6 that turning joint 5 brings this close count as aligning
+
+
+def crossing_methods(family: Family, wrist_misalignment_rad: float = 0.0) -> dict[str, str]:
+    """Each crossing method and why it cannot serve an arm of ``family`` ("" when it serves).
+
+    General 6R arms get wrist-joint with a numeric position solve (joints 1-3 by Newton on
+    Pinocchio's Jacobian) and axis (Gauss-Newton, as on every arm), both with exits from the
+    all-branch numeric IK; wrist-joint needs a wrist singularity to cross, i.e. axes 4 and 6
+    that can align (``wrist_misalignment_rad``, :class:`Recognition`).
+    """
+    serves = {"exact": "", "stop": "", "wrist-joint": "", "axis": "", "dls": "", "average": "", "ptp": "", "auto": ""}
+    if family in ("opw", "ur"):
+        return serves
+    if family == "general6":
+        if wrist_misalignment_rad > _WRIST_ALIGN_TOL_RAD:
+            serves["wrist-joint"] = (f"needs axes 4 and 6 to align as joint 5 turns; on this arm they stay "
+                                     f"{math.degrees(wrist_misalignment_rad):.3f} deg apart (no wrist singularity)")
+        return serves
+    no_closed = "needs a closed form (opw or ur), which this arm does not have"
+    return {**serves, "wrist-joint": no_closed, "axis": no_closed,
+            "auto": "compares exact only: wrist-joint and axis need a closed form"}

@@ -81,8 +81,7 @@ class Recognition:
             form was verified).
         rejected: why each closed form tried was not taken, e.g. ``{"opw": "axes 4 and 5 do
             not meet ..."}``; empty for an accepted first try.
-        wrist_misalignment_rad: the smallest angle between axes 4 and 6 that turning joint 5 can
-            reach (0 when they can align: the wrist singularity exists and wrist-joint applies).
+        no_wrist: why a general 6R arm has no wrist singularity ("" when it has one).
     """
 
     family: Family
@@ -91,11 +90,11 @@ class Recognition:
     residual_m: float = 0.0
     residual_rad: float = 0.0
     rejected: tuple[tuple[str, str], ...] = ()
-    wrist_misalignment_rad: float = 0.0
+    no_wrist: str = ""
 
     def crossing_methods(self) -> dict[str, str]:
         """:func:`crossing_methods` of this arm (its family and wrist geometry)."""
-        return crossing_methods(self.family, self.wrist_misalignment_rad)
+        return crossing_methods(self.family, self.no_wrist)
 
     @property
     def reason(self) -> str:
@@ -155,19 +154,22 @@ def _recognise(model: pin.Model, tip_frame_id: int) -> Recognition:
                                rejected=tuple(rejected))
         return Recognition("ur", ur=params, residual_m=residual_m, residual_rad=residual_rad,
                            rejected=tuple(rejected))
-    return Recognition("general6", rejected=tuple(rejected), wrist_misalignment_rad=_wrist_misalignment(model, tip_frame_id))
+    return Recognition("general6", rejected=tuple(rejected), no_wrist=_no_wrist(model, tip_frame_id))
 
 
-def _wrist_misalignment(model: pin.Model, tip_frame_id: int) -> float:
-    """The smallest angle [rad] between axes 4 and 6 as joint 5 turns.
+def _no_wrist(model: pin.Model, tip_frame_id: int) -> str:
+    """Why the chain has no wrist singularity ("" when it has one).
 
-    Turning about axis 5 keeps each axis's angle to it, so axes 4 and 6 can be parallel (and
-    the wrist singular, the zone wrist-joint and axis cross) only when those angles are equal:
-    the result is their difference.
+    The wrist singularity is where axes 4, 5 and 6 are coplanar (the angular velocities of the
+    wrist span only a plane; for perpendicular axes: axes 4 and 6 aligned). Turning joint 5
+    sweeps axis 6 around axis 5, through the plane of axes 4 and 5, unless axis 4 or axis 6 is
+    parallel to axis 5.
     """
     a = _axes_and_origins(model, tip_frame_id)[0]
-    to_axis5 = [math.acos(min(1.0, abs(float(a[k] @ a[4])))) for k in (3, 5)]
-    return abs(to_axis5[0] - to_axis5[1])
+    for k in (3, 5):
+        if np.linalg.norm(np.cross(a[k], a[4])) <= _AXIS_TOL:
+            return f"needs a wrist singularity to cross, and axis {k + 1} is parallel to axis 5 (none)"
+    return ""
 
 
 def _axes_and_origins(model: pin.Model, tip_frame_id: int,
@@ -353,24 +355,19 @@ def _verify(model: pin.Model, tip_frame_id: int, params: OpwParameters | UrParam
     return worst_m, worst_rad
 
 
-_WRIST_ALIGN_TOL_RAD = 1e-6  # axes 4 and 6 that turning joint 5 brings this close count as aligning
-
-
-def crossing_methods(family: Family, wrist_misalignment_rad: float = 0.0) -> dict[str, str]:
+def crossing_methods(family: Family, no_wrist: str = "") -> dict[str, str]:
     """Each crossing method and why it cannot serve an arm of ``family`` ("" when it serves).
 
     General 6R arms get wrist-joint with a numeric position solve (joints 1-3 by Newton on
     Pinocchio's Jacobian) and axis (Gauss-Newton, as on every arm), both with exits from the
-    all-branch numeric IK; wrist-joint needs a wrist singularity to cross, i.e. axes 4 and 6
-    that can align (``wrist_misalignment_rad``, :class:`Recognition`).
+    all-branch numeric IK; wrist-joint needs a wrist singularity to cross (``no_wrist`` says
+    why an arm has none, :class:`Recognition`).
     """
     serves = {"exact": "", "stop": "", "wrist-joint": "", "axis": "", "dls": "", "average": "", "ptp": "", "auto": ""}
     if family in ("opw", "ur"):
         return serves
     if family == "general6":
-        if wrist_misalignment_rad > _WRIST_ALIGN_TOL_RAD:
-            serves["wrist-joint"] = (f"needs axes 4 and 6 to align as joint 5 turns; on this arm they stay "
-                                     f"{math.degrees(wrist_misalignment_rad):.3f} deg apart (no wrist singularity)")
+        serves["wrist-joint"] = no_wrist
         return serves
     no_closed = "needs a closed form (opw or ur), which this arm does not have"
     return {**serves, "wrist-joint": no_closed, "axis": no_closed,

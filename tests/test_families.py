@@ -382,27 +382,33 @@ def test_a_variant_keeps_its_branch_at_the_closed_forms_boundaries(name: str, tm
 
 
 def test_methods_a_general6_arm_cannot_use_are_refused_or_listed_never_run_in_disguise(tmp_path: Path) -> None:
-    """wrist-joint and axis need a closed form: alone they are refused at the zone, under auto listed infeasible."""
+    """Axis 6 turned parallel to axis 5 (85 mm beside it): the arm has no wrist singularity, so
+    wrist-joint cannot serve; alone it is refused at the (shoulder) zone, under auto listed infeasible,
+    with the reason; axis and auto serve."""
     tree = _tree("abb_irb2400")
-    origin = _joint(tree.getroot(), "joint_6").find("origin")
-    assert origin is not None
-    origin.set("xyz", "0.085 0.01 0.0")  # not a spherical wrist: general6
-    urdf = _write(tree, tmp_path / "offset_wrist.urdf")
-    T = load_robot(urdf).fk(np.radians([0, 10, 20, 0, 3, 0]))  # q5 = 3 deg: inside the 5 deg wrist zone
+    _joint(tree.getroot(), "joint_6").find("axis").set("xyz", "0 1 0")  # type: ignore[union-attr]
+    urdf = _write(tree, tmp_path / "parallel_56.urdf")
+    robot = load_robot(urdf)
+    assert robot.family == "general6"
+    notes = robot.recognition.crossing_methods()
+    assert "axis 6 is parallel to axis 5" in notes["wrist-joint"] and notes["axis"] == notes["auto"] == ""
+    q_a, q_b = np.radians([0, -89, 61, 40, 30, 0]), np.radians([0, -83, 55, 40, 30, 0])  # across the shoulder
     outcomes = {}
     for method in ("wrist-joint", "auto"):
-        task = {"robot": str(urdf), "start": {"joints_deg": [0, 10, 20, 0, 3, 0]}, "singularity": {"method": method},
-                "moves": [{"lin": {"to": {"xyz": (T.translation + np.array([0, 0.05, 0])).tolist()}, "speed": 0.1}}]}
+        task = {"robot": str(urdf), "start": {"joints_deg": np.degrees(q_a).tolist()},
+                "singularity": {"method": method},
+                "moves": [{"lin": {"to": {"xyz": robot.fk(q_b).translation.tolist()}, "speed": 0.1}}]}
         (tmp_path / "task.yaml").write_text(yaml.safe_dump(task))
         out, err = io.StringIO(), io.StringIO()
         code = main(["plan", str(tmp_path / "task.yaml"), "-o", str(tmp_path / method), "--quiet", "--no-report",
                      "--no-replay"], out=out, err=err)
         outcomes[method] = (code, err.getvalue())
     code, message = outcomes["wrist-joint"]
-    assert code == 3 and "wrist-joint cannot cross the wrist zone at s = " in message and "general6" in message
+    assert code == 3 and "wrist-joint cannot cross the shoulder zone at s = " in message and "general6" in message
+    assert "axis 6 is parallel to axis 5" in message
     assert outcomes["auto"][0] == 0, outcomes["auto"][1]
     segments = json.loads((tmp_path / "auto" / "trajectory.json").read_text())["segments"]
-    alternatives = {a["method"]: a for a in segments[0]["alternatives"]}
+    alternatives = {a["method"]: a for a in next(s for s in segments if s["kind"] == "crossing")["alternatives"]}
     assert alternatives["exact"]["feasible"]
-    for name in ("wrist-joint", "axis"):
-        assert not alternatives[name]["feasible"] and "needs a closed form" in alternatives[name]["reason"]
+    assert not alternatives["wrist-joint"]["feasible"]
+    assert "axis 6 is parallel to axis 5" in alternatives["wrist-joint"]["reason"]

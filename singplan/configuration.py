@@ -166,7 +166,8 @@ def _forward_in_link1(robot: Robot, up: np.ndarray, axis2: np.ndarray) -> np.nda
     R1 = robot.data.oMi[1].rotation
     if robot.opw is not None:
         t1 = -robot.opw.offsets_rad[0]  # OPW angle of joint 1 at the robot's zero
-        return R1.T @ np.array([math.cos(t1), math.sin(t1), 0.0])
+        R_base_opw = robot.recognition.T_base_closed[:3, :3]
+        return R1.T @ R_base_opw @ np.array([math.cos(t1), math.sin(t1), 0.0])
     across = cross3(axis2, up)
     if float(np.linalg.norm(across)) < 1e-9:  # axis 2 along axis 1: keep joint 1's x
         return np.array([1.0, 0.0, 0.0])

@@ -32,9 +32,9 @@ def _wrapped(x: float) -> float:
     return math.atan2(math.sin(x), math.cos(x))
 
 
-def _assert_fk_reproduced(urdf: Path, rng: np.random.Generator) -> None:
+def _assert_fk_reproduced(urdf: Path, rng: np.random.Generator, tip: str | None = None) -> None:
     """The recognised closed form solves poses of random joints of the URDF, exactly (own check, not the module's)."""
-    robot = load_robot(urdf)
+    robot = load_robot(urdf, tip=tip)
     lo, hi = np.maximum(robot.lower_rad, -math.pi), np.minimum(robot.upper_rad, math.pi)
     for q in rng.uniform(lo, hi, size=(20, 6)):
         target = robot.fk(q)
@@ -266,6 +266,68 @@ def test_ur5_with_an_extra_fixed_joint_and_a_raised_base_is_ur(tmp_path: Path, r
     assert variant.ur.d1 == pytest.approx(twin.ur.d1 + 0.25, abs=1e-12)
     assert variant.ur.l2 == pytest.approx(twin.ur.l2, abs=1e-12)
     _assert_fk_reproduced(variant.urdf_path, rng)
+
+
+def _placed_base(root: ET.Element, xyz: tuple[float, float, float], rpy: tuple[float, float, float]) -> None:
+    """A new root link anywhere: the old root placed at ``xyz`` turned by ``rpy`` in it."""
+    children = {c.get("link") for c in root.iter("child")}
+    old_root = next(link.get("name") for link in root.iter("link") if link.get("name") not in children)
+    ET.SubElement(root, "link", name="floor")
+    fixed = ET.SubElement(root, "joint", name="floor_joint", type="fixed")
+    ET.SubElement(fixed, "parent", link="floor")
+    ET.SubElement(fixed, "child", link=str(old_root))
+    ET.SubElement(fixed, "origin", xyz=" ".join(map(str, xyz)), rpy=" ".join(map(str, rpy)))
+
+
+def _fixed_link(root: ET.Element, parent: str, name: str, xyz: tuple[float, float, float],
+                rpy: tuple[float, float, float]) -> None:
+    ET.SubElement(root, "link", name=name)
+    fixed = ET.SubElement(root, "joint", name=f"{name}_joint", type="fixed")
+    ET.SubElement(fixed, "parent", link=parent)
+    ET.SubElement(fixed, "child", link=name)
+    ET.SubElement(fixed, "origin", xyz=" ".join(map(str, xyz)), rpy=" ".join(map(str, rpy)))
+
+
+def test_a_base_anywhere_and_a_tip_off_axis_6_are_folded_into_the_opw_closed_form(tmp_path: Path, rng) -> None:
+    """The base link shifted and tilted away from axis 1, the tip turned and set off axis 6: still
+    opw with the twin's lengths, the closed form solving the file's FK, the twin's labels."""
+    tree = _tree("abb_irb2400")
+    root = tree.getroot()
+    _placed_base(root, (0.4, -0.2, 0.3), (0.3, -0.2, 0.7))
+    _fixed_link(root, "tool0", "gripper_tcp", (0.05, 0.02, 0.1), (0.4, 0.5, 0.6))
+    variant = load_robot(_write(tree, tmp_path / "irb2400_placed.urdf"), tip="gripper_tcp")
+    twin = bundled_robots()["abb_irb2400"].opw
+    assert variant.tip == "gripper_tcp" and variant.family == "opw" and variant.opw is not None and twin is not None
+    for key in ("a1", "a2", "b", "c2", "c3"):  # c1 is counted from where the new base meets axis 1
+        assert getattr(variant.opw, key) == pytest.approx(getattr(twin, key), abs=1e-12)
+    assert variant.opw.c4 == pytest.approx(twin.c4 + 0.1, abs=1e-12)  # the flange at the TCP's foot on axis 6
+    assert not np.allclose(variant.recognition.T_base_closed, np.eye(4))
+    assert not np.allclose(variant.recognition.T_flange_tip, np.eye(4))
+    _assert_fk_reproduced(variant.urdf_path, rng, tip="gripper_tcp")
+    q = rng.uniform(np.maximum(variant.lower_rad, -math.pi), np.minimum(variant.upper_rad, math.pi), size=(100, 6))
+    twin_robot = load_robot("abb_irb2400")
+    np.testing.assert_allclose(distances_batch(variant, q), distances_batch(twin_robot, q), rtol=0, atol=1e-12)
+    frames = np.array([_signed_distances(*_frames(variant, qk)) for qk in q])
+    np.testing.assert_allclose(frames, distances_batch(variant, q), rtol=0, atol=1e-9)
+
+
+def test_a_ros_industrial_style_ur5_base_plans_the_twins_motion(tmp_path: Path) -> None:
+    """base_link turned 180 deg about z (ROS-Industrial's UR description): ur, and the UR5 example
+    with its target expressed in that base plans the same joints in the same time."""
+    tree = _tree("ur5")
+    _placed_base(tree.getroot(), (0.0, 0.0, 0.0), (0.0, 0.0, math.pi))
+    urdf = _write(tree, tmp_path / "ur5_ros_industrial.urdf")
+    assert load_robot(urdf).family == "ur"
+    doc = yaml.safe_load((ROOT / "examples" / "ur5_wrist_auto.yaml").read_text())
+    target = doc["moves"][0]["lin"]["to"]
+    turn = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, math.pi), np.zeros(3))
+    T = turn * pin.SE3(pin.rpy.rpyToMatrix(*np.radians(target["rpy_deg"])), np.array(target["xyz"]))
+    moved = {**doc, "robot": str(urdf), "moves": [{"lin": {**doc["moves"][0]["lin"], "to": {
+        "xyz": T.translation.tolist(), "rpy_deg": np.degrees(pin.rpy.matrixToRpy(T.rotation)).tolist()}}}]}
+    twin, variant = plan(parse_task(doc)), plan(parse_task(moved))
+    assert variant.duration_s == pytest.approx(twin.duration_s, abs=1e-9)
+    np.testing.assert_allclose(variant.q, twin.q, rtol=0, atol=1e-7)
+    assert [s.method for s in variant.segments] == [s.method for s in twin.segments]
 
 
 # --- the same URDF by name and by path ------------------------------------------------------------

@@ -175,6 +175,25 @@ def test_z1_shoulder_near_miss_is_crossed_by_axis(tmp_path: Path) -> None:
     assert chosen["min_distance"] < 2e-3 and chosen["min_distance_unit"] == "m"
 
 
+@pytest.mark.parametrize("tip", [None, "j2s6s200_end_effector"])
+def test_kinova_with_revolute_joints_is_opw_whatever_its_tip(tip: str | None, tmp_path: Path) -> None:
+    """The Kinova j2s6s200 (spherical wrist) once its continuous joints are declared revolute: its
+    default tip (a finger tip, off axis 6) and its end effector (turned about axis 6) are folded
+    into the OPW closed form, which reproduces the file's FK."""
+    tree = ET.parse(erd.load("kinova").urdf)
+    for joint in tree.getroot().iter("joint"):
+        if joint.get("type") == "continuous":
+            joint.set("type", "revolute")
+            limit = joint.find("limit")
+            assert limit is not None
+            limit.set("lower", "-6.2832")
+            limit.set("upper", "6.2832")
+    tree.write(tmp_path / "kinova_revolute.urdf")
+    robot = load_robot(tmp_path / "kinova_revolute.urdf", tip=tip)
+    assert robot.family == "opw", robot.recognition.reason
+    assert robot.recognition.residual_m < 1e-9 and robot.recognition.residual_rad < 1e-9
+
+
 @pytest.mark.parametrize("name", ["kinova", "bravo7_no_ee"])
 def test_continuous_joints_are_bad_input_naming_the_joint(name: str) -> None:
     err = io.StringIO()

@@ -117,6 +117,13 @@ class Recognition:
         """:func:`crossing_methods` of this arm (its family and wrist geometry)."""
         return crossing_methods(self.family, self.no_wrist)
 
+    def how(self) -> dict[str, str]:
+        """How the crossing methods that differ by family serve this arm (for ``singplan info``)."""
+        if self.family != "general6":
+            return {}
+        return {"wrist-joint": "joints 1-3 by Newton on the TCP position (no closed form); exit from the numeric IK",
+                "axis": "Gauss-Newton as on every arm; exit from the numeric IK"}
+
     @property
     def reason(self) -> str:
         """The rejections as one sentence ("" when none)."""

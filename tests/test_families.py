@@ -454,6 +454,9 @@ def test_methods_a_general6_arm_cannot_use_are_refused_or_listed_never_run_in_di
     assert robot.family == "general6"
     notes = robot.recognition.crossing_methods()
     assert "axis 6 is parallel to axis 5" in notes["wrist-joint"] and notes["axis"] == notes["auto"] == ""
+    out = io.StringIO()
+    assert main(["info", str(urdf)], out=out) == 0
+    assert "wrist-joint  no  needs a wrist singularity to cross, and axis 6 is parallel to axis 5" in out.getvalue()
     q_a, q_b = np.radians([0, -89, 61, 40, 30, 0]), np.radians([0, -83, 55, 40, 30, 0])  # across the shoulder
     outcomes = {}
     for method in ("wrist-joint", "auto"):

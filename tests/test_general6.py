@@ -149,6 +149,9 @@ def test_bravo7_wrist_near_miss_is_crossed_by_axis(bravo7: Path, tmp_path: Path)
     tolerance, so it is infeasible (exit 3 alone); axis keeps it under and auto takes it."""
     robot = load_robot(bravo7)
     assert robot.family == "general6"
+    out = io.StringIO()
+    assert main(["info", str(bravo7)], out=out) == 0
+    assert "wrist-joint  yes joints 1-3 by Newton" in out.getvalue() and "axis         yes" in out.getvalue()
     q_mid = np.radians([20, 60, 60, 30, 180, 20])  # axes 4, 5, 6 coplanar
     assert np.linalg.svd(robot.jacobian(q_mid), compute_uv=False)[-1] < 1e-5  # and singular there
     task = _near_miss(bravo7, [20, 60, 60, 30, 180, 20], [0, 5, 5, 0, 10, 0], 0.5, speed=0.1)

@@ -113,12 +113,14 @@ def _assert_runner_up_was_run(summary_text: str, traj: dict[str, Any]) -> None:
 
 
 def _plan_all(task: dict[str, Any], tmp_path: Path, planned: tuple[str, ...]) -> dict[str, dict[str, Any]]:
-    """exact, auto, wrist-joint, axis; those in ``planned`` must plan and pass the checker."""
-    out = {}
+    """exact, auto, wrist-joint, axis; those in ``planned`` must plan and pass the checker, the
+    others exit 3 (their message under the key "refused:METHOD")."""
+    out: dict[str, Any] = {}
     for method in ("exact", "auto", "wrist-joint", "axis"):
         code, text, traj = _plan(task, method, tmp_path / method)
         if method not in planned:
             assert code == 3, text  # a clear refusal, not a crash
+            out[f"refused:{method}"] = text
             continue
         assert code == 0 and traj is not None, text
         check = _checker(tmp_path / method)
@@ -142,6 +144,19 @@ def test_offset_wrist_near_miss_is_crossed_faster_than_exact(offset_wrist: Path,
     assert plans["auto"]["metrics"]["duration_s"] < 0.9 * plans["exact"]["metrics"]["duration_s"]  # ... as faster
     assert min(plans[m]["metrics"]["duration_s"] for m in ("wrist-joint", "axis")) == \
         plans["auto"]["metrics"]["duration_s"]
+
+
+def test_offset_wrist_shoulder_near_miss_is_crossed_by_axis(offset_wrist: Path, tmp_path: Path) -> None:
+    """Past the shoulder the offset wrist's branch folds back (the seeded solve stops): the tracker
+    goes on in the nearest other branch, exact and wrist-joint refuse that jump (exit 3) and axis
+    crosses the zone within 3 mm of the path."""
+    task = _near_miss(offset_wrist, [0, -40, -12, 40, 30, 0], [0, 3, -3, 0, 0, 0], 0.0, speed=0.1,
+                      position_tolerance_mm=3.0)
+    task["moves"][0]["lin"]["to"]["xyz"][1] += 0.002
+    plans = _plan_all(task, tmp_path, ("auto", "axis"))
+    (chosen,) = _crossings(plans["auto"])
+    assert chosen["method"] == "axis" and chosen["singularity"] == "shoulder"
+    assert "no continuous joint motion follows the path at s = " in plans["refused:exact"]
 
 
 def test_bravo7_wrist_near_miss_is_crossed_by_axis(bravo7: Path, tmp_path: Path) -> None:

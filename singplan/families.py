@@ -86,6 +86,8 @@ class Recognition:
             axis 1, wherever the file's base link sits (identity for a base on axis 1).
         T_flange_tip: the tip in the closed form's flange frame (4, 4): a tip turned about
             or set off axis 6 (identity for a tip whose z is axis 6, its origin on it).
+        T_joint3_closed: a UR arm's joint-3 frame of the closed form (ur_description's) in the
+            URDF's joint-3 frame (4, 4), both fixed to link 3 (identity in that layout).
     """
 
     family: Family
@@ -97,6 +99,7 @@ class Recognition:
     no_wrist: str = ""
     T_base_closed: np.ndarray = field(default_factory=lambda: np.eye(4), compare=False)
     T_flange_tip: np.ndarray = field(default_factory=lambda: np.eye(4), compare=False)
+    T_joint3_closed: np.ndarray = field(default_factory=lambda: np.eye(4), compare=False)
 
     def to_closed_form(self, T_base_tip: np.ndarray) -> np.ndarray:
         """Tip poses (N, 4, 4) in the base frame as the closed form's flange poses in its own base frame."""
@@ -167,7 +170,7 @@ def _recognise(model: pin.Model, tip_frame_id: int) -> Recognition:
     if n != 6:
         return Recognition("seven" if n == 7 else "five" if n == 5 else "general6")
     rejected: list[tuple[str, str]] = []
-    for name, derive in (("opw", _derive_opw), ("ur", _derive_ur)):
+    for name, derive in (("opw", _derive_opw), ("ur", _derive_ur), ("ur", _derive_ur_geometric)):
         try:
             params, B, F = derive(model, tip_frame_id)
             residual_m, residual_rad = _verify(model, tip_frame_id, params, B, F)
@@ -177,9 +180,12 @@ def _recognise(model: pin.Model, tip_frame_id: int) -> Recognition:
         except ArithmeticError as exc:  # a degenerate chain (zero-length links) the checks let through
             rejected.append((name, f"degenerate geometry ({type(exc).__name__})"))
             continue
-        found = {"opw": params} if isinstance(params, OpwParameters) else {"ur": params}
-        return Recognition(name, residual_m=residual_m, residual_rad=residual_rad,  # type: ignore[arg-type]
-                           rejected=tuple(rejected), T_base_closed=B, T_flange_tip=F, **found)
+        if isinstance(params, OpwParameters):
+            return Recognition("opw", opw=params, residual_m=residual_m, residual_rad=residual_rad,
+                               rejected=tuple(rejected), T_base_closed=B, T_flange_tip=F)
+        return Recognition("ur", ur=params, residual_m=residual_m, residual_rad=residual_rad,
+                           rejected=tuple(rejected[:1]), T_base_closed=B, T_flange_tip=F,
+                           T_joint3_closed=_ur_joint3(model, params, B))
     return Recognition("general6", rejected=tuple(rejected), no_wrist=_no_wrist(model, tip_frame_id))
 
 
@@ -388,6 +394,53 @@ def _ur_canonical(model: pin.Model) -> tuple[pin.Model, np.ndarray]:
     canonical = model.copy()
     canonical.jointPlacements[1] = pin.SE3(np.eye(3), height * z)
     return canonical, B.homogeneous
+
+
+# ur_description's tool0 orientation at q = 0 in its base frame: the zero pose the UR closed form assumes
+_UR_TOOL_AT_ZERO = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
+
+
+def _derive_ur_geometric(model: pin.Model, tip_frame_id: int) -> tuple[UrParameters, np.ndarray, np.ndarray]:
+    """UR parameters from the axes and origins at q = 0, whatever the joint frames (e.g. the
+    DH-style layout of newer ur_description files, all joints turning about their own z).
+
+    The closed form's base frame has z along axis 1 and y along axis 2 at q = 0; in it the
+    lengths are what the closed form needs: the height of axis 2 (d1), the distances between
+    axes 2, 3 and 4 in the arm plane (l2, l3), the lateral offset of the wrist point P where
+    axes 5 and 6 meet, P's drop below axis 4 (d5) and the tool's distance along axis 6 (d6); the
+    tool frame is ur_description's (the tip folded in as ``T_flange_tip``). The zero pose and
+    axis directions must be ur_description's: the verification rejects any other.
+    """
+    a, p, tip = _axes_and_origins(model, tip_frame_id)
+    _require(all(np.linalg.norm(np.cross(a[1], a[k])) <= _AXIS_TOL for k in (2, 3)), "axes 2, 3 and 4 are not parallel")
+    B = _base_frame(a[0], p[0])
+    y_b = B.rotation.T @ a[1]
+    yaw = math.atan2(-y_b[0], y_b[1])  # turn the base about axis 1 until axis 2 is its y
+    B = B * pin.SE3(_rz(yaw), np.zeros(3))
+    a, p, tip = a @ B.rotation, (p - B.translation) @ B.rotation, B.actInv(tip)
+    wrist = _meet(p[4], a[4], p[5], a[5])
+    _require(wrist is not None, "axes 5 and 6 do not meet")
+    assert wrist is not None
+    upper, fore = p[2] - p[1], p[3] - p[2]
+    d6 = float((tip.translation - wrist) @ a[5]) * _sign(float(a[5] @ _UR_TOOL_AT_ZERO[:, 2]))
+    flange = pin.SE3(_UR_TOOL_AT_ZERO, wrist + d6 * _UR_TOOL_AT_ZERO[:, 2])
+    params = UrParameters(d1=_snap(float(p[1, 2])), shoulder_y=_snap(float(p[1, 1])), lateral=_snap(float(wrist[1])),
+                          l2=_snap(math.hypot(upper[0], upper[2])), l3=_snap(math.hypot(fore[0], fore[2])),
+                          wrist_y=_snap(float(wrist[1] - p[3, 1])), d5=_snap(float(p[3, 2] - wrist[2])), d6=_snap(d6),
+                          elbow_y=_snap(float(upper[1])), shoulder_turn=math.atan2(upper[0], upper[2]))
+    _require(min(abs(params.l2), abs(params.l3)) > _POINT_TOL_M, "an arm link of zero length")
+    return params, B.homogeneous, flange.actInv(tip).homogeneous
+
+
+def _ur_joint3(model: pin.Model, params: UrParameters, T_base_closed: np.ndarray) -> np.ndarray:
+    """The closed form's joint-3 frame in the URDF's (both on link 3), identity within round-off."""
+    data = model.createData()
+    pin.forwardKinematics(model, data, np.zeros(model.nq))
+    B = pin.SE3(T_base_closed)
+    origin = B.actInv(data.oMi[3]).translation
+    closed = B * pin.SE3(_ry(params.shoulder_turn), origin)
+    C = data.oMi[3].actInv(closed).homogeneous
+    return np.eye(4) if np.allclose(C, np.eye(4), rtol=0.0, atol=1e-12) else C
 
 
 def closed_form_batch(params: OpwParameters | UrParameters, T_closed: np.ndarray) -> np.ndarray:

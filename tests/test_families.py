@@ -330,6 +330,65 @@ def test_a_ros_industrial_style_ur5_base_plans_the_twins_motion(tmp_path: Path) 
     assert [s.method for s in variant.segments] == [s.method for s in twin.segments]
 
 
+_UR5_DH_JOINTS = (  # name, parent, xyz, rpy: the DH-style layout of newer ur_description files (UR's published UR5 DH)
+    ("shoulder_pan_joint", "base_link_inertia", "0 0 0.089159", "0 0 0"),
+    ("shoulder_lift_joint", "shoulder_link", "0 0 0", "1.5707963267948966 0 0"),
+    ("elbow_joint", "upper_arm_link", "-0.425 0 0", "0 0 0"),
+    ("wrist_1_joint", "forearm_link", "-0.39225 0 0.10915", "0 0 0"),
+    ("wrist_2_joint", "wrist_1_link", "0 -0.09465 0", "1.5707963267948966 0 0"),
+    ("wrist_3_joint", "wrist_2_link", "0 0.0823 0", "1.5707963267948966 3.141592653589793 3.141592653589793"))
+
+
+def _ur5_dh_urdf(path: Path) -> Path:
+    """A UR5 written as newer ur_description writes it: every joint about its own z, base_link_inertia
+    turned 180 deg under base_link, flange and tool0 frames; the bundled UR5's limits."""
+    twin = load_robot("ur5")
+    root = ET.Element("robot", name="ur5_dh")
+    children = ["shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link", "wrist_3_link"]
+    for name in ("base_link", "base_link_inertia", *children, "flange", "tool0"):
+        ET.SubElement(root, "link", name=name)
+    fixed = [("base_link", "base_link_inertia", "0 0 0", "0 0 3.141592653589793"),
+             ("wrist_3_link", "flange", "0 0 0", "0 -1.5707963267948966 -1.5707963267948966"),
+             ("flange", "tool0", "0 0 0", "1.5707963267948966 0 1.5707963267948966")]
+    for parent, child, xyz, rpy in fixed:
+        joint = ET.SubElement(root, "joint", name=f"{parent}-{child}", type="fixed")
+        ET.SubElement(joint, "parent", link=parent)
+        ET.SubElement(joint, "child", link=child)
+        ET.SubElement(joint, "origin", xyz=xyz, rpy=rpy)
+    for k, (name, parent, xyz, rpy) in enumerate(_UR5_DH_JOINTS):
+        joint = ET.SubElement(root, "joint", name=name, type="revolute")
+        ET.SubElement(joint, "parent", link=parent)
+        ET.SubElement(joint, "child", link=children[k])
+        ET.SubElement(joint, "origin", xyz=xyz, rpy=rpy)
+        ET.SubElement(joint, "axis", xyz="0 0 1")
+        ET.SubElement(joint, "limit", lower=repr(float(twin.lower_rad[k])), upper=repr(float(twin.upper_rad[k])),
+                      effort="150", velocity=repr(float(twin.velocity_rad_s[k])))
+    ET.ElementTree(root).write(path)
+    return path
+
+
+def test_a_dh_layout_ur5_is_ur_and_plans_the_twins_motion(tmp_path: Path, rng) -> None:
+    """Newer ur_description's layout (the same FK as the bundled UR5, other joint frames): ur by the
+    geometric derivation, and the UR5 example (auto crosses with wrist-joint, whose position solve
+    uses the closed form's joint-3 frame) plans the same joints in the same time."""
+    urdf = _ur5_dh_urdf(tmp_path / "ur5_dh.urdf")
+    robot, twin = load_robot(urdf), load_robot("ur5")
+    for q in rng.uniform(-3.0, 3.0, size=(20, 6)):
+        # 1e-10: the bundled file writes pi/2 as 1.57079632679
+        np.testing.assert_allclose(robot.fk(q).homogeneous, twin.fk(q).homogeneous, rtol=0, atol=1e-10)
+    assert robot.family == "ur" and robot.ur is not None and twin.ur is not None
+    assert not np.allclose(robot.recognition.T_joint3_closed, np.eye(4))
+    for key in ("d1", "lateral", "l2", "l3", "d5", "d6"):
+        assert getattr(robot.ur, key) == pytest.approx(getattr(twin.ur, key), abs=1e-12)
+    _assert_fk_reproduced(urdf, rng)
+    doc = yaml.safe_load((ROOT / "examples" / "ur5_wrist_auto.yaml").read_text())
+    by_twin, by_dh = plan(parse_task(doc)), plan(parse_task({**doc, "robot": str(urdf)}))
+    assert [s.method for s in by_dh.segments] == [s.method for s in by_twin.segments]
+    assert "wrist-joint" in [s.method for s in by_dh.segments]
+    assert by_dh.duration_s == pytest.approx(by_twin.duration_s, abs=1e-9)
+    np.testing.assert_allclose(by_dh.q, by_twin.q, rtol=0, atol=1e-7)
+
+
 # --- the same URDF by name and by path ------------------------------------------------------------
 
 @pytest.mark.parametrize("task_file", [ROOT / "singplan" / "demo_task.yaml", ROOT / "examples" / "ur5_wrist_auto.yaml"])

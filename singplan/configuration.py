@@ -158,16 +158,19 @@ def _reference(robot: Robot) -> _Reference:
 def _forward_in_link1(robot: Robot, up: np.ndarray, axis2: np.ndarray) -> np.ndarray:
     """The arm's forward direction in joint 1's frame (read with robot.data at q = 0).
 
-    For an OPW arm the OPW x axis (the arm plane at q1_opw = 0). Otherwise the direction
+    For an OPW arm the OPW x axis (the arm plane at q1_opw = 0), for a UR arm its closed form's
+    x axis (ur_description's base x at q1 = 0). Otherwise the direction
     perpendicular to axes 1 and 2 (the arm plane's in-plane horizontal, whatever the file's
     frames), pointing along joint 1's x axis as ROS-Industrial files do, or where that x is
     perpendicular to it, towards the shoulder joint's offset from axis 1 (else either way).
     """
     R1 = robot.data.oMi[1].rotation
+    R_base_closed = robot.recognition.T_base_closed[:3, :3]
     if robot.opw is not None:
         t1 = -robot.opw.offsets_rad[0]  # OPW angle of joint 1 at the robot's zero
-        R_base_opw = robot.recognition.T_base_closed[:3, :3]
-        return R1.T @ R_base_opw @ np.array([math.cos(t1), math.sin(t1), 0.0])
+        return R1.T @ R_base_closed @ np.array([math.cos(t1), math.sin(t1), 0.0])
+    if robot.ur is not None:  # the closed form's x at q = 0, whatever the file's joint-1 frame
+        return R1.T @ R_base_closed @ np.array([1.0, 0.0, 0.0])
     across = cross3(axis2, up)
     if float(np.linalg.norm(across)) < 1e-9:  # axis 2 along axis 1: keep joint 1's x
         return np.array([1.0, 0.0, 0.0])

@@ -381,6 +381,10 @@ def test_a_dh_layout_ur5_is_ur_and_plans_the_twins_motion(tmp_path: Path, rng) -
     for key in ("d1", "lateral", "l2", "l3", "d5", "d6"):
         assert getattr(robot.ur, key) == pytest.approx(getattr(twin.ur, key), abs=1e-12)
     _assert_fk_reproduced(urdf, rng)
+    q = rng.uniform(-3.0, 3.0, size=(100, 6))
+    assert [classify(robot, qk).label for qk in q] == [classify(twin, qk).label for qk in q]
+    frames = np.array([_signed_distances(*_frames(robot, qk)) for qk in q])
+    np.testing.assert_allclose(frames, distances_batch(robot, q), rtol=0, atol=1e-9)
     doc = yaml.safe_load((ROOT / "examples" / "ur5_wrist_auto.yaml").read_text())
     by_twin, by_dh = plan(parse_task(doc)), plan(parse_task({**doc, "robot": str(urdf)}))
     assert [s.method for s in by_dh.segments] == [s.method for s in by_twin.segments]

@@ -311,6 +311,36 @@ def test_a_base_anywhere_and_a_tip_off_axis_6_are_folded_into_the_opw_closed_for
     np.testing.assert_allclose(frames, distances_batch(variant, q), rtol=0, atol=1e-9)
 
 
+def test_a_placed_base_and_an_off_axis_tcp_plan_the_twins_wrist_crossing(tmp_path: Path) -> None:
+    """The IRB 2400 on a shifted, tilted base with its tip at a TCP off axis 6 plans a wrist near
+    miss (wrist-joint: the arm re-solved for the position through the folded frames) with the
+    joints and time of the bundled twin carrying the same tool."""
+    xyz, rpy, tcp_xyz, tcp_rpy = (0.4, -0.2, 0.3), (0.3, -0.2, 0.7), (0.05, 0.02, 0.1), (0.4, 0.5, 0.6)
+    tree = _tree("abb_irb2400")
+    _placed_base(tree.getroot(), xyz, rpy)
+    _fixed_link(tree.getroot(), "tool0", "gripper_tcp", tcp_xyz, tcp_rpy)
+    urdf = _write(tree, tmp_path / "irb2400_placed.urdf")
+    twin = load_robot("abb_irb2400", tool=pin.SE3(pin.rpy.rpyToMatrix(*tcp_rpy), np.array(tcp_xyz)))
+    q_a, q_b = np.radians([10, 15, 5, 0, -10, 20]), np.radians([10, 25, 15, 0, 10, 20])
+    T_b = twin.fk(q_b)
+    T_b = pin.SE3(T_b.rotation @ pin.exp3(np.array([math.radians(0.5), 0.0, 0.0])), T_b.translation)  # a near miss
+    base = pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
+
+    def lin(T: pin.SE3) -> dict[str, object]:
+        return {"lin": {"to": {"xyz": T.translation.tolist(), "rpy_deg": np.degrees(pin.rpy.matrixToRpy(T.rotation)).tolist()},
+                        "speed": 0.25}}
+
+    common = {"start": {"joints_deg": np.degrees(q_a).tolist()},
+              "singularity": {"method": "wrist-joint", "orientation_tolerance_deg": 1.5}}
+    by_twin = plan(parse_task({**common, "robot": "abb_irb2400", "moves": [lin(T_b)],
+                               "tool": {"xyz": list(tcp_xyz), "rpy_deg": np.degrees(tcp_rpy).tolist()}}))
+    by_variant = plan(parse_task({**common, "robot": str(urdf), "tip": "gripper_tcp", "moves": [lin(base * T_b)]}))
+    assert "wrist-joint" in [s.method for s in by_twin.segments]
+    assert [s.method for s in by_variant.segments] == [s.method for s in by_twin.segments]
+    assert by_variant.duration_s == pytest.approx(by_twin.duration_s, abs=1e-9)
+    np.testing.assert_allclose(by_variant.q, by_twin.q, rtol=0, atol=1e-7)
+
+
 def test_a_ros_industrial_style_ur5_base_plans_the_twins_motion(tmp_path: Path) -> None:
     """base_link turned 180 deg about z (ROS-Industrial's UR description): ur, and the UR5 example
     with its target expressed in that base plans the same joints in the same time."""

@@ -327,8 +327,8 @@ def test_a_placed_base_and_an_off_axis_tcp_plan_the_twins_wrist_crossing(tmp_pat
     base = pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
 
     def lin(T: pin.SE3) -> dict[str, object]:
-        return {"lin": {"to": {"xyz": T.translation.tolist(), "rpy_deg": np.degrees(pin.rpy.matrixToRpy(T.rotation)).tolist()},
-                        "speed": 0.25}}
+        rpy_deg = np.degrees(pin.rpy.matrixToRpy(T.rotation)).tolist()
+        return {"lin": {"to": {"xyz": T.translation.tolist(), "rpy_deg": rpy_deg}, "speed": 0.25}}
 
     common = {"start": {"joints_deg": np.degrees(q_a).tolist()},
               "singularity": {"method": "wrist-joint", "orientation_tolerance_deg": 1.5}}

@@ -27,7 +27,7 @@ import pinocchio as pin
 from singplan.compiled import kernels_cached
 from singplan.configuration import singularity_distances
 from singplan.errors import InputError, SingplanError
-from singplan.families import VERIFY_SAMPLES, crossing_methods
+from singplan.families import VERIFY_SAMPLES
 from singplan.ik import solve_all
 from singplan.outputs import check_output_dir
 from singplan.planner import detect, load_task_robot, plan
@@ -93,7 +93,9 @@ def _info(robot: Robot) -> dict[str, object]:
                "velocity_deg_s": math.degrees(v)}
               for name, lo, hi, v in zip(robot.joint_names, robot.lower_rad, robot.upper_rad, robot.velocity_rad_s,
                                          strict=True)]
-    methods = [{"method": m, "applies": not why, "note": why} for m, why in crossing_methods(rec.family).items()]
+    how = rec.how()
+    methods = [{"method": m, "applies": not why, "note": why or how.get(m, "")}
+               for m, why in rec.crossing_methods().items()]
     return {"robot": robot.name, "urdf": str(robot.urdf_path), "family": rec.family, "parameters": params,
             "verification": {"samples": VERIFY_SAMPLES, "residual_m": rec.residual_m,
                              "residual_rad": rec.residual_rad} if params is not None else None,

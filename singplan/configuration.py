@@ -3,10 +3,11 @@
 The labels are defined from geometry, not from joint values, so one definition serves every
 arm whatever its joint signs and offsets. With the joint frames of Pinocchio:
 
-* ``up`` is axis 1, oriented from the base towards the shoulder; ``forward`` is the x axis of
-  link 1 (the direction the arm points at its zero pose, as in every ROS-Industrial URDF) or,
-  for an OPW arm, the x axis of its OPW frame turning with joint 1 (whatever the URDF's zero
-  pose), made perpendicular to ``up``; ``n = up x forward`` is the normal of the arm plane.
+* ``up`` is axis 1, oriented from the base towards the shoulder; ``forward`` is, for an OPW
+  arm, the x axis of its OPW frame turning with joint 1 (whatever the URDF's zero pose), else
+  the direction perpendicular to axes 1 and 2, turning with joint 1 and pointing along link 1's
+  x axis (the direction the arm points at its zero pose in ROS-Industrial URDFs);
+  ``n = up x forward`` is the normal of the arm plane.
 * The **wrist point** ``w`` is where axes 5 and 6 meet (the wrist centre of a spherical
   wrist; for a UR arm the origin of the wrist-3 joint).
 * **Shoulder** distance [m]: ``(w - o1) . forward``, the signed distance of the wrist point
@@ -14,7 +15,8 @@ arm whatever its joint signs and offsets. With the joint frames of Pinocchio:
   UR ``d4``) this is the distance from that offset cylinder. ``F`` (front) when positive.
 * **Elbow** distance [rad]: signed angle, about ``n``, from the upper arm ``o3 - o2`` to the
   forearm ``e - o3`` (both projected onto the arm plane); 0 when the arm is stretched. ``e``
-  is the wrist point, or for a UR arm the wrist-1 joint that the planar arm positions.
+  is the wrist point, or where axes 2, 3 and 4 are parallel (UR-type arms) the origin of
+  joint 4, which the planar arm positions.
   ``U`` (up) when positive.
 * **Wrist** distance [rad]: signed angle from axis 4 to axis 6 about axis 5. Axis 4 is
   oriented outwards from the elbow, axis 6 outwards to the flange, and axis 5 is oriented at
@@ -110,6 +112,7 @@ class _Reference(NamedTuple):
     wrist_in_link5: np.ndarray  # (3,) wrist point in joint 5's frame
     forward_in_link1: np.ndarray  # (3,) the arm's forward direction in joint 1's frame
     elbow_joint: int  # 0: elbow point is the wrist point; k: origin of joint k
+    has_wrist: bool  # axes 4 and 6 both off axis 5: turning joint 5 makes axes 4, 5, 6 coplanar somewhere
 
 
 @dataclass(frozen=True)
@@ -149,7 +152,7 @@ def _reference(robot: Robot) -> _Reference:
     up = z1 if float(z1 @ origins[1]) >= 0 else -z1  # origins are relative to the base origin
     wrist = _closest_point_on_first(origins[4], axes[4], origins[5], axes[5])
     wrist_in_link5 = np.array(robot.data.oMi[5].actInv(wrist))
-    forward_in_link1 = _forward_in_link1(robot)
+    forward_in_link1 = _forward_in_link1(robot, up, axes[1])
     # the signs are read at the OPW zero where there is one: the same arm pose whatever the file's zero
     q_ref = q0 if robot.opw is None else robot.opw.offsets * robot.opw.signs
     if robot.opw is not None:
@@ -157,7 +160,7 @@ def _reference(robot: Robot) -> _Reference:
         wrist = np.array(robot.data.oMi[5].act(wrist_in_link5))
     forward = _forward(robot, up, forward_in_link1)
     tool0 = robot.fk_tip(q_ref).translation
-    elbow_joint = 4 if robot.family == "ur" else 0
+    elbow_joint = 4 if _parallel(axes[1], axes[3]) and _parallel(axes[2], axes[3]) else 0
     sign4 = 1.0 if float(axes[3] @ (wrist - origins[2])) >= 0 else -1.0
     sign6 = 1.0 if float(axes[5] @ (tool0 - wrist)) >= 0 else -1.0
     normal = cross3(up, forward)
@@ -167,18 +170,40 @@ def _reference(robot: Robot) -> _Reference:
         if abs(dot) > 0.5:
             sign5 = 1.0 if dot > 0 else -1.0
             break
-    return _Reference(up, sign4, sign5, sign6, wrist_in_link5, forward_in_link1, elbow_joint)
+    has_wrist = not (_parallel(axes[3], axes[4]) or _parallel(axes[5], axes[4]))
+    return _Reference(up, sign4, sign5, sign6, wrist_in_link5, forward_in_link1, elbow_joint, has_wrist)
 
 
-def _forward_in_link1(robot: Robot) -> np.ndarray:
-    """x of joint 1's frame; for an OPW arm the OPW x axis (the arm plane at q1_opw = 0), in that frame.
+def _forward_in_link1(robot: Robot, up: np.ndarray, axis2: np.ndarray) -> np.ndarray:
+    """The arm's forward direction in joint 1's frame (read with robot.data at q = 0).
 
-    Read with robot.data at q = 0.
+    For an OPW arm the OPW x axis (the arm plane at q1_opw = 0), for a UR arm its closed form's
+    x axis (ur_description's base x at q1 = 0). Otherwise the direction
+    perpendicular to axes 1 and 2 (the arm plane's in-plane horizontal, whatever the file's
+    frames), pointing along joint 1's x axis as ROS-Industrial files do, or where that x is
+    perpendicular to it, towards the shoulder joint's offset from axis 1 (else either way).
     """
-    if robot.opw is None:
+    R1 = robot.data.oMi[1].rotation
+    R_base_closed = robot.recognition.T_base_closed[:3, :3]
+    if robot.opw is not None:
+        t1 = -robot.opw.offsets_rad[0]  # OPW angle of joint 1 at the robot's zero
+        return R1.T @ R_base_closed @ np.array([math.cos(t1), math.sin(t1), 0.0])
+    if robot.ur is not None:  # the closed form's x at q = 0, whatever the file's joint-1 frame
+        return R1.T @ R_base_closed @ np.array([1.0, 0.0, 0.0])
+    across = cross3(axis2, up)
+    if float(np.linalg.norm(across)) < 1e-9:  # axis 2 along axis 1: keep joint 1's x
         return np.array([1.0, 0.0, 0.0])
-    t1 = -robot.opw.offsets_rad[0]  # OPW angle of joint 1 at the robot's zero
-    return robot.data.oMi[1].rotation.T @ np.array([math.cos(t1), math.sin(t1), 0.0])
+    across = across / np.linalg.norm(across)
+    offset = robot.data.oMi[2].translation - robot.data.oMi[1].translation
+    for hint in (R1[:, 0], offset):
+        dot = float(across @ hint)
+        if abs(dot) > 1e-9:
+            return R1.T @ (across if dot > 0 else -across)
+    return R1.T @ across
+
+
+def _parallel(a: np.ndarray, b: np.ndarray) -> bool:
+    return float(np.linalg.norm(cross3(a, b))) < 1e-9
 
 
 def _forward(robot: Robot, up: np.ndarray, forward_in_link1: np.ndarray) -> np.ndarray:
@@ -204,7 +229,8 @@ def _signed_distances(ref: _Reference, fr: _Frames) -> tuple[float, float, float
     fore = fore - float(fore @ n) * n
     elbow = float(np.arctan2(cross3(upper, fore) @ n, upper @ fore))
     z4, z5, z6 = ref.sign4 * z[3], ref.sign5 * z[4], ref.sign6 * z[5]
-    wrist = float(np.arctan2(cross3(z4, z6) @ z5, z4 @ z6))
+    # no wrist singularity (axis 4 or 6 along axis 5): never in a wrist zone, label N
+    wrist = float(np.arctan2(cross3(z4, z6) @ z5, z4 @ z6)) if ref.has_wrist else math.pi
     return wrist, shoulder, elbow
 
 

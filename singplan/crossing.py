@@ -25,6 +25,7 @@ from typing import ClassVar, Protocol
 import numpy as np
 import pinocchio as pin
 
+from singplan import ik_numeric
 from singplan.configuration import distances_batch, labels_from_distances
 from singplan.errors import SingularityError
 from singplan.ik import closed_form_branches
@@ -129,8 +130,13 @@ def through(ctx: MoveContext, zone: Zone, method: str) -> Crossing | None:
 
 
 def exit_candidates(ctx: MoveContext, u: float) -> list[np.ndarray]:
-    """Every IK branch of the path pose at ``u``."""
-    sols = closed_form_branches(ctx.robot, ctx.piece.poses(np.array([u])))[0]
+    """Every IK branch of the path pose at ``u``: the closed form, or on an arm without one the
+    all-branch numeric IK (:func:`singplan.ik_numeric.all_branches`, inside the joint limits)."""
+    T = ctx.piece.poses(np.array([u]))
+    sols = closed_form_branches(ctx.robot, T)[0]
+    if sols.shape[0] == 0:
+        rows, _ = ik_numeric.all_branches(ctx.robot, pin.SE3(T[0, :3, :3], T[0, :3, 3]))
+        return [np.asarray(q) for q in rows]
     return list(sols[np.all(np.isfinite(sols), axis=1)])
 
 

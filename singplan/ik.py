@@ -210,7 +210,8 @@ def closed_form_branches(robot: Robot, T_base_tcp: np.ndarray, seeds: np.ndarray
     B = 8 for OPW and UR arms, 0 for chains with no closed form. ``seeds`` (N, n) give the
     free joints at a singularity (the seed's q4 at q5 = 0, its q1 on axis 1).
     """
-    T_flange = np.asarray(T_base_tcp, dtype=float).reshape(-1, 4, 4) @ robot.T_tcp_tip_h
+    T_tip = np.asarray(T_base_tcp, dtype=float).reshape(-1, 4, 4) @ robot.T_tcp_tip_h
+    T_flange = robot.recognition.to_closed_form(T_tip)  # a base or tip off the closed form's axes folded in
     if robot.opw is not None:
         p = robot.opw
         seeds_opw = None if seeds is None else _to_opw(p, np.asarray(seeds, dtype=float).reshape(len(T_flange), -1))

@@ -168,11 +168,13 @@ class JointMap:
         """
         assert self.poses is not None
         targets = self.poses(u)[:, :3, 3]
+        rec = self.robot.recognition  # the closed forms work in their own base and flange frames
         if self.robot.opw is not None:
-            out = opw_arm_for_point(self.robot.opw, q, self.robot.T_tip_tcp.translation, targets)
+            out = opw_arm_for_point(self.robot.opw, q, rec.flange_point(self.robot.T_tip_tcp.translation),
+                                    rec.closed_points(targets))
             lost = np.isnan(out[:, 0])  # the point is out of the arm's reach: the nearest Newton can do
         elif self.robot.family == "ur":
-            out = ur_arm_for_point(self.robot, q, targets)
+            out = ur_arm_for_point(self.robot, q, rec.closed_points(targets))
             lost = np.isnan(out[:, 0])
         else:
             out, lost = q.copy(), np.ones(len(u), dtype=bool)

@@ -32,7 +32,6 @@ from singplan.crossing import (
 )
 from singplan.dynamics import TorqueLimit, effort_limits_nm, require_dynamics
 from singplan.errors import JointLimitError, PlanningError, SingularityError, UnreachableError
-from singplan.families import crossing_methods
 from singplan.ik import solve_all
 from singplan.jointmap import JointMap, JointPart
 from singplan.path import CartesianPiece, move_piece, move_target, rpy_deg_to_rotation
@@ -241,7 +240,7 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
 
 def _serving(robot: Robot, methods: list[CrossingMethod]) -> tuple[list[CrossingMethod], dict[str, str]]:
     """The methods that can serve this arm's family, and why each other one cannot (by name)."""
-    notes = crossing_methods(robot.family)
+    notes = robot.recognition.crossing_methods()
     return ([m for m in methods if not notes.get(m.name)],
             {m.name: notes[m.name] for m in methods if notes.get(m.name)})
 

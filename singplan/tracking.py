@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from singplan import ik_numeric
 from singplan.compiled import jit
 from singplan.ik import closed_form_branches, nearest_shifted, solve_newton
 from singplan.robot import Robot
@@ -90,8 +91,14 @@ class BranchCandidates:
         sols = closed_form_branches(self.robot, T[None], seed[None])[0]
         if sols.shape[0]:
             return sols
-        q = solve_newton(self.robot, pin.SE3(T[:3, :3], T[:3, 3]), seed)
-        return np.full((1, self.robot.n_joints), np.nan) if q is None else q[None]
+        pose = pin.SE3(T[:3, :3], T[:3, 3])
+        q = solve_newton(self.robot, pose, seed)
+        if q is not None:
+            return q[None]
+        # the seeded branch ends here (it folds back at a singularity of an arm without a closed
+        # form): every other branch, so the path goes on in the nearest one (a jump in a zone)
+        rows, _ = ik_numeric.all_branches(self.robot, pose, seed)
+        return np.array(rows) if rows else np.full((1, self.robot.n_joints), np.nan)
 
 
 def nearest_candidate(candidates: np.ndarray, q_prev: np.ndarray) -> tuple[np.ndarray, float]:

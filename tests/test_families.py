@@ -32,9 +32,9 @@ def _wrapped(x: float) -> float:
     return math.atan2(math.sin(x), math.cos(x))
 
 
-def _assert_fk_reproduced(urdf: Path, rng: np.random.Generator) -> None:
+def _assert_fk_reproduced(urdf: Path, rng: np.random.Generator, tip: str | None = None) -> None:
     """The recognised closed form solves poses of random joints of the URDF, exactly (own check, not the module's)."""
-    robot = load_robot(urdf)
+    robot = load_robot(urdf, tip=tip)
     lo, hi = np.maximum(robot.lower_rad, -math.pi), np.minimum(robot.upper_rad, math.pi)
     for q in rng.uniform(lo, hi, size=(20, 6)):
         target = robot.fk(q)
@@ -268,6 +268,161 @@ def test_ur5_with_an_extra_fixed_joint_and_a_raised_base_is_ur(tmp_path: Path, r
     _assert_fk_reproduced(variant.urdf_path, rng)
 
 
+def _placed_base(root: ET.Element, xyz: tuple[float, float, float], rpy: tuple[float, float, float]) -> None:
+    """A new root link anywhere: the old root placed at ``xyz`` turned by ``rpy`` in it."""
+    children = {c.get("link") for c in root.iter("child")}
+    old_root = next(link.get("name") for link in root.iter("link") if link.get("name") not in children)
+    ET.SubElement(root, "link", name="floor")
+    fixed = ET.SubElement(root, "joint", name="floor_joint", type="fixed")
+    ET.SubElement(fixed, "parent", link="floor")
+    ET.SubElement(fixed, "child", link=str(old_root))
+    ET.SubElement(fixed, "origin", xyz=" ".join(map(str, xyz)), rpy=" ".join(map(str, rpy)))
+
+
+def _fixed_link(root: ET.Element, parent: str, name: str, xyz: tuple[float, float, float],
+                rpy: tuple[float, float, float]) -> None:
+    ET.SubElement(root, "link", name=name)
+    fixed = ET.SubElement(root, "joint", name=f"{name}_joint", type="fixed")
+    ET.SubElement(fixed, "parent", link=parent)
+    ET.SubElement(fixed, "child", link=name)
+    ET.SubElement(fixed, "origin", xyz=" ".join(map(str, xyz)), rpy=" ".join(map(str, rpy)))
+
+
+def test_a_base_anywhere_and_a_tip_off_axis_6_are_folded_into_the_opw_closed_form(tmp_path: Path, rng) -> None:
+    """The base link shifted and tilted away from axis 1, the tip turned and set off axis 6: still
+    opw with the twin's lengths, the closed form solving the file's FK, the twin's labels."""
+    tree = _tree("abb_irb2400")
+    root = tree.getroot()
+    _placed_base(root, (0.4, -0.2, 0.3), (0.3, -0.2, 0.7))
+    _fixed_link(root, "tool0", "gripper_tcp", (0.05, 0.02, 0.1), (0.4, 0.5, 0.6))
+    variant = load_robot(_write(tree, tmp_path / "irb2400_placed.urdf"), tip="gripper_tcp")
+    twin = bundled_robots()["abb_irb2400"].opw
+    assert variant.tip == "gripper_tcp" and variant.family == "opw" and variant.opw is not None and twin is not None
+    for key in ("a1", "a2", "b", "c2", "c3"):  # c1 is counted from where the new base meets axis 1
+        assert getattr(variant.opw, key) == pytest.approx(getattr(twin, key), abs=1e-12)
+    assert variant.opw.c4 == pytest.approx(twin.c4 + 0.1, abs=1e-12)  # the flange at the TCP's foot on axis 6
+    assert not np.allclose(variant.recognition.T_base_closed, np.eye(4))
+    assert not np.allclose(variant.recognition.T_flange_tip, np.eye(4))
+    _assert_fk_reproduced(variant.urdf_path, rng, tip="gripper_tcp")
+    q = rng.uniform(np.maximum(variant.lower_rad, -math.pi), np.minimum(variant.upper_rad, math.pi), size=(100, 6))
+    twin_robot = load_robot("abb_irb2400")
+    np.testing.assert_allclose(distances_batch(variant, q), distances_batch(twin_robot, q), rtol=0, atol=1e-12)
+    frames = np.array([_signed_distances(*_frames(variant, qk)) for qk in q])
+    np.testing.assert_allclose(frames, distances_batch(variant, q), rtol=0, atol=1e-9)
+
+
+def test_a_placed_base_and_an_off_axis_tcp_plan_the_twins_wrist_crossing(tmp_path: Path) -> None:
+    """The IRB 2400 on a shifted, tilted base with its tip at a TCP off axis 6 plans a wrist near
+    miss (wrist-joint: the arm re-solved for the position through the folded frames) with the
+    joints and time of the bundled twin carrying the same tool."""
+    xyz, rpy, tcp_xyz, tcp_rpy = (0.4, -0.2, 0.3), (0.3, -0.2, 0.7), (0.05, 0.02, 0.1), (0.4, 0.5, 0.6)
+    tree = _tree("abb_irb2400")
+    _placed_base(tree.getroot(), xyz, rpy)
+    _fixed_link(tree.getroot(), "tool0", "gripper_tcp", tcp_xyz, tcp_rpy)
+    urdf = _write(tree, tmp_path / "irb2400_placed.urdf")
+    twin = load_robot("abb_irb2400", tool=pin.SE3(pin.rpy.rpyToMatrix(*tcp_rpy), np.array(tcp_xyz)))
+    q_a, q_b = np.radians([10, 15, 5, 0, -10, 20]), np.radians([10, 25, 15, 0, 10, 20])
+    T_b = twin.fk(q_b)
+    T_b = pin.SE3(T_b.rotation @ pin.exp3(np.array([math.radians(0.5), 0.0, 0.0])), T_b.translation)  # a near miss
+    base = pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
+
+    def lin(T: pin.SE3) -> dict[str, object]:
+        rpy_deg = np.degrees(pin.rpy.matrixToRpy(T.rotation)).tolist()
+        return {"lin": {"to": {"xyz": T.translation.tolist(), "rpy_deg": rpy_deg}, "speed": 0.25}}
+
+    common = {"start": {"joints_deg": np.degrees(q_a).tolist()},
+              "singularity": {"method": "wrist-joint", "orientation_tolerance_deg": 1.5}}
+    by_twin = plan(parse_task({**common, "robot": "abb_irb2400", "moves": [lin(T_b)],
+                               "tool": {"xyz": list(tcp_xyz), "rpy_deg": np.degrees(tcp_rpy).tolist()}}))
+    by_variant = plan(parse_task({**common, "robot": str(urdf), "tip": "gripper_tcp", "moves": [lin(base * T_b)]}))
+    assert "wrist-joint" in [s.method for s in by_twin.segments]
+    assert [s.method for s in by_variant.segments] == [s.method for s in by_twin.segments]
+    assert by_variant.duration_s == pytest.approx(by_twin.duration_s, abs=1e-9)
+    np.testing.assert_allclose(by_variant.q, by_twin.q, rtol=0, atol=1e-7)
+
+
+def test_a_ros_industrial_style_ur5_base_plans_the_twins_motion(tmp_path: Path) -> None:
+    """base_link turned 180 deg about z (ROS-Industrial's UR description): ur, and the UR5 example
+    with its target expressed in that base plans the same joints in the same time."""
+    tree = _tree("ur5")
+    _placed_base(tree.getroot(), (0.0, 0.0, 0.0), (0.0, 0.0, math.pi))
+    urdf = _write(tree, tmp_path / "ur5_ros_industrial.urdf")
+    assert load_robot(urdf).family == "ur"
+    doc = yaml.safe_load((ROOT / "examples" / "ur5_wrist_auto.yaml").read_text())
+    target = doc["moves"][0]["lin"]["to"]
+    turn = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, math.pi), np.zeros(3))
+    T = turn * pin.SE3(pin.rpy.rpyToMatrix(*np.radians(target["rpy_deg"])), np.array(target["xyz"]))
+    moved = {**doc, "robot": str(urdf), "moves": [{"lin": {**doc["moves"][0]["lin"], "to": {
+        "xyz": T.translation.tolist(), "rpy_deg": np.degrees(pin.rpy.matrixToRpy(T.rotation)).tolist()}}}]}
+    twin, variant = plan(parse_task(doc)), plan(parse_task(moved))
+    assert variant.duration_s == pytest.approx(twin.duration_s, abs=1e-9)
+    np.testing.assert_allclose(variant.q, twin.q, rtol=0, atol=1e-7)
+    assert [s.method for s in variant.segments] == [s.method for s in twin.segments]
+
+
+_UR5_DH_JOINTS = (  # name, parent, xyz, rpy: the DH-style layout of newer ur_description files (UR's published UR5 DH)
+    ("shoulder_pan_joint", "base_link_inertia", "0 0 0.089159", "0 0 0"),
+    ("shoulder_lift_joint", "shoulder_link", "0 0 0", "1.5707963267948966 0 0"),
+    ("elbow_joint", "upper_arm_link", "-0.425 0 0", "0 0 0"),
+    ("wrist_1_joint", "forearm_link", "-0.39225 0 0.10915", "0 0 0"),
+    ("wrist_2_joint", "wrist_1_link", "0 -0.09465 0", "1.5707963267948966 0 0"),
+    ("wrist_3_joint", "wrist_2_link", "0 0.0823 0", "1.5707963267948966 3.141592653589793 3.141592653589793"))
+
+
+def _ur5_dh_urdf(path: Path) -> Path:
+    """A UR5 written as newer ur_description writes it: every joint about its own z, base_link_inertia
+    turned 180 deg under base_link, flange and tool0 frames; the bundled UR5's limits."""
+    twin = load_robot("ur5")
+    root = ET.Element("robot", name="ur5_dh")
+    children = ["shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link", "wrist_3_link"]
+    for name in ("base_link", "base_link_inertia", *children, "flange", "tool0"):
+        ET.SubElement(root, "link", name=name)
+    fixed = [("base_link", "base_link_inertia", "0 0 0", "0 0 3.141592653589793"),
+             ("wrist_3_link", "flange", "0 0 0", "0 -1.5707963267948966 -1.5707963267948966"),
+             ("flange", "tool0", "0 0 0", "1.5707963267948966 0 1.5707963267948966")]
+    for parent, child, xyz, rpy in fixed:
+        joint = ET.SubElement(root, "joint", name=f"{parent}-{child}", type="fixed")
+        ET.SubElement(joint, "parent", link=parent)
+        ET.SubElement(joint, "child", link=child)
+        ET.SubElement(joint, "origin", xyz=xyz, rpy=rpy)
+    for k, (name, parent, xyz, rpy) in enumerate(_UR5_DH_JOINTS):
+        joint = ET.SubElement(root, "joint", name=name, type="revolute")
+        ET.SubElement(joint, "parent", link=parent)
+        ET.SubElement(joint, "child", link=children[k])
+        ET.SubElement(joint, "origin", xyz=xyz, rpy=rpy)
+        ET.SubElement(joint, "axis", xyz="0 0 1")
+        ET.SubElement(joint, "limit", lower=repr(float(twin.lower_rad[k])), upper=repr(float(twin.upper_rad[k])),
+                      effort="150", velocity=repr(float(twin.velocity_rad_s[k])))
+    ET.ElementTree(root).write(path)
+    return path
+
+
+def test_a_dh_layout_ur5_is_ur_and_plans_the_twins_motion(tmp_path: Path, rng) -> None:
+    """Newer ur_description's layout (the same FK as the bundled UR5, other joint frames): ur by the
+    geometric derivation, and the UR5 example (auto crosses with wrist-joint, whose position solve
+    uses the closed form's joint-3 frame) plans the same joints in the same time."""
+    urdf = _ur5_dh_urdf(tmp_path / "ur5_dh.urdf")
+    robot, twin = load_robot(urdf), load_robot("ur5")
+    for q in rng.uniform(-3.0, 3.0, size=(20, 6)):
+        # 1e-10: the bundled file writes pi/2 as 1.57079632679
+        np.testing.assert_allclose(robot.fk(q).homogeneous, twin.fk(q).homogeneous, rtol=0, atol=1e-10)
+    assert robot.family == "ur" and robot.ur is not None and twin.ur is not None
+    assert not np.allclose(robot.recognition.T_joint3_closed, np.eye(4))
+    for key in ("d1", "lateral", "l2", "l3", "d5", "d6"):
+        assert getattr(robot.ur, key) == pytest.approx(getattr(twin.ur, key), abs=1e-12)
+    _assert_fk_reproduced(urdf, rng)
+    q = rng.uniform(-3.0, 3.0, size=(100, 6))
+    assert [classify(robot, qk).label for qk in q] == [classify(twin, qk).label for qk in q]
+    frames = np.array([_signed_distances(*_frames(robot, qk)) for qk in q])
+    np.testing.assert_allclose(frames, distances_batch(robot, q), rtol=0, atol=1e-9)
+    doc = yaml.safe_load((ROOT / "examples" / "ur5_wrist_auto.yaml").read_text())
+    by_twin, by_dh = plan(parse_task(doc)), plan(parse_task({**doc, "robot": str(urdf)}))
+    assert [s.method for s in by_dh.segments] == [s.method for s in by_twin.segments]
+    assert "wrist-joint" in [s.method for s in by_dh.segments]
+    assert by_dh.duration_s == pytest.approx(by_twin.duration_s, abs=1e-9)
+    np.testing.assert_allclose(by_dh.q, by_twin.q, rtol=0, atol=1e-7)
+
+
 # --- the same URDF by name and by path ------------------------------------------------------------
 
 @pytest.mark.parametrize("task_file", [ROOT / "singplan" / "demo_task.yaml", ROOT / "examples" / "ur5_wrist_auto.yaml"])
@@ -382,27 +537,36 @@ def test_a_variant_keeps_its_branch_at_the_closed_forms_boundaries(name: str, tm
 
 
 def test_methods_a_general6_arm_cannot_use_are_refused_or_listed_never_run_in_disguise(tmp_path: Path) -> None:
-    """wrist-joint and axis need a closed form: alone they are refused at the zone, under auto listed infeasible."""
+    """Axis 6 turned parallel to axis 5 (85 mm beside it): the arm has no wrist singularity, so
+    wrist-joint cannot serve; alone it is refused at the (shoulder) zone, under auto listed infeasible,
+    with the reason; axis and auto serve."""
     tree = _tree("abb_irb2400")
-    origin = _joint(tree.getroot(), "joint_6").find("origin")
-    assert origin is not None
-    origin.set("xyz", "0.085 0.01 0.0")  # not a spherical wrist: general6
-    urdf = _write(tree, tmp_path / "offset_wrist.urdf")
-    T = load_robot(urdf).fk(np.radians([0, 10, 20, 0, 3, 0]))  # q5 = 3 deg: inside the 5 deg wrist zone
+    _joint(tree.getroot(), "joint_6").find("axis").set("xyz", "0 1 0")  # type: ignore[union-attr]
+    urdf = _write(tree, tmp_path / "parallel_56.urdf")
+    robot = load_robot(urdf)
+    assert robot.family == "general6"
+    notes = robot.recognition.crossing_methods()
+    assert "axis 6 is parallel to axis 5" in notes["wrist-joint"] and notes["axis"] == notes["auto"] == ""
+    out = io.StringIO()
+    assert main(["info", str(urdf)], out=out) == 0
+    assert "wrist-joint  no  needs a wrist singularity to cross, and axis 6 is parallel to axis 5" in out.getvalue()
+    q_a, q_b = np.radians([0, -89, 61, 40, 30, 0]), np.radians([0, -83, 55, 40, 30, 0])  # across the shoulder
     outcomes = {}
     for method in ("wrist-joint", "auto"):
-        task = {"robot": str(urdf), "start": {"joints_deg": [0, 10, 20, 0, 3, 0]}, "singularity": {"method": method},
-                "moves": [{"lin": {"to": {"xyz": (T.translation + np.array([0, 0.05, 0])).tolist()}, "speed": 0.1}}]}
+        task = {"robot": str(urdf), "start": {"joints_deg": np.degrees(q_a).tolist()},
+                "singularity": {"method": method},
+                "moves": [{"lin": {"to": {"xyz": robot.fk(q_b).translation.tolist()}, "speed": 0.1}}]}
         (tmp_path / "task.yaml").write_text(yaml.safe_dump(task))
         out, err = io.StringIO(), io.StringIO()
         code = main(["plan", str(tmp_path / "task.yaml"), "-o", str(tmp_path / method), "--quiet", "--no-report",
                      "--no-replay"], out=out, err=err)
         outcomes[method] = (code, err.getvalue())
     code, message = outcomes["wrist-joint"]
-    assert code == 3 and "wrist-joint cannot cross the wrist zone at s = " in message and "general6" in message
+    assert code == 3 and "wrist-joint cannot cross the shoulder zone at s = " in message and "general6" in message
+    assert "axis 6 is parallel to axis 5" in message
     assert outcomes["auto"][0] == 0, outcomes["auto"][1]
     segments = json.loads((tmp_path / "auto" / "trajectory.json").read_text())["segments"]
-    alternatives = {a["method"]: a for a in segments[0]["alternatives"]}
+    alternatives = {a["method"]: a for a in next(s for s in segments if s["kind"] == "crossing")["alternatives"]}
     assert alternatives["exact"]["feasible"]
-    for name in ("wrist-joint", "axis"):
-        assert not alternatives[name]["feasible"] and "needs a closed form" in alternatives[name]["reason"]
+    assert not alternatives["wrist-joint"]["feasible"]
+    assert "axis 6 is parallel to axis 5" in alternatives["wrist-joint"]["reason"]

@@ -67,13 +67,14 @@ SHOULDER_MISS_M = 0.001  # the public shoulder LINs pass 0.4 mm from axis 1
 OTHER_CLEAR = {"wrist": math.radians(10.0), "shoulder": 0.06, "elbow": math.radians(10.0)}
 LIN_SPEED_M_S = 0.25
 NEWTON_STEP_M = 0.0005  # path step of the reachability check
+MAX_JOINT_STEP_RAD = 0.05  # larger joint steps between path samples are halved (a branch jump otherwise)
 FLIP_JOINT = 3  # variant: axis 4 flipped
 ZERO_JOINT, ZERO_SHIFT_RAD = 1, math.radians(30.0)  # variant: joint 2's zero pose moved
 ERD_ARMS = ("ur3", "ur5", "ur10", "z1", "kinova", "bravo7_no_ee", "panda", "xarm7", "so100")
 QUICK_BUNDLED = ("fanuc_m10ia",)
 QUICK_ERD = ("ur5", "panda", "so100")
 # the arm's own last link where the default tip takes in a gripper joint (z1, so100)
-ARM_TIPS = {"z1": "link06", "so100": "gripper"}
+ARM_TIPS = {"z1": "link06", "so100": "gripper", "kinova": "j2s6s200_end_effector"}
 KINDS = {"wrist": 0, "shoulder": 1, "elbow": 2}
 PHASE_JOINT = {"wrist": 3, "shoulder": 0}  # the joint that turns fast through the near miss
 log = logging.getLogger("robots_acceptance")
@@ -256,6 +257,10 @@ def erd_arms(names: list[str], tmp: Path, present: set[str]) -> list[Arm]:
             if name not in present:
                 arms.append(Arm(name, name, "bundled"))
         arms.append(Arm(f"erd:{name}", urdf, "example-robot-data", twin=twin, note=note))
+        own_file = Path(urdf).with_name(f"{name}_robot.urdf")
+        if note and own_file.is_file():
+            arms.append(Arm(f"erd:{own_file.stem}", str(own_file), "example-robot-data file",
+                            note=f"{own_file.name} of the same package (load({name!r}) gives another file)"))
         if 'type="continuous"' in Path(urdf).read_text():
             limited = tmp / "limited" / Path(urdf).name
             limited.parent.mkdir(parents=True, exist_ok=True)
@@ -308,21 +313,32 @@ def _newton(robot: Robot, q: np.ndarray, target: pin.SE3, lo: np.ndarray, hi: np
 
 def _follow(robot: Robot, q_mid: np.ndarray, direction: np.ndarray, half_m: float) -> list[np.ndarray] | None:
     """Joint samples of the constant-orientation LIN through q_mid's TCP, from -half to +half."""
-    lo, hi = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
     T_mid = robot.fk(q_mid)
     steps = math.ceil(half_m / NEWTON_STEP_M)
     sides = []
     for sign in (-1.0, 1.0):
         q, side = q_mid.copy(), []
         for k in range(1, steps + 1):
-            target = pin.SE3(T_mid.rotation, T_mid.translation + sign * direction * half_m * k / steps)
-            q_next = _newton(robot, q, target, lo, hi)
-            if q_next is None or np.max(np.abs(q_next - q)) > 0.3:
+            q_next = _step(robot, q, T_mid, sign * direction * half_m, (k - 1) / steps, k / steps)
+            if q_next is None:
                 return None
             q = q_next
             side.append(q)
         sides.append(side)
     return sides[0][::-1] + [q_mid] + sides[1]
+
+
+def _step(robot: Robot, q: np.ndarray, T_mid: pin.SE3, offset: np.ndarray, u0: float, u1: float,
+          depth: int = 0) -> np.ndarray | None:
+    """Newton from u0 to u1 along the offset, halving the step where the joints jump (near a singularity)."""
+    lo, hi = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
+    q_next = _newton(robot, q, pin.SE3(T_mid.rotation, T_mid.translation + u1 * offset), lo, hi)
+    if q_next is not None and np.max(np.abs(q_next - q)) <= MAX_JOINT_STEP_RAD:
+        return q_next
+    if depth >= 12:
+        return None
+    half = _step(robot, q, T_mid, offset, u0, 0.5 * (u0 + u1), depth + 1)
+    return None if half is None else _step(robot, half, T_mid, offset, 0.5 * (u0 + u1), u1, depth + 1)
 
 
 def _at_distance(robot: Robot, q: np.ndarray, kind: str, target: float, joint: int) -> np.ndarray | None:
@@ -445,6 +461,8 @@ def reduced_task(robot: Robot, rng: np.random.Generator, length_m: float, tries:
 def for_twin(task: dict[str, Any], arm: Arm, twin_tip: str) -> dict[str, Any]:
     """The twin's task on this arm: its robot, and the start joints in this URDF's coordinates."""
     out = json.loads(json.dumps(task))
+    if not out:
+        return out
     out["robot"] = arm.robot
     q = np.radians(task["start"]["joints_deg"])
     n = q.size
@@ -525,6 +543,9 @@ def run(quick: bool, seed: int, keep: Path | None) -> dict[str, Any]:
             own, generation[arm.label] = _generate(load_robot(arm.robot, tip=arm.tip), seed)
             tasks[arm.label] = own
         for name, task in own.items():
+            if not task:
+                outcomes.append(Outcome(arm.label, name, -1, message="not generated: no LIN within the limits"))
+                continue
             outcome = plan_and_check(arm, name, task, work_root)
             _judge(outcome, name, outcomes, by_label)
             outcomes.append(outcome)
@@ -546,6 +567,7 @@ def _generate(robot: Robot, seed: int) -> tuple[dict[str, dict[str, Any]], dict[
             found = near_miss_task(robot, kind, rng, length_m)
             if found is None:
                 notes[kind] = "no near-miss LIN found within the limits"
+                tasks[f"{kind}_near_miss"] = {}
                 continue
             tasks[f"{kind}_near_miss"], notes[kind] = found
     else:
@@ -596,9 +618,10 @@ def table(result: dict[str, Any]) -> str:
             cross = ", ".join(f"{c['singularity']}:{c['method']}" for c in o["crossings"]) or "none"
             if o["exit_code"] != 0:
                 cross = _short(o["message"])
+            code = "-" if o["exit_code"] == -1 else str(o["exit_code"])
             dur = "-" if o["duration_s"] is None else f"{o['duration_s']:.3f}"
             twin = "-" if o["twin_duration_s"] is None else f"{o['twin_duration_s']:.3f}"
-            lines.append(f"| {arm['label']} | {arm['source']} | {fam} | {o['task']} | {o['exit_code']} | {dur} | "
+            lines.append(f"| {arm['label']} | {arm['source']} | {fam} | {o['task']} | {code} | {dur} | "
                          f"{cross} | {_yes(o['crossed_by_method'])} | {twin} | {_yes(o['twin_ok'])} | {o['checker']} |")
     return "\n".join(lines)
 
@@ -609,12 +632,14 @@ def _short(text: str, n: int = 110) -> str:
 
 
 def summary_counts(result: dict[str, Any]) -> dict[str, str]:
-    outs = result["outcomes"]
+    outs = [o for o in result["outcomes"] if o["exit_code"] != -1]
     near = [o for o in outs if o["task"].endswith("_near_miss")]
     twins = [o for o in outs if o["twin_ok"] is not None]
     checked = [o for o in outs if o["checker"] not in ("not run", "absent")]
     crossed = sum(bool(o["crossed_by_method"]) for o in near)
+    missing = len(result["outcomes"]) - len(outs)
     return {"near misses crossed by a crossing method": f"{crossed}/{len(near)}",
+            "near misses not generated (no LIN found)": str(missing),
             "copies within 2% of their twin": f"{sum(o['twin_ok'] for o in twins)}/{len(twins)}",
             "plans passing the checker": f"{sum(o['checker'] == 'pass' for o in checked)}/{len(checked)}",
             "tasks planned (exit 0)": f"{sum(o['exit_code'] == 0 for o in outs)}/{len(outs)}"}
@@ -644,6 +669,9 @@ def main(argv: list[str] | None = None) -> int:
     print(table(result))
     for key, value in result["summary"].items():
         print(f"{key}: {value}")
+    for arm in result["arms"]:
+        if arm["note"]:
+            print(f"{arm['label']}: {arm['note']}")
     if args.json:
         args.json.write_text(json.dumps(result, indent=1, default=str))
     return 0

@@ -646,11 +646,18 @@ def summary_counts(result: dict[str, Any]) -> dict[str, str]:
 
 
 def environment() -> dict[str, str]:
-    import toppra
+    from importlib import metadata
+
+    def version(dist: str) -> str:
+        try:
+            return metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            return "absent"
 
     return {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "python": platform.python_version(),
             "singplan": __version__, "pinocchio": pin.__version__, "numpy": np.__version__,
-            "toppra": getattr(toppra, "__version__", "?"), "machine": f"{platform.machine()}, 2 cores"}
+            "toppra": version("toppra"), "example-robot-data": version("example-robot-data"),
+            "machine": f"{platform.machine()}, 2 cores"}
 
 
 def main(argv: list[str] | None = None) -> int:

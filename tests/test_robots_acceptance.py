@@ -2,9 +2,10 @@
 
 One bundled arm by name against its URDF copied to another path and against a variant with
 other conventions (same family, same duration); the UR5 of example-robot-data recognised as
-``ur``; a generated wrist near miss on an OPW arm crossed by a crossing method and passed by
-the independent checker in ../shared/verify (skipped when that folder is absent, as in a
-user's clone, except under CI=true where it must run).
+``ur`` and planning a generated near miss as the bundled UR5 does; a generated wrist near
+miss on an OPW arm crossed by a crossing method and passed by the independent checker in
+../shared/verify (skipped when that folder is absent, as in a user's clone, except under
+CI=true where it must run). About 8 s on 2 cores: it runs with the default suite.
 """
 
 from __future__ import annotations
@@ -108,11 +109,19 @@ def test_a_bundled_arm_by_path_and_with_other_conventions_plans_like_by_name(
         assert abs(_duration(out) / reference - 1.0) <= TWIN_TOL, (label, _duration(out), reference)
 
 
-def test_the_example_robot_data_ur5_is_recognised_as_ur() -> None:
+def test_the_example_robot_data_ur5_is_ur_and_plans_like_the_bundled_ur5(tmp_path: Path) -> None:
     pytest.importorskip("example_robot_data")
     urdf, _ = ra._erd_urdf("ur5")
     robot = load_robot(urdf)
     assert (robot.family, robot.n_joints, robot.tip) == ("ur", 6, "tool0")
+    found = ra.near_miss_task(load_robot("ur5"), "wrist", np.random.default_rng(11), 0.2)
+    assert found is not None
+    code, _, out = _plan(found[0], tmp_path, "ur5_by_name")
+    assert code == 0
+    reference = _duration(out)
+    code, _, out = _plan(ra.for_twin(found[0], ra.Arm("erd", urdf, ""), "tool0"), tmp_path, "ur5_by_path")
+    assert code == 0
+    assert abs(_duration(out) / reference - 1.0) <= TWIN_TOL, (_duration(out), reference)
 
 
 def test_the_wrist_near_miss_is_crossed_by_a_crossing_method_and_passes_the_checker(

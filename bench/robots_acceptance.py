@@ -1,6 +1,6 @@
 """Acceptance on public URDFs: issue 11's "Done when", measured on arms from public sources.
 
-    python bench/robots_acceptance.py [--quick] [--json OUT.json] [--keep DIR] [--seed N]
+    python bench/robots_acceptance.py [--quick] [--json OUT.json] [--keep DIR] [--seed N] [--markdown]
 
 Arms:
 - every bundled industrial arm three ways: by name, its URDF copied to a temporary path, and a
@@ -626,6 +626,45 @@ def table(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _cell(o: dict[str, Any] | None) -> str:
+    if o is None:
+        return "-"
+    if o["exit_code"] == -1:
+        return "not generated"
+    if o["exit_code"] != 0:
+        return f"exit {o['exit_code']}"
+    methods = ",".join(sorted({c["method"] for c in o["crossings"]})) or "no zone"
+    return f"{methods} {o['duration_s']:.3f} s, checker {o['checker']}"
+
+
+def _twin_cells(tasks: dict[str, dict[str, Any]]) -> str:
+    return ", ".join(f"{name.split('_')[0]} " + (("yes" if o["twin_ok"] else "NO") if o["twin_ok"] is not None
+                                                 else _cell(o)) for name, o in tasks.items())
+
+
+def condensed_table(result: dict[str, Any]) -> str:
+    """One row per arm as loaded (its copies folded into the last column), for docs/robots.md."""
+    outs: dict[str, dict[str, dict[str, Any]]] = {}
+    for o in result["outcomes"]:
+        outs.setdefault(o["arm"], {})[o["task"]] = o
+    lines = ["| arm | family (tip) | wrist near miss / LIN | shoulder near miss / LIN, joint 3 held | "
+             "same duration (2 %) by path, variant, twin |", "|---|---|---|---|---|"]
+    for arm in result["arms"]:
+        label, rec = arm["label"], arm["recognition"]
+        if "@" in label:
+            continue
+        fam = f"{rec['family']} ({rec['tip']})" if rec["exit_code"] == 0 else f"exit {rec['exit_code']}"
+        tasks = outs.get(label, {})
+        first, second = ((tasks.get("lin"), tasks.get("lin_held")) if "lin" in tasks
+                         else (tasks.get("wrist_near_miss"), tasks.get("shoulder_near_miss")))
+        twins = [f"{kind}: {_twin_cells(outs[label + '@' + kind])}" for kind in ("path", "variant")
+                 if label + "@" + kind in outs]
+        if arm["twin"]:
+            twins.append(f"vs {arm['twin']}: {_twin_cells(tasks)}")
+        lines.append(f"| {label} | {fam} | {_cell(first)} | {_cell(second)} | {'; '.join(twins) or '-'} |")
+    return "\n".join(lines)
+
+
 def _short(text: str, n: int = 110) -> str:
     text = re.sub(r"\s+", " ", text.replace("|", "/"))
     return text if len(text) <= n else text[:n - 3] + "..."
@@ -667,6 +706,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", type=Path, help="write the full result here")
     ap.add_argument("--keep", type=Path, help="keep tasks and plans in this folder")
     ap.add_argument("--seed", type=int, default=11)
+    ap.add_argument("--markdown", action="store_true", help="also print one row per arm (docs/robots.md)")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stderr)
     t0 = time.perf_counter()
@@ -674,6 +714,9 @@ def main(argv: list[str] | None = None) -> int:
     result["environment"] = environment() | {"seed": str(args.seed), "wall_s": f"{time.perf_counter() - t0:.0f}"}
     result["summary"] = summary_counts(result)
     print(table(result))
+    if args.markdown:
+        print()
+        print(condensed_table(result))
     for key, value in result["summary"].items():
         print(f"{key}: {value}")
     for arm in result["arms"]:

@@ -27,8 +27,8 @@ Each task is planned with ``singplan plan`` (``singularity.method: auto``, in pr
 ``singplan.cli.main``) and judged by the independent checker
 (``../shared/verify/verify_trajectory.py``, skipped when that folder is absent). Criteria
 (issue 11, "Done when"): every 6-axis near miss crossed by a crossing method (a ``crossing``
-segment whose method is not ``exact``), a copy within 2 % of its twin's duration, every plan
-passing the checker.
+segment whose method is not ``exact``), a copy within 2 % of its twin's duration, a held
+joint held to 1e-9 rad, every plan passing the checker.
 """
 
 from __future__ import annotations
@@ -62,6 +62,7 @@ from singplan.robot import Robot, bundled_robots, load_robot
 
 CHECKER = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"
 TWIN_TOL = 0.02  # a copy's duration may differ from its twin's by this fraction
+HELD_TOL_RAD = 1e-9  # a 7-axis arm's held joint, issue 11 "Done when"
 WRIST_MISS_RAD = math.radians(0.2)  # "a fraction of a degree", as the public near misses
 SHOULDER_MISS_M = 0.001  # the public shoulder LINs pass 0.4 mm from axis 1
 OTHER_CLEAR = {"wrist": math.radians(10.0), "shoulder": 0.06, "elbow": math.radians(10.0)}
@@ -521,8 +522,8 @@ def _crossed(outcome: Outcome, kind: str) -> bool:
     return any(c["singularity"] == kind and c["method"] not in (None, "exact") for c in outcome.crossings)
 
 
-def run(quick: bool, seed: int, keep: Path | None) -> dict[str, Any]:
-    work_root = keep or Path(tempfile.mkdtemp(prefix="robots_acceptance_"))
+def run(quick: bool, seed: int, work_root: Path) -> dict[str, Any]:
+    """Every arm's recognition, generated tasks, plans and checks; task files and plans go to ``work_root``."""
     work_root.mkdir(parents=True, exist_ok=True)
     names = list(QUICK_BUNDLED) if quick else [n for n in sorted(bundled_robots())
                                                if load_robot(n).n_joints == 6]
@@ -634,7 +635,8 @@ def _cell(o: dict[str, Any] | None) -> str:
     if o["exit_code"] != 0:
         return f"exit {o['exit_code']}"
     methods = ",".join(sorted({c["method"] for c in o["crossings"]})) or "no zone"
-    return f"{methods} {o['duration_s']:.3f} s, checker {o['checker']}"
+    held = "" if o["held_joint_dev_rad"] is None else f", held to {o['held_joint_dev_rad']:.1e} rad"
+    return f"{methods} {o['duration_s']:.3f} s{held}, checker {o['checker']}"
 
 
 def _twin_cells(tasks: dict[str, dict[str, Any]]) -> str:
@@ -676,10 +678,13 @@ def summary_counts(result: dict[str, Any]) -> dict[str, str]:
     twins = [o for o in outs if o["twin_ok"] is not None]
     checked = [o for o in outs if o["checker"] not in ("not run", "absent")]
     crossed = sum(bool(o["crossed_by_method"]) for o in near)
+    held = [o for o in outs if o["held_joint_dev_rad"] is not None]
     missing = len(result["outcomes"]) - len(outs)
     return {"near misses crossed by a crossing method": f"{crossed}/{len(near)}",
             "near misses not generated (no LIN found)": str(missing),
             "copies within 2% of their twin": f"{sum(o['twin_ok'] for o in twins)}/{len(twins)}",
+            "held joints within 1e-9 rad": f"{sum(o['held_joint_dev_rad'] <= HELD_TOL_RAD for o in held)}/"
+                                           f"{sum(1 for o in outs if o['task'] == 'lin_held')}",
             "plans passing the checker": f"{sum(o['checker'] == 'pass' for o in checked)}/{len(checked)}",
             "tasks planned (exit 0)": f"{sum(o['exit_code'] == 0 for o in outs)}/{len(outs)}"}
 
@@ -710,7 +715,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stderr)
     t0 = time.perf_counter()
-    result = run(args.quick, args.seed, args.keep)
+    with tempfile.TemporaryDirectory(prefix="robots_acceptance_") as scratch:
+        result = run(args.quick, args.seed, args.keep or Path(scratch))
     result["environment"] = environment() | {"seed": str(args.seed), "wall_s": f"{time.perf_counter() - t0:.0f}"}
     result["summary"] = summary_counts(result)
     print(table(result))

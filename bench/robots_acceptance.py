@@ -680,7 +680,10 @@ def summary_counts(result: dict[str, Any]) -> dict[str, str]:
     crossed = sum(bool(o["crossed_by_method"]) for o in near)
     held = [o for o in outs if o["held_joint_dev_rad"] is not None]
     missing = len(result["outcomes"]) - len(outs)
+    copies = {a["label"] for a in result["arms"] if a["twin"]}
+    own = [o for o in near if o["arm"] not in copies]
     return {"near misses crossed by a crossing method": f"{crossed}/{len(near)}",
+            "the same, copies left out": f"{sum(bool(o['crossed_by_method']) for o in own)}/{len(own)}",
             "near misses not generated (no LIN found)": str(missing),
             "copies within 2% of their twin": f"{sum(o['twin_ok'] for o in twins)}/{len(twins)}",
             "held joints within 1e-9 rad": f"{sum(o['held_joint_dev_rad'] <= HELD_TOL_RAD for o in held)}/"

@@ -640,7 +640,7 @@ def _cell(o: dict[str, Any] | None) -> str:
 
 
 def _twin_cells(tasks: dict[str, dict[str, Any]]) -> str:
-    return ", ".join(f"{name.split('_')[0]} " + (("yes" if o["twin_ok"] else "NO") if o["twin_ok"] is not None
+    return ", ".join(f"{name.removesuffix('_near_miss')} " + (("yes" if o["twin_ok"] else "NO") if o["twin_ok"] is not None
                                                  else _cell(o)) for name, o in tasks.items())
 
 

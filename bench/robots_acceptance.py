@@ -640,8 +640,10 @@ def _cell(o: dict[str, Any] | None) -> str:
 
 
 def _twin_cells(tasks: dict[str, dict[str, Any]]) -> str:
-    return ", ".join(f"{name.removesuffix('_near_miss')} " + (("yes" if o["twin_ok"] else "NO") if o["twin_ok"] is not None
-                                                 else _cell(o)) for name, o in tasks.items())
+    def verdict(o: dict[str, Any]) -> str:
+        return _cell(o) if o["twin_ok"] is None else ("yes" if o["twin_ok"] else "NO")
+
+    return ", ".join(f"{name.removesuffix('_near_miss')} {verdict(o)}" for name, o in tasks.items())
 
 
 def condensed_table(result: dict[str, Any]) -> str:

@@ -1,6 +1,7 @@
 """Acceptance on public URDFs: issue 11's "Done when", measured on arms from public sources.
 
     python bench/robots_acceptance.py [--quick] [--json OUT.json] [--keep DIR] [--seed N] [--markdown]
+                                      [--urdf PATH[=TWIN] ...] [--only-urdf]
 
 Arms:
 - every bundled industrial arm three ways: by name, its URDF copied to a temporary path, and a
@@ -11,7 +12,9 @@ Arms:
 - example-robot-data arms (``example_robot_data.load(name).urdf``): UR3/5/10, Unitree Z1,
   Kinova Jaco 2, Reach Bravo 7, Panda, xArm 7, SO-100. Each is loaded as the file is, with the
   default tip; where that fails or the default tip takes in a gripper joint, a documented
-  adjustment (explicit arm tip, continuous joints given +-2 turn limits) is tried as a second row.
+  adjustment (explicit arm tip, continuous joints given +-2 turn limits) is tried as a second row;
+- any other URDF given with ``--urdf PATH`` (``PATH=TWIN`` to compare it with a bundled arm
+  whose joint coordinates it shares, e.g. a vendor's own file), e.g. held-back test arms.
 
 Tasks are generated for each arm, not written by hand: for a 6-axis arm, one LIN through a
 wrist near miss and one through a shoulder near miss. A configuration at the singular surface
@@ -522,13 +525,29 @@ def _crossed(outcome: Outcome, kind: str) -> bool:
     return any(c["singularity"] == kind and c["method"] not in (None, "exact") for c in outcome.crossings)
 
 
-def run(quick: bool, seed: int, work_root: Path) -> dict[str, Any]:
+def user_arms(specs: list[str], present: set[str]) -> list[Arm]:
+    """``PATH`` or ``PATH=TWIN`` (a bundled name with the same joint coordinates) from the command line."""
+    arms = []
+    for spec in specs:
+        path, _, twin = spec.partition("=")
+        if twin and twin not in present:
+            arms.append(Arm(twin, twin, "bundled"))
+            present.add(twin)
+        arms.append(Arm(f"file:{Path(path).stem}", str(Path(path).resolve()), "--urdf", twin=twin or None))
+    return arms
+
+
+def run(quick: bool, seed: int, work_root: Path, extra_urdfs: list[str] | None = None,
+        only_extra: bool = False) -> dict[str, Any]:
     """Every arm's recognition, generated tasks, plans and checks; task files and plans go to ``work_root``."""
     work_root.mkdir(parents=True, exist_ok=True)
-    names = list(QUICK_BUNDLED) if quick else [n for n in sorted(bundled_robots())
-                                               if load_robot(n).n_joints == 6]
-    arms = bundled_arms(names, work_root)
-    arms += erd_arms(list(QUICK_ERD if quick else ERD_ARMS), work_root, {a.label for a in arms})
+    arms: list[Arm] = []
+    if not only_extra:
+        names = list(QUICK_BUNDLED) if quick else [n for n in sorted(bundled_robots())
+                                                   if load_robot(n).n_joints == 6]
+        arms = bundled_arms(names, work_root)
+        arms += erd_arms(list(QUICK_ERD if quick else ERD_ARMS), work_root, {a.label for a in arms})
+    arms += user_arms(extra_urdfs or [], {a.label for a in arms})
     recognitions = {arm.label: recognise(arm) for arm in arms}
     outcomes: list[Outcome] = []
     tasks: dict[str, dict[str, dict[str, Any]]] = {}
@@ -717,11 +736,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--keep", type=Path, help="keep tasks and plans in this folder")
     ap.add_argument("--seed", type=int, default=11)
     ap.add_argument("--markdown", action="store_true", help="also print one row per arm (docs/robots.md)")
+    ap.add_argument("--urdf", action="append", default=[], metavar="PATH[=TWIN]",
+                    help="another URDF (repeatable); =TWIN compares it with that bundled arm")
+    ap.add_argument("--only-urdf", action="store_true", help="only the --urdf files (and their twins)")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stderr)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="robots_acceptance_") as scratch:
-        result = run(args.quick, args.seed, args.keep or Path(scratch))
+        result = run(args.quick, args.seed, args.keep or Path(scratch), args.urdf, args.only_urdf)
     result["environment"] = environment() | {"seed": str(args.seed), "wall_s": f"{time.perf_counter() - t0:.0f}"}
     result["summary"] = summary_counts(result)
     print(table(result))

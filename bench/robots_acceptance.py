@@ -65,6 +65,7 @@ from singplan.robot import Robot, bundled_robots, load_robot
 
 CHECKER = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"
 TWIN_TOL = 0.02  # a copy's duration may differ from its twin's by this fraction
+TWIN_FK_TOL = 1e-6  # a twin's FK under the joint mapping [m, and rotation matrix entries]
 HELD_TOL_RAD = 1e-9  # a 7-axis arm's held joint, issue 11 "Done when"
 WRIST_MISS_RAD = math.radians(0.2)  # "a fraction of a degree", as the public near misses
 SHOULDER_MISS_M = 0.001  # the public shoulder LINs pass 0.4 mm from axis 1
@@ -537,6 +538,21 @@ def user_arms(specs: list[str], present: set[str]) -> list[Arm]:
     return arms
 
 
+def _confirm_twin(arm: Arm, twin_tip: str) -> None:
+    """Drop a twin whose FK under the joint mapping differs (another joint convention, another arm)."""
+    here, twin = load_robot(arm.robot, tip=arm.tip or twin_tip), load_robot(str(arm.twin))
+    if here.n_joints != twin.n_joints:
+        arm.note, arm.twin = f"not a twin of {arm.twin}: {here.n_joints} joints", None
+        return
+    rng = np.random.default_rng(0)
+    n = twin.n_joints
+    sign, shift = np.resize(np.array(arm.joint_sign), n), np.resize(np.array(arm.joint_shift_rad), n)
+    worst = max(float(np.max(np.abs(here.fk(sign * q - shift).homogeneous - twin.fk(q).homogeneous)))
+                for q in rng.uniform(twin.model.lowerPositionLimit, twin.model.upperPositionLimit, (20, n)))
+    if worst > TWIN_FK_TOL:
+        arm.note, arm.twin = f"not a twin of {arm.twin}: FK differs by {worst:.3g} (other joint coordinates)", None
+
+
 def run(quick: bool, seed: int, work_root: Path, extra_urdfs: list[str] | None = None,
         only_extra: bool = False) -> dict[str, Any]:
     """Every arm's recognition, generated tasks, plans and checks; task files and plans go to ``work_root``."""
@@ -549,6 +565,9 @@ def run(quick: bool, seed: int, work_root: Path, extra_urdfs: list[str] | None =
         arms += erd_arms(list(QUICK_ERD if quick else ERD_ARMS), work_root, {a.label for a in arms})
     arms += user_arms(extra_urdfs or [], {a.label for a in arms})
     recognitions = {arm.label: recognise(arm) for arm in arms}
+    for arm in arms:
+        if arm.twin is not None and recognitions[arm.label]["exit_code"] == 0:
+            _confirm_twin(arm, recognitions[arm.twin]["tip"])
     outcomes: list[Outcome] = []
     tasks: dict[str, dict[str, dict[str, Any]]] = {}
     generation: dict[str, dict[str, Any]] = {}

@@ -180,20 +180,27 @@ def sidecar_path(urdf_path: str | Path) -> Path:
     return p.with_name(p.stem + SIDECAR_SUFFIX)
 
 
-@lru_cache(maxsize=64)
 def _convention_of_file(urdf_path: str) -> ControllerConvention | None:
     bundled = _registry_conventions()
     if urdf_path in bundled:
         return bundled[urdf_path]
     side = sidecar_path(urdf_path)
-    if not side.is_file():
-        return None
     try:
-        doc = yaml.safe_load(side.read_text())
+        stamp = side.stat().st_mtime_ns
+    except OSError:
+        return None
+    return _read_sidecar(str(side), stamp)
+
+
+@lru_cache(maxsize=64)
+def _read_sidecar(side: str, mtime_ns: int) -> ControllerConvention | None:
+    """A sidecar's convention, cached per modification time (an edited sidecar is read again)."""
+    try:
+        doc = yaml.safe_load(Path(side).read_text())
     except (OSError, yaml.YAMLError) as exc:
-        raise RobotModelError(str(side), f"cannot read the controller convention ({exc})") from None
+        raise RobotModelError(side, f"cannot read the controller convention ({exc})") from None
     if not isinstance(doc, Mapping) or "controller" not in doc:
-        raise RobotModelError(str(side), "expected a mapping with the key 'controller'")
+        raise RobotModelError(side, "expected a mapping with the key 'controller'")
     return parse_convention(doc["controller"], f"{side}: controller")
 
 

@@ -160,7 +160,7 @@ def servo_period(period_s: float, step_s: float) -> float:
 def resample(traj: Trajectory, period_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Positions (M, n) and times at ``period_s`` from t = 0, cubic Hermite from q and qd; the last sample kept."""
     t_end = float(traj.t[-1])
-    count = int(math.floor(t_end / period_s + 1e-9)) + 1
+    count = math.floor(t_end / period_s + 1e-9) + 1
     t_new = np.arange(count) * period_s
     if t_new[-1] < t_end - 1e-12:
         t_new = np.append(t_new, t_end)  # the end point is where the motion stops: keep it

@@ -103,7 +103,7 @@ def kuka_status_turn(axes_deg: Sequence[float], overhead: bool, phi_deg: float) 
 
 def fanuc_turn(angle_deg: float) -> int:
     """FANUC turn number: 0 for [-180, 180), 1 for [180, 540), -1 for [-540, -180) ..."""
-    return int(math.floor((angle_deg + 180.0) / 360.0))
+    return math.floor((angle_deg + 180.0) / 360.0)
 
 
 def fanuc_configuration(axes_deg: Sequence[float], up: bool, front: bool) -> str:

@@ -95,17 +95,24 @@ def _duration(t_s: float) -> tuple[int, int]:
     return int(sec), int(nanosec)
 
 
+_EXPONENT_WITHOUT_DOT = re.compile(r"(?<![\d.])(-?\d+)e")
+
+
 def _yaml_float(x: float) -> str:
     """A float YAML 1.1 (PyYAML, as ROS 2 tools read it) parses as a float: '1e-05' is a string there."""
-    text = repr(float(x))
-    if "e" in text and "." not in text.split("e")[0]:
-        mantissa, exponent = text.split("e")
-        text = f"{mantissa}.0e{exponent}"
-    return text
+    return _yaml_list([x])[1:-1]
 
 
 def _yaml_list(row: list[float]) -> str:
-    return "[" + ", ".join(_yaml_float(v) for v in row) + "]"
+    """A flow list of floats, shortest round-trip text with a dot before any exponent."""
+    text = ", ".join(map(repr, row))
+    if "e" in text:
+        text = _EXPONENT_WITHOUT_DOT.sub(r"\1.0e", text)
+    return "[" + text + "]"
+
+
+def _json_list(row: list[float]) -> str:
+    return "[" + ", ".join(map(repr, row)) + "]"  # finite floats (checked): repr is valid JSON
 
 
 def write_ros2_yaml(stream: TextIO, traj: Trajectory) -> None:
@@ -136,8 +143,9 @@ def write_ros2_json(stream: TextIO, traj: Trajectory) -> None:
         for t, q, qd, qdd in zip(traj.t[start:stop].tolist(), traj.q[start:stop].tolist(),
                                  traj.qd[start:stop].tolist(), traj.qdd[start:stop].tolist(), strict=True):
             sec, nanosec = _duration(t)
-            points.append(json.dumps({"positions": q, "velocities": qd, "accelerations": qdd, "effort": [],
-                                      "time_from_start": {"sec": sec, "nanosec": nanosec}}))
+            points.append(f'{{"positions": {_json_list(q)}, "velocities": {_json_list(qd)}, '
+                          f'"accelerations": {_json_list(qdd)}, "effort": [], '
+                          f'"time_from_start": {{"sec": {sec}, "nanosec": {nanosec}}}}}')
         stream.write((", " if start else "") + ", ".join(points))
     stream.write("]}\n")
 

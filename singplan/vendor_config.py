@@ -17,14 +17,16 @@ The forms (degrees of the controller axes ``a1..a6``):
   centre behind axis 1, behind the lower arm (the line through axes 2 and 3), axis 5 negative.
 * KUKA ``Status`` bit 0: wrist point overhead (x < 0 in the A1 frame); bit 1: ``A3 >= phi``,
   phi the A3 value where the arm is stretched (wrist point on the line through A2 and A3);
-  bit 2: ``A5 < 0`` (wrapped to (-180, 180]); ``Turn`` bit i set when axis i+1 < 0.
+  bit 2: ``A5 <= 0`` (wrapped to (-180, 180]; DESIGN.md's wording of KUKA's table);
+  ``Turn`` bit i set when axis i+1 < 0.
 * FANUC configuration string ``"F|N U|D T|B, t1, t4, t6"``: flip when J5 > 0 (no flip
   otherwise), elbow up/down, wrist centre in front of (T) or behind (B) J1; turn numbers
   ``floor((a + 180) / 360)`` of J1, J4, J6.
 
 The wrist letter of singplan's own labels (:mod:`singplan.configuration`) is geometric: it
 is the vendor's flip indicator on every bundled arm, in controller terms: ``N`` is ABB axis 5
->= 0, KUKA Status bit 2 clear, FANUC ``N`` (J5 <= 0), whatever the URDF's q5 sign (tested).
+>= 0, KUKA Status bit 2 clear (A5 > 0), FANUC ``N`` (J5 <= 0), whatever the URDF's q5 sign (tested;
+at exactly A5 = 0, the singularity itself, KUKA's bit is set while the label says ``N``).
 """
 
 from __future__ import annotations
@@ -96,7 +98,7 @@ def abb_confdata(axes_deg: Sequence[float], behind_axis1: bool, behind_lower_arm
 def kuka_status_turn(axes_deg: Sequence[float], overhead: bool, phi_deg: float) -> KukaStatusTurn:
     """KUKA Status and Turn of controller axis values [deg]; ``phi_deg`` is the A3 of the stretched arm."""
     a = np.asarray(axes_deg, dtype=float)
-    status = int(overhead) | (int(a[2] >= phi_deg) << 1) | (int(_wrap_deg(a[4:5])[0] < 0.0) << 2)
+    status = int(overhead) | (int(a[2] >= phi_deg) << 1) | (int(_wrap_deg(a[4:5])[0] <= 0.0) << 2)
     turn = sum(1 << i for i in range(_N_AXES) if a[i] < 0.0)
     return KukaStatusTurn(status, turn)
 

@@ -153,11 +153,15 @@ def test_every_public_scenario_exports(name: str, tmp_path: Path) -> None:
     check_all_formats(folder)
 
 
-def test_yaml_floats_stay_floats() -> None:
-    for x in (1e-05, -3e-300, 1e22, 0.0, -0.0, 123.5, 5e-324):
+def test_yaml_floats_stay_floats(rng: np.random.Generator) -> None:
+    for x in (1e-05, -3e-300, 1e22, 0.0, -0.0, 123.5, 5e-324, -1e16, 2.5e-07):
         text = exports._yaml_float(x)
         parsed = yaml.safe_load(text)
         assert isinstance(parsed, float) and parsed == x, text
+    row = (rng.standard_normal(600) * 10.0 ** rng.integers(-320, 300, 600)).tolist()
+    parsed_row = yaml.safe_load(exports._yaml_list(row))
+    assert all(isinstance(v, float) for v in parsed_row) and parsed_row == row
+    assert json.loads(exports._json_list(row)) == row
 
 
 def test_durations_split_into_sec_and_nanosec() -> None:

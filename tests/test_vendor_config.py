@@ -76,6 +76,7 @@ def test_kuka_status_bits_one_at_a_time() -> None:
     assert kuka_status_turn([0, -90, -10, 0, 45, 0], overhead=False, phi_deg=0.0).status == 0
     assert kuka_status_turn([0, -90, 5, 0, 45, 0], overhead=False, phi_deg=5.48).status == 0  # below phi
     assert kuka_status_turn([0, -90, 90, 0, 185, 0], overhead=False, phi_deg=0.0).status == 6  # wraps to -175
+    assert kuka_status_turn([0, -90, 90, 0, 0, 0], overhead=False, phi_deg=0.0).status == 6  # A5 <= 0 (DESIGN.md)
 
 
 def test_fanuc_worked_example_on_the_r2000ib(robots: dict[str, Robot]) -> None:

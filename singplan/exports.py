@@ -208,6 +208,11 @@ def write_urscript(stream: TextIO, traj: Trajectory, options: UrScriptOptions | 
     _check_ur_options(opts)
     if len(traj.joint_names) != 6:
         raise InputError(f"joint_names: URScript drives 6 joints, the trajectory has {len(traj.joint_names)}")
+    off_grid = np.abs(traj.t - np.arange(len(traj.t)) * traj.period) > 1e-6
+    if off_grid.any():
+        i = int(np.argmax(off_grid))
+        raise InputError(f"t[{i}]: servoj streams samples uniform at the period from 0; got {traj.t[i]!r} s, "
+                         f"expected {i * traj.period!r} s")
     step = UR_STEP_S[opts.controller]
     period = servo_period(traj.period, step)
     q = traj.q if period == traj.period else resample(traj, period)[0]

@@ -255,6 +255,15 @@ def test_bad_trajectory_is_bad_input(planned_kuka: Path, tmp_path: Path, edit: A
     assert sorted(p.name for p in folder.iterdir()) == ["trajectory.json"]  # nothing written
 
 
+def test_urscript_needs_uniform_samples(planned_kuka: Path, tmp_path: Path) -> None:
+    folder = _broken_copy(planned_kuka, tmp_path / "gap", lambda d: d.__setitem__("t", [*d["t"][:5], *[
+        v + 0.001 for v in d["t"][5:]]]))
+    err = io.StringIO()
+    assert main(["export", str(folder), "--format", "urscript"], err=err) == 2
+    assert "t[5]: servoj streams samples uniform" in err.getvalue()
+    assert main(["export", str(folder), "--format", "ros2"]) == 0  # a message carries any increasing times
+
+
 def test_missing_folder_is_bad_input(tmp_path: Path) -> None:
     err = io.StringIO()
     assert main(["export", str(tmp_path / "nope"), "--format", "csv-deg"], err=err) == 2
@@ -270,3 +279,28 @@ def test_python_functions_equal_the_files(planned_kuka: Path) -> None:
     short = replace(traj, t=traj.t[:1], q=traj.q[:1], qd=traj.qd[:1], qdd=traj.qdd[:1])
     _, servoj, _ = parse_urscript(exports.to_urscript(short))
     assert len(servoj) == 1
+
+
+def test_the_format_checks_catch_broken_output(planned_kuka: Path) -> None:
+    """The checks above can fail: each mutation of a good export is caught."""
+    traj = load(planned_kuka)
+    good = json.loads(exports.to_ros2_json(traj))
+    mutations = [lambda m: m["points"][1]["time_from_start"].__setitem__("nanosec", 10**9),
+                 lambda m: m["points"][1]["time_from_start"].__setitem__("sec", 2**31),
+                 lambda m: m["points"][2].__setitem__("positions", m["points"][2]["positions"][:5]),
+                 lambda m: m["points"][2]["velocities"].__setitem__(0, "0.1"),
+                 lambda m: m["points"][3].__setitem__("time_from_start", m["points"][2]["time_from_start"]),
+                 lambda m: m.__setitem__("extra", 1)]
+    for mutate in mutations:
+        msg = json.loads(json.dumps(good))
+        mutate(msg)
+        with pytest.raises((AssertionError, jsonschema.ValidationError)):
+            check_joint_trajectory(msg, traj)
+    script = exports.to_urscript(traj)
+    first_servoj = script.index("  servoj(")
+    broken = [script.replace("\nend\n", "\n"), script.replace("servoj([", "servoj([0.1, ", 1),
+              script[:first_servoj] + script[first_servoj:].replace("0, 0, t=", "0, 0, t=nan", 1),
+              script.replace("gain=300", "gain=3000", 1), script.replace("  stopj(2.0)\n", "")]
+    for text in broken:
+        with pytest.raises((AssertionError, ValueError)):
+            parse_urscript(text)

@@ -190,3 +190,17 @@ def test_csv_deg_vendor_config_per_sample(planned_kuka: Path) -> None:
     lines = (planned_kuka / "v.csv").read_text().splitlines()
     assert lines[0].endswith(",vendor_config")
     assert all(line.rsplit(",", 1)[1].startswith("S ") for line in lines[1:])
+
+
+@pytest.mark.parametrize("name", ["kuka_kr6_r700_sixx", "kuka_kr6_r900_2", "kuka_kr150_r3100_2",
+                                  "kuka_kr120_r2500_pro"])
+def test_kuka_phi_is_the_stretched_arm(name: str, robots: dict[str, Robot]) -> None:
+    """Status bit 1 turns on at A3 = phi = atan2(-a2, c3): the forearm offset a2 of the OPW parameters
+    (an independent formula: the wrist point on the line through A2 and A3)."""
+    robot = robots[name]
+    p = robot.opw
+    assert p is not None
+    phi_deg = np.degrees(np.arctan2(-p.a2, p.c3))
+    for a3, bit in ((phi_deg - 0.01, 0), (phi_deg + 0.01, 2)):
+        value = _at_axes(robot, [0.0, -90.0, float(a3), 0.0, 30.0, 0.0])
+        assert value is not None and value["kuka"]["status"] & 2 == bit, (name, a3)  # type: ignore[index]

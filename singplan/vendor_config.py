@@ -124,8 +124,9 @@ def _registry_conventions() -> dict[str, ControllerConvention | None]:
     registry = yaml.safe_load((robots_dir() / "robots.yaml").read_text())["robots"]
     out: dict[str, ControllerConvention | None] = {}
     for name, spec in registry.items():
-        key = str((robots_dir() / spec["urdf"]).resolve()) if "urdf" in spec else f"name:{name}"
-        out[key] = parse_convention(spec.get("controller"), f"robots.yaml: robots.{name}.controller")
+        convention = parse_convention(spec.get("controller"), f"robots.yaml: robots.{name}.controller")
+        if "urdf" in spec:  # the example-robot-data arms (UR5, Panda) have vendor none
+            out[str((robots_dir() / spec["urdf"]).resolve())] = convention
     return out
 
 

@@ -266,7 +266,8 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     fmt = args.format
     if fmt not in exports.FORMATS:
         raise InputError(f"--format: unknown format {fmt!r}; valid formats: {', '.join(exports.FORMATS)}")
-    target = args.file if args.file is not None else exports.default_path(args.out, fmt)
+    folder = Path(args.out).parent if Path(args.out).is_file() else Path(args.out)  # a trajectory.json: its folder
+    target = args.file if args.file is not None else exports.default_path(folder, fmt)
     traj = load(args.out)
     options = exports.UrScriptOptions(controller=args.ur_controller, lookahead_time_s=args.lookahead_time,
                                       gain=args.gain)

@@ -264,6 +264,11 @@ def test_urscript_needs_uniform_samples(planned_kuka: Path, tmp_path: Path) -> N
     assert main(["export", str(folder), "--format", "ros2"]) == 0  # a message carries any increasing times
 
 
+def test_export_of_a_trajectory_file_goes_next_to_it(planned_kuka: Path) -> None:
+    assert main(["export", str(planned_kuka / "trajectory.json"), "--format", "csv-deg"]) == 0
+    assert (planned_kuka / "trajectory_deg.csv").is_file()
+
+
 def test_missing_folder_is_bad_input(tmp_path: Path) -> None:
     err = io.StringIO()
     assert main(["export", str(tmp_path / "nope"), "--format", "csv-deg"], err=err) == 2

@@ -196,9 +196,9 @@ def _check_ur_options(opts: UrScriptOptions) -> None:
             raise InputError(f"{name}: expected a positive number, got {v!r}")
 
 
-def _short(x: float) -> str:
-    """Fixed-point text of a period [s] (URScript number literals have no exponent here)."""
-    return f"{x:.9f}".rstrip("0").rstrip(".")
+def _short(x: float, decimals: int = 9) -> str:
+    """Fixed-point text (URScript number literals: no exponent)."""
+    return f"{x:.{decimals}f}".rstrip("0").rstrip(".")
 
 
 def write_urscript(stream: TextIO, traj: Trajectory, options: UrScriptOptions | None = None) -> None:
@@ -216,16 +216,19 @@ def write_urscript(stream: TextIO, traj: Trajectory, options: UrScriptOptions | 
     step = UR_STEP_S[opts.controller]
     period = servo_period(traj.period, step)
     q = traj.q if period == traj.period else resample(traj, period)[0]
+    name = re.sub(r"[^\w.\-]", "_", traj.robot)  # a file name may hold anything; a comment is one line
     stream.write("def singplan_move():\n")
-    stream.write(f"  # singplan export: robot {traj.robot}, {len(q)} samples, servoj every {period:g} s "
+    stream.write(f"  # singplan export: robot {name}, {len(q)} samples, servoj every {period:g} s "
                  f"({opts.controller} controller step {step:g} s)\n")
     if period != traj.period:
         stream.write(f"  # resampled from the planned period {traj.period:g} s (not a whole number of steps)\n")
     if not is_ur_robot(traj):
-        stream.write(f"  # WARNING: {traj.robot} is not a Universal Robots arm; check joint order and signs\n")
-    row = "[" + ", ".join(["%.17g"] * 6) + "]"
-    stream.write(f"  movej({row % tuple(q[0])}, a={opts.movej_accel_rad_s2:g}, v={opts.movej_speed_rad_s:g})\n")
-    tail = f", 0, 0, t={_short(period)}, lookahead_time={opts.lookahead_time_s:g}, gain={opts.gain:g})\n"
+        stream.write(f"  # WARNING: {name} is not a Universal Robots arm; check joint order and signs\n")
+    row = "[" + ", ".join(["%.12f"] * 6) + "]"  # 1e-12 rad: far below any encoder's resolution
+    stream.write(f"  movej({row % tuple(q[0])}, a={_short(opts.movej_accel_rad_s2)}, "
+                 f"v={_short(opts.movej_speed_rad_s)})\n")
+    tail = (f", 0, 0, t={_short(period)}, lookahead_time={_short(opts.lookahead_time_s)}, "
+            f"gain={_short(opts.gain)})\n")
     for start in range(0, len(q), _CHUNK):
         stream.write("".join("  servoj(" + row % tuple(v) + tail for v in q[start:start + _CHUNK].tolist()))
     stream.write("  stopj(2.0)\nend\n")

@@ -126,8 +126,8 @@ def check_all_formats(folder: Path) -> None:
     step = exports.servo_period(traj.period, 0.002)
     assert period == pytest.approx(step, abs=1e-12)
     expected = traj.q if step == traj.period else exports.resample(traj, step)[0]
-    np.testing.assert_allclose(servoj, expected, atol=5e-13, rtol=0)  # 12 decimals
-    np.testing.assert_allclose(movej, traj.q[0], atol=5e-13, rtol=0)
+    np.testing.assert_allclose(servoj, expected, atol=1e-12, rtol=0)  # 12 decimals written
+    np.testing.assert_allclose(movej, traj.q[0], atol=1e-12, rtol=0)
     check_csv_deg(text["csv-deg"], traj)
 
 

@@ -29,7 +29,9 @@ def random_q(robot: Robot, rng: np.random.Generator, n: int) -> np.ndarray:
     return rng.uniform(lo, hi, size=(n, robot.n_joints))
 
 
-SCENARIOS = Path("/work/shared/scenarios") if Path("/work/shared/scenarios").is_dir() else None
+# the public scenarios sit next to the project in development and CI (as in tests/test_scenarios.py)
+_SHARED_SCENARIOS = Path(__file__).resolve().parents[2] / "shared" / "scenarios"
+SCENARIOS = _SHARED_SCENARIOS if _SHARED_SCENARIOS.is_dir() else None
 
 
 @pytest.fixture(scope="session")

@@ -24,6 +24,7 @@ from typing import TextIO
 import numpy as np
 import pinocchio as pin
 
+from singplan import exports
 from singplan.compiled import kernels_cached
 from singplan.configuration import singularity_distances
 from singplan.errors import InputError, SingplanError
@@ -36,7 +37,7 @@ from singplan.report import report_html
 from singplan.robot import Robot, RobotEntry, bundled_robots, load_robot
 from singplan.summary import summary
 from singplan.task import load_task
-from singplan.trajectory import Trajectory, save
+from singplan.trajectory import Trajectory, load, save
 from singplan.viewer import DEFAULT_HOST, LiveReplay, replay, replay_html
 
 
@@ -287,6 +288,24 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    """Write a planned output folder's trajectory in a controller format (singplan.exports)."""
+    fmt = args.format
+    if fmt not in exports.FORMATS:
+        raise InputError(f"--format: unknown format {fmt!r}; valid formats: {', '.join(exports.FORMATS)}")
+    folder = Path(args.out).parent if Path(args.out).is_file() else Path(args.out)  # a trajectory.json: its folder
+    target = args.file if args.file is not None else exports.default_path(folder, fmt)
+    traj = load(args.out)
+    options = exports.UrScriptOptions(controller=args.ur_controller, lookahead_time_s=args.lookahead_time,
+                                      gain=args.gain)
+    if fmt == "urscript" and not exports.is_ur_robot(traj):
+        err.write(f"singplan: warning: {traj.robot} is not a Universal Robots arm; "
+                  "check the URScript program's joint order and signs before running it\n")
+    written = exports.export(traj, fmt, target, urscript=options, vendor_config=args.vendor_config)
+    out.write(f"wrote {written}\n")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="singplan", description="Plan robot motions through singularities.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -336,6 +355,19 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="plan the bundled demo task into ./singplan-demo")
     demo.add_argument("-o", "--output", default="singplan-demo", help="output folder (default: singplan-demo)")
     demo.set_defaults(func=cmd_demo)
+    exp = sub.add_parser("export", help="write a planned trajectory as ROS 2, URScript or degree CSV")
+    exp.add_argument("out", help="output folder of `singplan plan` (or its trajectory.json)")
+    exp.add_argument("--format", required=True, help=f"one of {', '.join(exports.FORMATS)}")
+    exp.add_argument("-o", "--output", dest="file", default=None,
+                     help="file to write (default: " + ", ".join(f"{k}: {v}" for k, v in
+                                                               exports.DEFAULT_FILE_NAMES.items()) + " in OUT)")
+    exp.add_argument("--vendor-config", action="store_true",
+                     help="csv-deg: add the vendor configuration data (ABB/KUKA/FANUC) of every sample")
+    exp.add_argument("--ur-controller", default="e-series", choices=sorted(exports.UR_STEP_S),
+                     help="urscript: controller generation, its servo step (e-series 0.002 s, cb3 0.008 s)")
+    exp.add_argument("--lookahead-time", type=float, default=0.1, help="urscript: servoj lookahead_time, 0.03-0.2 s")
+    exp.add_argument("--gain", type=float, default=300.0, help="urscript: servoj gain, 100-2000")
+    exp.set_defaults(func=cmd_export)
     return parser
 
 

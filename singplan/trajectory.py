@@ -62,6 +62,25 @@ class Event:
 
 
 @dataclass(frozen=True)
+class MoveRecord:
+    """One task move: its time span, the configuration it ends in and that in the vendor's form.
+
+    ``vendor_config`` is ``{"abb": {...}}``, ``{"kuka": {...}}``, ``{"fanuc": "..."}`` or None
+    (see :mod:`singplan.vendor_config`).
+    """
+
+    move: int
+    kind: str  # "lin" | "circ" | "ptp"
+    t0: float
+    t1: float
+    config_end: str
+    vendor_config: dict[str, Any] | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
 class Trajectory:
     """A timed joint trajectory at a uniform controller period.
 
@@ -90,6 +109,7 @@ class Trajectory:
     metrics: dict[str, Any]
     # per-sample series, each (K,) or (K, 3): position_error_m, orientation_error_rad, distances
     samples: dict[str, np.ndarray] = field(default_factory=dict)
+    moves: tuple[MoveRecord, ...] = ()
 
     @property
     def duration_s(self) -> float:
@@ -106,7 +126,7 @@ class Trajectory:
             "task": self.task, "joint_names": list(self.joint_names), "period": self.period,
             "t": self.t, "q": self.q, "qd": self.qd, "qdd": self.qdd,
             "segments": [s.to_json() for s in self.segments], "events": [e.to_json() for e in self.events],
-            "metrics": _jsonable(self.metrics),
+            "moves": [m.to_json() for m in self.moves], "metrics": _jsonable(self.metrics),
             "samples": _sample_series(self.samples),
         }
 
@@ -250,4 +270,5 @@ def _from_document(doc: dict[str, Any]) -> Trajectory:
     arrays = {k: np.asarray(doc[k], dtype=float) for k in ("t", "q", "qd", "qdd")}
     return Trajectory(doc["robot"], doc["urdf"], doc["tip"], doc["tool"], doc["task"], tuple(doc["joint_names"]),
                       float(doc["period"]), arrays["t"], arrays["q"], arrays["qd"], arrays["qdd"], segments, events,
-                      doc["metrics"], _samples_from_file(doc.get("samples", {})))
+                      doc["metrics"], _samples_from_file(doc.get("samples", {})),
+                      tuple(MoveRecord(**m) for m in doc.get("moves", ())))

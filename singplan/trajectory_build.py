@@ -23,7 +23,8 @@ from singplan.robot import Robot
 from singplan.singularity import Zone
 from singplan.task import Task
 from singplan.timing import TimedMove, sample_ratios
-from singplan.trajectory import Event, Segment, Trajectory, finite_differences
+from singplan.trajectory import Event, MoveRecord, Segment, Trajectory, finite_differences
+from singplan.vendor_config import vendor_configs
 
 if TYPE_CHECKING:
     from singplan.planner import PlannedMove
@@ -71,7 +72,20 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
     if not np.isnan(distances).all():  # an arm without labels (7 joints) has no singular distances to store
         samples["distances"] = distances
     return Trajectory(arm.name, str(arm.urdf_path), arm.tip, tool, task.to_mapping(), arm.joint_names,
-                      period, t, q, qd, qdd, tuple(segments), tuple(events), metrics, samples)
+                      period, t, q, qd, qdd, tuple(segments), tuple(events), metrics, samples,
+                      _move_records(arm, task, segments, q, period))
+
+
+def _move_records(robot: Robot, task: Task, segments: list[Segment], q: np.ndarray,
+                  period: float) -> tuple[MoveRecord, ...]:
+    """Per task move: span, end configuration and vendor configuration data at its last sample."""
+    spans: dict[int, list[Segment]] = {}
+    for s in segments:
+        spans.setdefault(s.move, []).append(s)
+    ends = [min(len(q) - 1, round(segs[-1].t1 / period)) for segs in spans.values()]
+    vendor = vendor_configs(robot, q[ends])
+    return tuple(MoveRecord(i, task.moves[i].kind, segs[0].t0, segs[-1].t1, segs[-1].config_after, v)
+                 for (i, segs), v in zip(spans.items(), vendor, strict=True))
 
 
 _CHUNK = 65_536  # programmed poses formed at once (128 bytes a sample)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -25,3 +27,19 @@ def random_q(robot: Robot, rng: np.random.Generator, n: int) -> np.ndarray:
     lo = np.maximum(robot.lower_rad, -2 * np.pi)
     hi = np.minimum(robot.upper_rad, 2 * np.pi)
     return rng.uniform(lo, hi, size=(n, robot.n_joints))
+
+
+# the public scenarios sit next to the project in development and CI (as in tests/test_scenarios.py)
+_SHARED_SCENARIOS = Path(__file__).resolve().parents[2] / "shared" / "scenarios"
+SCENARIOS = _SHARED_SCENARIOS if _SHARED_SCENARIOS.is_dir() else None
+
+
+@pytest.fixture(scope="session")
+def planned_kuka(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An output folder of a small plan (a KUKA LIN through a wrist near miss), planned once per session."""
+    from singplan.planner import plan
+    from singplan.task import load_task
+    from singplan.trajectory import save
+
+    task = Path(__file__).resolve().parent.parent / "singplan" / "demo_task.yaml"
+    return save(plan(load_task(task)), tmp_path_factory.mktemp("planned_kuka"))

@@ -117,7 +117,8 @@ def _nearest(candidates: np.ndarray, q_prev: np.ndarray) -> tuple[np.ndarray, fl
     return best, float(dist), int(k)
 
 
-def _select(cands: BranchCandidates, u: np.ndarray, q0: np.ndarray, max_step: float) -> tuple[np.ndarray, np.ndarray]:
+def _select(cands: BranchCandidates, u: np.ndarray, q0: np.ndarray, max_step: float,
+            min_du: float) -> tuple[np.ndarray, np.ndarray]:
     """Follow the nearest candidate from q0; returns q (N, n) and the step before each sample.
 
     :func:`_follow` does the work; it hands back the samples with free joints whose rows all
@@ -126,9 +127,10 @@ def _select(cands: BranchCandidates, u: np.ndarray, q0: np.ndarray, max_step: fl
     C, free = cands.at(u)  # (N, B, n), (N,)
     q = np.empty((len(u), len(q0)))
     steps = np.zeros(len(u))
+    du = np.diff(u, prepend=u[0])  # (N,) interval before each sample
     k, row = 0, -1
     while True:
-        k = int(_follow(C, free, np.ascontiguousarray(q0, dtype=float), row, k, max_step, q, steps))
+        k = int(_follow(C, free, du, np.ascontiguousarray(q0, dtype=float), row, k, max_step, min_du, q, steps))
         if k >= len(u):
             return q, steps
         q_prev = q[k - 1] if k > 0 else q0
@@ -144,14 +146,17 @@ def _select(cands: BranchCandidates, u: np.ndarray, q0: np.ndarray, max_step: fl
 
 
 @jit
-def _follow(C: np.ndarray, free: np.ndarray, q0: np.ndarray, row: int, start: int, max_step: float,
-            q: np.ndarray, steps: np.ndarray) -> int:
+def _follow(C: np.ndarray, free: np.ndarray, du: np.ndarray, q0: np.ndarray, row: int, start: int,
+            max_step: float, min_du: float, q: np.ndarray, steps: np.ndarray) -> int:
     """Fill q[start:] and steps[start:] from candidates C (N, B, n), each moved by whole turns next to
     the previous sample (``q0`` before sample 0); ``row`` is the candidate row q[start - 1] came
-    from (-1: none).
+    from (-1: none); ``du`` (N,) the parameter interval before each sample.
 
-    The current row is followed while its step is small; elsewhere the nearest row is
-    searched again (it may be the same row). Returns the first sample whose nearest row
+    The current row is followed while its step is small. A finite row that steps too far on an
+    interval still wider than ``min_du`` is followed too, its large step left for the caller to
+    refine: where two branches approach each other (the UR arm's q1, q3 and q5 pairs near the
+    shoulder, elbow and wrist) the other row may be nearer on a coarse grid although it is not
+    the continuation. Elsewhere the nearest row is searched again (it may be the same row). Returns the first sample whose nearest row
     steps more than ``max_step`` and whose joints are free (the caller solves it with a
     seed), or N. A sample with no finite row ends the path: it and the rest become NaN, their
     steps inf. (Chains without a closed form have no rows and free joints everywhere: every
@@ -162,7 +167,7 @@ def _follow(C: np.ndarray, free: np.ndarray, q0: np.ndarray, row: int, start: in
         prev = q[k - 1] if k > 0 else q0
         if row >= 0:
             step = _row_step(C[k, row], prev)
-            if step <= max_step:
+            if step <= max_step or (math.isfinite(step) and du[k] > min_du and not free[k]):
                 _put(C[k, row], prev, q[k])
                 steps[k] = step
                 continue
@@ -221,7 +226,7 @@ def track(robot: Robot, poses: PoseFunction, u0: np.ndarray, q_start: np.ndarray
     """
     cands = BranchCandidates(robot, poses) if cands is None else cands
     u = np.asarray(u0, dtype=float)
-    q, steps = _select_all(cands, u, q_start, max_joint_step_rad)
+    q, steps = _select_all(cands, u, q_start, max_joint_step_rad, min_du)
     held: np.ndarray | None = None  # (N - 1,) of the current samples, once computed
     for _ in range(max_passes):
         lost = np.nonzero(~np.isfinite(steps))[0]
@@ -232,7 +237,7 @@ def track(robot: Robot, poses: PoseFunction, u0: np.ndarray, q_start: np.ndarray
         if big.size == 0 or len(u) > _MAX_SAMPLES:
             break
         u = np.sort(np.concatenate([u, _subdivide(u, big, steps[big + 1] / max_joint_step_rad)]))
-        q, steps = _select_all(cands, u, q_start, max_joint_step_rad)
+        q, steps = _select_all(cands, u, q_start, max_joint_step_rad, min_du)
         held = None
     large = ~np.isfinite(steps[1:]) | (steps[1:] > max_joint_step_rad)
     held = _held_intervals(hold, q) if held is None else held
@@ -260,6 +265,6 @@ def _subdivide(u: np.ndarray, big: np.ndarray, ratio: np.ndarray) -> np.ndarray:
 
 
 def _select_all(cands: BranchCandidates, u: np.ndarray, q_start: np.ndarray,
-                max_step: float) -> tuple[np.ndarray, np.ndarray]:
+                max_step: float, min_du: float) -> tuple[np.ndarray, np.ndarray]:
     cands.fill(u)
-    return _select(cands, u, q_start, max_step)
+    return _select(cands, u, q_start, max_step, min_du)

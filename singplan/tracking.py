@@ -156,10 +156,10 @@ def _follow(C: np.ndarray, free: np.ndarray, du: np.ndarray, q0: np.ndarray, row
     interval still wider than ``min_du`` is followed too, its large step left for the caller to
     refine: where two branches approach each other (the UR arm's q1, q3 and q5 pairs near the
     shoulder, elbow and wrist) the other row may be nearer on a coarse grid although it is not
-    the continuation. Elsewhere the nearest row is searched again (it may be the same row). Returns the first sample whose nearest row
-    steps more than ``max_step`` and whose joints are free (the caller solves it with a
-    seed), or N. A sample with no finite row ends the path: it and the rest become NaN, their
-    steps inf. (Chains without a closed form have no rows and free joints everywhere: every
+    the continuation. Elsewhere the nearest row is searched again (it may be the same row).
+    Returns the first sample whose nearest row steps more than ``max_step`` and whose joints
+    are free (the caller solves it with a seed), or N. A sample with no finite row ends the
+    path: it and the rest become NaN, their steps inf. (Chains without a closed form have no rows and free joints everywhere: every
     sample goes to the caller.)
     """
     n_samples = C.shape[0]

@@ -159,8 +159,8 @@ def _follow(C: np.ndarray, free: np.ndarray, du: np.ndarray, q0: np.ndarray, row
     the continuation. Elsewhere the nearest row is searched again (it may be the same row).
     Returns the first sample whose nearest row steps more than ``max_step`` and whose joints
     are free (the caller solves it with a seed), or N. A sample with no finite row ends the
-    path: it and the rest become NaN, their steps inf. (Chains without a closed form have no rows and free joints everywhere: every
-    sample goes to the caller.)
+    path: it and the rest become NaN, their steps inf. (Chains without a closed form have no
+    rows and free joints everywhere: every sample goes to the caller.)
     """
     n_samples = C.shape[0]
     for k in range(start, n_samples):

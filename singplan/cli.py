@@ -256,6 +256,33 @@ def _serve(args: argparse.Namespace, out: TextIO) -> int:
     return 0
 
 
+def cmd_batch(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    """Plan many tasks (singplan.batch): a line per finished task on stderr, the totals on stdout."""
+    from singplan import batch  # imported here: the other commands need none of it
+
+    if args.workers is not None and args.workers >= 1 and not args.quiet:
+        warning = batch.memory_warning(args.workers)
+        if warning:
+            err.write(f"singplan: warning: {warning}\n")
+
+    def show(record: batch.TaskRecord, done: int, total: int) -> None:
+        seconds = "" if record.wall_s is None else f" {record.wall_s:7.2f} s"
+        err.write(f"[{done}/{total}] exit {record.exit_code}{seconds}  {record.task}: {_one_line(record.message)}\n")
+        err.flush()
+
+    result = batch.plan_many(args.tasks, args.output, workers=args.workers, scheduler=args.scheduler,
+                             method=args.method, report=not args.no_report, replay=not args.no_replay,
+                             progress=None if args.quiet else show)
+    counts: dict[int, int] = {}
+    for record in result.records:
+        counts[record.exit_code] = counts.get(record.exit_code, 0) + 1
+    tally = ", ".join(f"{n} exit {code}" for code, n in sorted(counts.items()))
+    state = "interrupted" if result.interrupted else "done"
+    out.write(f"batch {state}: {len(result.records)} task(s) ({tally}) in {result.wall_s:.1f} s; "
+              f"summary {result.summary_csv}, {result.summary_json}\n")
+    return result.exit_code
+
+
 def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
@@ -307,6 +334,19 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="plan the bundled demo task into ./singplan-demo")
     demo.add_argument("-o", "--output", default="singplan-demo", help="output folder (default: singplan-demo)")
     demo.set_defaults(func=cmd_demo)
+    bat = sub.add_parser("batch", help="plan many tasks, one output folder each, plus summary.csv / summary.json")
+    bat.add_argument("tasks", nargs="+", help="task files (YAML v1); each one's folder is named after its file")
+    bat.add_argument("-o", "--output", required=True, help="batch folder (created if absent; other files kept)")
+    where = bat.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None,
+                       help="local worker processes (default: the number of CPUs; each task may take 1.5 GB)")
+    where.add_argument("--scheduler", default=None,
+                       help="address of a Dask scheduler (tcp://host:8786) to plan on instead (needs dask[distributed])")
+    bat.add_argument("--method", default=None, help="crossing method, overriding every task's")
+    bat.add_argument("--quiet", action="store_true", help="no line per finished task")
+    bat.add_argument("--no-report", action="store_true", help="do not write report.html")
+    bat.add_argument("--no-replay", action="store_true", help="do not write replay.html")
+    bat.set_defaults(func=cmd_batch)
     return parser
 
 

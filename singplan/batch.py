@@ -25,7 +25,7 @@ import os
 import signal
 import time
 import uuid
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Generator, Iterator, Sequence
 from dataclasses import asdict, dataclass, fields
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
@@ -218,7 +218,7 @@ def plan_many(tasks: Sequence[str | os.PathLike[str]], out_dir: str | os.PathLik
         folder.mkdir(parents=True, exist_ok=True)  # before the workers, which would race to create it
         started = time.perf_counter()
         results = (_on_dask(jobs, client, runner) if client is not None
-                   else _on_processes(jobs, min(workers or os.cpu_count() or 1, len(jobs)), runner))
+                   else _on_processes(jobs, local_workers(workers, len(jobs)), runner))
         done, interrupted = _collect(results, len(jobs), progress)
     finally:
         if client is not None:
@@ -229,7 +229,7 @@ def plan_many(tasks: Sequence[str | os.PathLike[str]], out_dir: str | os.PathLik
     return result
 
 
-def _collect(results: Iterator[tuple[int, TaskRecord]], total: int,
+def _collect(results: Generator[tuple[int, TaskRecord], None, None], total: int,
              progress: Progress | None) -> tuple[dict[int, TaskRecord], bool]:
     """The records by job index as they finish, and whether Ctrl-C stopped the batch first."""
     done: dict[int, TaskRecord] = {}
@@ -270,6 +270,11 @@ def write_summary(result: BatchResult) -> list[Path]:
     return write_files(result.out_dir, {"summary.csv": write_csv, "summary.json": write_json})
 
 
+def local_workers(workers: int | None, n_tasks: int) -> int:
+    """The number of local worker processes: ``workers`` (default one per CPU), at most one per task."""
+    return min(workers or os.cpu_count() or 1, n_tasks)
+
+
 def memory_warning(workers: int) -> str | None:
     """A warning when ``workers`` tasks at their memory budget could exceed this machine's memory."""
     try:
@@ -279,9 +284,9 @@ def memory_warning(workers: int) -> str | None:
     need_mb = workers * TASK_MEMORY_MB
     if need_mb <= total_mb:
         return None
+    fitting = max(1, int(total_mb // TASK_MEMORY_MB))
     return (f"{workers} workers may take up to {workers} x {TASK_MEMORY_MB:.0f} MB = {need_mb / 1024:.1f} GB, "
-            f"more than this machine's {total_mb / 1024:.1f} GB; use --workers {max(1, int(total_mb // TASK_MEMORY_MB))}"
-            " or fewer if the tasks are large")
+            f"more than this machine's {total_mb / 1024:.1f} GB; use --workers {fitting} or fewer for large tasks")
 
 
 # --- local worker processes -----------------------------------------------------------------
@@ -350,7 +355,8 @@ def _context() -> Any:
     return multiprocessing.get_context("spawn")
 
 
-def _on_processes(jobs: list[TaskJob], n_workers: int, runner: Runner) -> Iterator[tuple[int, TaskRecord]]:
+def _on_processes(jobs: list[TaskJob], n_workers: int,
+                  runner: Runner) -> Generator[tuple[int, TaskRecord], None, None]:
     """Run the jobs on ``n_workers`` processes; yield (job index, record) as each finishes."""
     ctx = _context()
     pending = list(reversed(jobs))
@@ -421,12 +427,12 @@ def _connect(scheduler: str) -> Any:
     """A Dask client of the scheduler at ``scheduler`` (InputError without Dask or without a scheduler there)."""
     distributed = _import_distributed()
     try:
-        return distributed.Client(scheduler, timeout="10s", set_as_default=False)
+        return distributed.Client(scheduler, timeout="10s")
     except (OSError, ValueError, TypeError) as exc:
         raise InputError(f"--scheduler {scheduler!r}: cannot connect to a Dask scheduler there: {exc}") from None
 
 
-def _on_dask(jobs: list[TaskJob], client: Any, runner: Runner) -> Iterator[tuple[int, TaskRecord]]:
+def _on_dask(jobs: list[TaskJob], client: Any, runner: Runner) -> Generator[tuple[int, TaskRecord], None, None]:
     """Submit the jobs to the client's cluster; yield (job index, record) as each finishes."""
     distributed = _import_distributed()
     batch = uuid.uuid4().hex[:8]

@@ -260,14 +260,15 @@ def cmd_batch(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     """Plan many tasks (singplan.batch): a line per finished task on stderr, the totals on stdout."""
     from singplan import batch  # imported here: the other commands need none of it
 
-    if args.workers is not None and args.workers >= 1 and not args.quiet:
-        warning = batch.memory_warning(args.workers)
+    if args.scheduler is None and not args.quiet:
+        warning = batch.memory_warning(batch.local_workers(args.workers, len(args.tasks)))
         if warning:
             err.write(f"singplan: warning: {warning}\n")
 
     def show(record: batch.TaskRecord, done: int, total: int) -> None:
         seconds = "" if record.wall_s is None else f" {record.wall_s:7.2f} s"
-        err.write(f"[{done}/{total}] exit {record.exit_code}{seconds}  {record.task}: {_one_line(record.message)}\n")
+        message = " ".join(record.message.split())
+        err.write(f"[{done}/{total}] exit {record.exit_code}{seconds}  {record.task}: {message}\n")
         err.flush()
 
     result = batch.plan_many(args.tasks, args.output, workers=args.workers, scheduler=args.scheduler,
@@ -341,7 +342,7 @@ def build_parser() -> argparse.ArgumentParser:
     where.add_argument("--workers", type=int, default=None,
                        help="local worker processes (default: the number of CPUs; each task may take 1.5 GB)")
     where.add_argument("--scheduler", default=None,
-                       help="address of a Dask scheduler (tcp://host:8786) to plan on instead (needs dask[distributed])")
+                       help="a Dask scheduler's address (tcp://host:8786) to plan on instead (needs dask[distributed])")
     bat.add_argument("--method", default=None, help="crossing method, overriding every task's")
     bat.add_argument("--quiet", action="store_true", help="no line per finished task")
     bat.add_argument("--no-report", action="store_true", help="do not write report.html")

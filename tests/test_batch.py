@@ -274,3 +274,11 @@ def test_an_unreachable_scheduler_is_bad_input(tmp_path: Path) -> None:
     code, _, err = _batch(_task(tmp_path, "a.yaml"), "-o", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9")
     assert code == 2 and "cannot connect" in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_memory_warning_when_the_workers_budgets_exceed_the_machine() -> None:
+    total_gb = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
+    assert batch.memory_warning(1) is None or total_gb < 1.5
+    many = int(total_gb / 1.5) + 2  # their 1.5 GB budgets add up to more than the machine has
+    warning = batch.memory_warning(many)
+    assert warning is not None and f"{many} x 1500 MB" in warning and "--workers" in warning

@@ -165,12 +165,15 @@ def folder_names(tasks: Sequence[str | os.PathLike[str]]) -> list[str]:
 
     The first task with a given name gets it; later tasks with the same name (compared without
     case, for case-insensitive file systems), and a name equal to a summary file's, get ``-2``,
-    ``-3``, ... (the first suffix not yet taken), in the order the tasks are given.
+    ``-3``, ... (the first suffix not yet taken), in the order the tasks are given. A name that
+    would mean the batch folder or its parent (``..yaml``) becomes ``task``.
     """
     taken = {name.casefold() for name in SUMMARY_FILES}
     names = []
     for task in tasks:
         stem = Path(task).stem
+        if stem in (".", ".."):
+            stem = "task"
         name, k = stem, 1
         while name.casefold() in taken:
             k += 1

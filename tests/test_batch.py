@@ -83,6 +83,7 @@ def test_folder_names_are_the_file_names_made_unique_in_order() -> None:
     tasks = ["a/cell.yaml", "b/cell.yaml", "cell-2.yaml", "c/CELL.yml", "summary.csv.yaml", "x.yaml"]
     assert folder_names(tasks) == ["cell", "cell-2", "cell-2-2", "CELL-3", "summary.csv-2", "x"]
     assert folder_names(list(reversed(tasks))) == ["x", "summary.csv-2", "CELL", "cell-2", "cell-3", "cell-4"]
+    assert folder_names(["d/..yaml", "d/...yaml", "task.yaml"]) == ["task", "task-2", "task-3"]  # never DIR or its parent
 
 
 def test_a_batch_plans_every_task_and_a_failing_one_stops_none(tmp_path: Path) -> None:

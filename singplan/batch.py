@@ -47,6 +47,7 @@ INTERRUPTED = 130  # the exit code of an interrupted batch, and of its tasks tha
 DEAD_WORKER = 1  # a task whose worker died: no result, so an internal failure rather than 2 or 3
 _MESSAGE_CHARS = 2000  # a record travels through a pipe; an error message longer than this is cut
 _STOP_WAIT_S = 30.0  # how long an interrupted worker may take to remove its temporary files
+CONNECT_TIMEOUT_S = 10.0  # how long to try reaching a Dask scheduler before --scheduler is refused
 
 
 @dataclass(frozen=True)
@@ -430,7 +431,7 @@ def _connect(scheduler: str) -> Any:
     """A Dask client of the scheduler at ``scheduler`` (InputError without Dask or without a scheduler there)."""
     distributed = _import_distributed()
     try:
-        return distributed.Client(scheduler, timeout="10s")
+        return distributed.Client(scheduler, timeout=CONNECT_TIMEOUT_S)
     except (OSError, ValueError, TypeError) as exc:
         raise InputError(f"--scheduler {scheduler!r}: cannot connect to a Dask scheduler there: {exc}") from None
 

@@ -83,7 +83,7 @@ def test_folder_names_are_the_file_names_made_unique_in_order() -> None:
     tasks = ["a/cell.yaml", "b/cell.yaml", "cell-2.yaml", "c/CELL.yml", "summary.csv.yaml", "x.yaml"]
     assert folder_names(tasks) == ["cell", "cell-2", "cell-2-2", "CELL-3", "summary.csv-2", "x"]
     assert folder_names(list(reversed(tasks))) == ["x", "summary.csv-2", "CELL", "cell-2", "cell-3", "cell-4"]
-    assert folder_names(["d/..yaml", "d/...yaml", "task.yaml"]) == ["task", "task-2", "task-3"]  # never DIR or its parent
+    assert folder_names(["d/..yaml", "d/...yaml", "task.yaml"]) == ["task", "task-2", "task-3"]  # never . or ..
 
 
 def test_a_batch_plans_every_task_and_a_failing_one_stops_none(tmp_path: Path) -> None:
@@ -270,8 +270,9 @@ def test_a_dask_worker_that_dies_loses_only_its_task(dask_cluster: str, tmp_path
     assert _hidden(tmp_path / "out") == []
 
 
-def test_an_unreachable_scheduler_is_bad_input(tmp_path: Path) -> None:
+def test_an_unreachable_scheduler_is_bad_input(tmp_path: Path, monkeypatch) -> None:
     pytest.importorskip("distributed")
+    monkeypatch.setattr(batch, "CONNECT_TIMEOUT_S", 1.0)
     code, _, err = _batch(_task(tmp_path, "a.yaml"), "-o", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9")
     assert code == 2 and "cannot connect" in err, err
     assert not (tmp_path / "out").exists()

@@ -159,6 +159,35 @@ def test_ctrl_c_stops_the_workers_and_writes_the_summary_of_what_finished(tmp_pa
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["summary.csv", "summary.json", "t0"]
 
 
+def test_a_real_sigint_to_the_process_group_stops_every_process(tmp_path: Path) -> None:
+    """Ctrl-C in a terminal signals the batch and its workers at once: the workers ignore it and are stopped."""
+    tasks = [str(_task(tmp_path, f"t{i}.yaml")) for i in range(3)]
+    code = ("import sys; from singplan.batch import plan_many; from tests.test_batch import slow_unless_first; "
+            "r = plan_many(sys.argv[1:-1], sys.argv[-1], workers=2, report=False, replay=False, "
+            "runner=slow_unless_first, progress=lambda rec, d, t: print('finished', d, flush=True)); "
+            "print('exit', r.exit_code, flush=True)")
+    run = subprocess.Popen([sys.executable, "-c", code, *tasks, str(tmp_path / "out")], stdout=subprocess.PIPE,
+                           text=True, start_new_session=True, cwd=Path(__file__).resolve().parents[1])
+    assert run.stdout is not None
+    assert run.stdout.readline() == "finished 1\n"  # t0 planned; t1 is sleeping in the other worker
+    os.killpg(run.pid, signal.SIGINT)
+    assert run.communicate(timeout=60)[0] == "exit 130\n"
+    rows, _ = _summary(tmp_path / "out")
+    assert [r["exit_code"] for r in rows] == ["0", "130", "130"] and _hidden(tmp_path / "out") == []
+    deadline = time.monotonic() + 10
+    while _group_alive(run.pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _group_alive(run.pid), "a worker or the fork server outlived the batch"
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
 def test_batch_level_bad_input_exits_2_and_creates_nothing(tmp_path: Path, monkeypatch, capsys) -> None:
     task = _task(tmp_path / "tasks", "a.yaml")
     out = tmp_path / "out"

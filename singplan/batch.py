@@ -61,6 +61,7 @@ class TaskJob:
     method: str | None = None
     report: bool = True
     replay: bool = True
+    folder_existed: bool = False  # a folder that was there before the batch is never removed
 
 
 @dataclass(frozen=True)
@@ -193,7 +194,8 @@ def make_jobs(tasks: Sequence[str | os.PathLike[str]], out_dir: Path, method: st
         if key in seen:
             raise InputError(f"task {os.fspath(task)!r} is given twice (as {seen[key]!r}); give each task once")
         seen[key] = os.fspath(task)
-    return [TaskJob(i, os.path.abspath(task), os.fspath(task), os.path.abspath(out_dir / name), method, report, replay)
+    return [TaskJob(i, os.path.abspath(task), os.fspath(task), os.path.abspath(out_dir / name), method, report, replay,
+                    (out_dir / name).exists())
             for i, (task, name) in enumerate(zip(tasks, folder_names(tasks), strict=True))]
 
 
@@ -407,19 +409,20 @@ def _death(exitcode: int | None) -> str:
 
 def _dead(job: TaskJob, how: str, wall_s: float | None) -> TaskRecord:
     """The record of a task whose worker died, after removing the temporary files it left."""
-    _remove_leftovers(Path(job.folder))
+    _remove_leftovers(Path(job.folder), remove_folder=not job.folder_existed)
     return TaskRecord(job.shown, Path(job.folder).name, DEAD_WORKER,
                       f"the worker process died while planning this task ({how}); no result", wall_s=wall_s)
 
 
-def _remove_leftovers(folder: Path) -> None:
-    """A killed worker cannot clean up: remove its temporary files, and the folder if that leaves it empty."""
+def _remove_leftovers(folder: Path, remove_folder: bool) -> None:
+    """A killed worker cannot clean up: remove its temporary files, and the folder it created if left empty."""
     names = ("trajectory.csv", "trajectory.json", "report.html", "replay.html")
     try:
         for p in folder.glob(".*.singplan-tmp"):
             if any(p.name.startswith(f".{name}.") for name in names):
                 p.unlink(missing_ok=True)
-        folder.rmdir()  # only an empty folder: one that held anything else stays
+        if remove_folder:
+            folder.rmdir()  # only an empty folder: one that holds anything else stays
     except OSError:
         return
 

@@ -131,13 +131,15 @@ def test_quiet_prints_no_progress_and_all_planned_exits_0(tmp_path: Path) -> Non
 
 def test_a_worker_that_dies_loses_only_its_task(tmp_path: Path) -> None:
     tasks = [_task(tmp_path, "crash.yaml"), _task(tmp_path, "a.yaml"), _task(tmp_path, "crash_again.yaml"),
-             _task(tmp_path, "b.yaml")]
+             _task(tmp_path, "b.yaml"), _task(tmp_path, "crash_into_mine.yaml")]
+    (tmp_path / "out" / "crash_into_mine").mkdir(parents=True)  # the user's empty folder: kept
     result = plan_many(tasks, tmp_path / "out", workers=2, report=False, replay=False, runner=crash_or_plan)
     codes = [r.exit_code for r in result.records]
-    assert codes == [1, 0, 1, 0] and result.exit_code == 1 and not result.interrupted
-    for dead in (result.records[0], result.records[2]):
+    assert codes == [1, 0, 1, 0, 1] and result.exit_code == 1 and not result.interrupted
+    for dead in (result.records[0], result.records[2], result.records[4]):
         assert "worker process died" in dead.message and "SIGKILL" in dead.message, dead.message
-    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["a", "b", "summary.csv", "summary.json"]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["a", "b", "crash_into_mine", "summary.csv",
+                                                                   "summary.json"]
     assert _hidden(tmp_path / "out") == []  # the dead worker's temporary file is removed, and its empty folder
 
 

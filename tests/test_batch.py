@@ -241,7 +241,8 @@ def one_at_a_time(scenarios: list[Path], tmp_path_factory: pytest.TempPathFactor
     results = {}
     for task in scenarios:
         out, err = io.StringIO(), io.StringIO()
-        code = main(["plan", str(task), "-o", str(root / task.stem), "--quiet", "--no-replay"], out=out, err=err)
+        code = main(["plan", str(task), "-o", str(root / task.stem), "--quiet", "--no-report", "--no-replay"],
+                    out=out, err=err)
         results[task.stem] = (code, root / task.stem)
     return results
 
@@ -278,14 +279,15 @@ def _check_same(result: batch.BatchResult, one_at_a_time: dict[str, tuple[int, P
 
 def test_two_local_workers_give_the_same_results_as_one_at_a_time(scenarios: list[Path], one_at_a_time,
                                                                   tmp_path: Path) -> None:
-    result = plan_many(scenarios, tmp_path / "out", workers=2, replay=False)
+    result = plan_many(scenarios, tmp_path / "out", workers=2, report=False, replay=False)
     _check_same(result, one_at_a_time)
     assert result.exit_code == 3
 
 
 def test_a_dask_cluster_gives_the_same_results_as_one_at_a_time(scenarios: list[Path], one_at_a_time,
                                                                 dask_cluster: str, tmp_path: Path) -> None:
-    code, _, err = _batch(*scenarios, "-o", tmp_path / "out", "--scheduler", dask_cluster, "--no-replay")
+    code, _, err = _batch(*scenarios, "-o", tmp_path / "out", "--scheduler", dask_cluster, "--no-report",
+                          "--no-replay")
     assert code == 3, err
     _, doc = _summary(tmp_path / "out")
     records = tuple(TaskRecord(**entry) for entry in doc["tasks"])

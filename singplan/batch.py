@@ -23,6 +23,7 @@ import json
 import multiprocessing
 import os
 import signal
+import sys
 import time
 import uuid
 from collections.abc import Callable, Generator, Iterator, Sequence
@@ -354,7 +355,11 @@ def _interrupt(signum: int, frame: object) -> None:
 
 def _context() -> Any:
     """Fork a preloaded server where possible: workers start without importing the planner again."""
-    if "forkserver" in multiprocessing.get_all_start_methods():
+    methods = multiprocessing.get_all_start_methods()
+    main_file = getattr(sys.modules.get("__main__"), "__file__", None)
+    if main_file is not None and not os.path.isfile(main_file) and "fork" in methods:
+        return multiprocessing.get_context("fork")  # a script read from stdin: a new process could not re-read it
+    if "forkserver" in methods:
         ctx = multiprocessing.get_context("forkserver")
         ctx.set_forkserver_preload([__name__])
         return ctx

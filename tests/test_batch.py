@@ -218,6 +218,16 @@ def test_plain_batch_does_not_import_dask(tmp_path: Path) -> None:
     assert run.stdout.splitlines()[-1] == "0 []", run.stdout + run.stderr
 
 
+def test_a_script_read_from_stdin_can_run_a_batch(tmp_path: Path) -> None:
+    """Workers are normally started from a server that re-imports the main script; stdin cannot be re-read."""
+    task = _task(tmp_path, "a.yaml")
+    script = ("from singplan.batch import plan_many\n"
+              f"r = plan_many([{str(task)!r}], {str(tmp_path / 'out')!r}, workers=1, report=False, replay=False)\n"
+              "print(r.records[0].exit_code, r.records[0].message)\n")
+    run = subprocess.run([sys.executable, "-"], input=script, capture_output=True, text=True, timeout=300)
+    assert run.stdout == "0 planned\n", run.stdout + run.stderr[-2000:]
+
+
 # --- the same results as one at a time: public scenarios, local workers and Dask ------------------
 
 

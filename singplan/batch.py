@@ -9,6 +9,8 @@ interrupted). Two ways to run the workers:
   A worker that dies (a segfault, the kernel's OOM killer) loses only its current task, which
   is recorded with exit code 1, and is replaced. Each worker is a whole process, so each task
   has the memory budget of :mod:`singplan.budget`; N workers may take N x 1.5 GB in all.
+  A worker that dies before taking any task (WorkerStartError) means none can start: the
+  tasks not yet run are recorded as not run, with exit code 1.
 - Dask (``scheduler``): the tasks are submitted to a ``dask.distributed`` cluster. The workers
   read the task files and write the folders themselves, so DIR and the tasks must be on a file
   system they share (paths are made absolute first). Dask is imported only then.
@@ -226,19 +228,22 @@ def plan_many(tasks: Sequence[str | os.PathLike[str]], out_dir: str | os.PathLik
         started = time.perf_counter()
         results = (_on_dask(jobs, client, runner) if client is not None
                    else _on_processes(jobs, local_workers(workers, len(jobs)), runner))
-        done, interrupted = _collect(results, len(jobs), progress)
+        done, stopped = _collect(results, len(jobs), progress)
     finally:
         if client is not None:
             client.close()
-    result = BatchResult(Path(os.path.abspath(folder)), _records(jobs, done), interrupted,
+    result = BatchResult(Path(os.path.abspath(folder)), _records(jobs, done, stopped), stopped == _INTERRUPTION,
                          time.perf_counter() - started)
     write_summary(result)
     return result
 
 
+_INTERRUPTION = (INTERRUPTED, "not finished: the batch was interrupted")
+
+
 def _collect(results: Generator[tuple[int, TaskRecord], None, None], total: int,
-             progress: Progress | None) -> tuple[dict[int, TaskRecord], bool]:
-    """The records by job index as they finish, and whether Ctrl-C stopped the batch first."""
+             progress: Progress | None) -> tuple[dict[int, TaskRecord], tuple[int, str] | None]:
+    """The records by job index as they finish, and what stopped the batch early (exit code and message)."""
     done: dict[int, TaskRecord] = {}
     try:
         for index, record in results:
@@ -246,16 +251,19 @@ def _collect(results: Generator[tuple[int, TaskRecord], None, None], total: int,
             if progress is not None:
                 progress(record, len(done), total)
     except KeyboardInterrupt:
-        return done, True
+        return done, _INTERRUPTION
+    except WorkerStartError as exc:
+        return done, (exc.exit_code, f"not run: {exc}")
     finally:
         results.close()  # stops the workers, whatever ended the loop
-    return done, False
+    return done, None
 
 
-def _records(jobs: list[TaskJob], done: dict[int, TaskRecord]) -> tuple[TaskRecord, ...]:
-    """The finished tasks' records and, for the others, an interrupted one."""
-    return tuple(done.get(job.index) or TaskRecord(job.shown, Path(job.folder).name, INTERRUPTED,
-                                                     "not finished: the batch was interrupted")
+def _records(jobs: list[TaskJob], done: dict[int, TaskRecord],
+             stopped: tuple[int, str] | None) -> tuple[TaskRecord, ...]:
+    """The finished tasks' records and, for the others, why they did not finish."""
+    code, message = stopped or _INTERRUPTION  # without a stop, every task has its record
+    return tuple(done.get(job.index) or TaskRecord(job.shown, Path(job.folder).name, code, message)
                  for job in jobs)
 
 
@@ -299,6 +307,15 @@ def memory_warning(workers: int) -> str | None:
 # --- local worker processes -----------------------------------------------------------------
 
 
+class WorkerStartError(SingplanError):
+    """A local worker process died before it could take a task (exit code 1): no task can run."""
+
+    def __init__(self, how: str) -> None:
+        self.how = how
+        super().__init__(f"a worker process could not start ({how}); a script that calls plan_many must guard its "
+                         "top level with `if __name__ == \"__main__\":` (the workers import it)")
+
+
 class _Worker:
     """A worker process and the two ends of its job pipe."""
 
@@ -309,6 +326,14 @@ class _Worker:
         child_end.close()
         self.job: TaskJob | None = None
         self.started = 0.0
+
+    def wait_ready(self) -> None:
+        """Block until the process runs its loop; WorkerStartError when it died first."""
+        try:
+            self.jobs.recv()
+        except (EOFError, OSError):
+            self.stop()
+            raise WorkerStartError(_death(self.process.exitcode)) from None
 
     def give(self, job: TaskJob) -> None:
         self.job, self.started = job, time.perf_counter()
@@ -339,6 +364,7 @@ def _serve(jobs: Connection, runner: Runner) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a terminal's Ctrl-C reaches the parent, which stops us once
     signal.signal(signal.SIGTERM, _interrupt)
     try:
+        jobs.send("ready")
         while True:
             try:
                 job = jobs.recv()
@@ -375,8 +401,10 @@ def _on_processes(jobs: list[TaskJob], n_workers: int,
     try:
         while pending or any(w.job is not None for w in workers):
             workers = [w for w in workers if w.process.is_alive()]
-            while len(workers) < n_workers and pending:
-                workers.append(_Worker(ctx, runner))
+            started = [_Worker(ctx, runner) for _ in range(min(n_workers - len(workers), len(pending)))]
+            workers += started  # stopped in `finally` even when one of them does not start
+            for w in started:
+                w.wait_ready()
             for w in workers:
                 if w.job is None and pending:
                     w.give(pending.pop())

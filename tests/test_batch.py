@@ -228,6 +228,20 @@ def test_a_script_read_from_stdin_can_run_a_batch(tmp_path: Path) -> None:
     assert run.stdout == "0 planned\n", run.stdout + run.stderr[-2000:]
 
 
+def test_workers_that_cannot_start_stop_the_batch_with_a_clear_message(tmp_path: Path) -> None:
+    """A script without the `__main__` guard: each worker re-runs it and dies; no task can run anywhere."""
+    tasks = [str(_task(tmp_path, f"{n}.yaml")) for n in "abc"]
+    script = tmp_path / "unguarded.py"
+    script.write_text("from singplan.batch import plan_many\n"
+                      f"r = plan_many({tasks!r}, {str(tmp_path / 'out')!r}, workers=2, report=False, replay=False)\n"
+                      "print(r.exit_code, sorted({(x.exit_code, x.message) for x in r.records}))\n")
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
+    code, reasons = run.stdout.split(" ", 1)
+    assert code == "1" and "[(1, 'not run: a worker process could not start (exit status 1)" in reasons, run.stdout
+    assert "__main__" in reasons
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["summary.csv", "summary.json"]
+
+
 # --- the same results as one at a time: public scenarios, local workers and Dask ------------------
 
 

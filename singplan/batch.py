@@ -335,9 +335,16 @@ class _Worker:
             self.stop()
             raise WorkerStartError(_death(self.process.exitcode)) from None
 
-    def give(self, job: TaskJob) -> None:
+    def give(self, job: TaskJob) -> bool:
+        """Send the job and wait for the worker to take it; False when it died first (stopped, job not taken)."""
+        try:
+            self.jobs.send(job)
+            self.jobs.recv()  # "started": from here on, a death is this job's
+        except (EOFError, OSError):
+            self.stop()
+            return False
         self.job, self.started = job, time.perf_counter()
-        self.jobs.send(job)
+        return True
 
     def take(self) -> TaskRecord | None:
         """The finished job's record, or None when the process died without sending one."""
@@ -370,6 +377,7 @@ def _serve(jobs: Connection, runner: Runner) -> None:
                 job = jobs.recv()
             except EOFError:
                 return
+            jobs.send("started")
             jobs.send(runner(job))
     except KeyboardInterrupt:
         return
@@ -400,15 +408,17 @@ def _on_processes(jobs: list[TaskJob], n_workers: int,
     workers: list[_Worker] = []
     try:
         while pending or any(w.job is not None for w in workers):
-            workers = [w for w in workers if w.process.is_alive()]
+            # a busy worker stays until _finished has recorded its job, even when it has died meanwhile
+            workers = [w for w in workers if w.job is not None or w.process.is_alive()]
             started = [_Worker(ctx, runner) for _ in range(min(n_workers - len(workers), len(pending)))]
             workers += started  # stopped in `finally` even when one of them does not start
             for w in started:
                 w.wait_ready()
             for w in workers:
-                if w.job is None and pending:
-                    w.give(pending.pop())
-            yield from _finished(workers)
+                if w.job is None and pending and w.give(pending[-1]):
+                    pending.pop()  # else the worker died idle: a new one takes the job on the next round
+            if any(w.job is not None for w in workers):
+                yield from _finished(workers)
     finally:
         for w in workers:
             w.stop()

@@ -8,6 +8,7 @@ required under CI=true) and a Dask LocalCluster of two worker processes.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 import os
@@ -70,6 +71,11 @@ def crash_or_plan(job: TaskJob) -> TaskRecord:
         (Path(job.folder) / ".trajectory.json.x1y2.singplan-tmp").write_text("half a file")
         os.kill(os.getpid(), signal.SIGKILL)
     return plan_task(job)
+
+
+def plan_and_tell_pid(job: TaskJob) -> TaskRecord:
+    record = plan_task(job)
+    return dataclasses.replace(record, message=f"{record.message} pid {os.getpid()}")
 
 
 def slow_unless_first(job: TaskJob) -> TaskRecord:
@@ -141,6 +147,19 @@ def test_a_worker_that_dies_loses_only_its_task(tmp_path: Path) -> None:
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["a", "b", "crash_into_mine", "summary.csv",
                                                                    "summary.json"]
     assert _hidden(tmp_path / "out") == []  # the dead worker's temporary file is removed, and its empty folder
+
+
+def test_a_worker_killed_between_tasks_costs_no_task(tmp_path: Path) -> None:
+    tasks = [_task(tmp_path, f"t{i}.yaml") for i in range(3)]
+
+    def kill_the_worker(record: TaskRecord, done: int, total: int) -> None:
+        if done == 1:  # the worker that planned it is idle now, waiting for the next task
+            os.kill(int(record.message.split(" pid ")[1]), signal.SIGKILL)
+
+    result = plan_many(tasks, tmp_path / "out", workers=1, report=False, replay=False, progress=kill_the_worker,
+                       runner=plan_and_tell_pid)
+    assert [r.exit_code for r in result.records] == [0, 0, 0], result.records
+    assert len({r.message for r in result.records}) == 2  # the first worker's pid, then its replacement's
 
 
 def test_ctrl_c_stops_the_workers_and_writes_the_summary_of_what_finished(tmp_path: Path) -> None:

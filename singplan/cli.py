@@ -31,14 +31,14 @@ from singplan.errors import InputError, SingplanError
 from singplan.families import VERIFY_SAMPLES
 from singplan.ik import solve_all
 from singplan.outputs import check_output_dir
+from singplan.pages import build_pages
 from singplan.planner import detect, load_task_robot, plan
 from singplan.redundancy import HeldJoint, hold_joint
-from singplan.report import report_html
 from singplan.robot import Robot, RobotEntry, bundled_robots, load_robot
 from singplan.summary import summary
 from singplan.task import load_task
-from singplan.trajectory import Trajectory, load, save
-from singplan.viewer import DEFAULT_HOST, LiveReplay, replay, replay_html
+from singplan.trajectory import load, save
+from singplan.viewer import DEFAULT_HOST, LiveReplay, replay
 
 
 def _reach_m(robot: Robot) -> float:
@@ -203,7 +203,7 @@ def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         err.write("singplan: first run after an install: compiling the planner's kernels "
                   "(about 10 s on two cores; cached on disk afterwards)\n")
     traj = plan(task, method=args.method, progress=_progress_printer(err, args.quiet))
-    pages, skipped = _pages(traj, load_task_robot(task), report=not args.no_report, replay=not args.no_replay)
+    pages, skipped = build_pages(traj, load_task_robot(task), report=not args.no_report, replay=not args.no_replay)
     for name, reason in skipped.items():
         err.write(f"singplan: warning: {name} not written (the plan succeeded): {reason}\n")
     folder = save(traj, folder, extra_files=pages)
@@ -216,20 +216,6 @@ def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         for name, reason in skipped.items():
             out.write(f"not written: {name} ({reason})\n")
     return 0
-
-
-def _pages(traj: Trajectory, robot: Robot, report: bool, replay: bool) -> tuple[dict[str, str], dict[str, str]]:
-    """The HTML pages asked for, and why any could not be built (a warning: the plan stands)."""
-    builders = {"report.html": (report, report_html), "replay.html": (replay, replay_html)}
-    pages, skipped = {}, {}
-    for name, (wanted, build) in builders.items():
-        if not wanted:
-            continue
-        try:
-            pages[name] = build(traj, robot)
-        except Exception as exc:  # any failure of a page loses that page only, never the trajectory
-            skipped[name] = str(exc) if isinstance(exc, SingplanError) else f"{type(exc).__name__}: {exc}"
-    return pages, skipped
 
 
 def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -282,6 +268,34 @@ def _serve(args: argparse.Namespace, out: TextIO) -> int:
         live.close()
         signal.signal(signal.SIGTERM, previous)
     return 0
+
+
+def cmd_batch(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    """Plan many tasks (singplan.batch): a line per finished task on stderr, the totals on stdout."""
+    from singplan import batch  # imported here: the other commands need none of it
+
+    if args.scheduler is None and not args.quiet:
+        warning = batch.memory_warning(batch.local_workers(args.workers, len(args.tasks)))
+        if warning:
+            err.write(f"singplan: warning: {warning}\n")
+
+    def show(record: batch.TaskRecord, done: int, total: int) -> None:
+        seconds = "" if record.wall_s is None else f" {record.wall_s:7.2f} s"
+        message = " ".join(record.message.split())
+        err.write(f"[{done}/{total}] exit {record.exit_code}{seconds}  {record.task}: {message}\n")
+        err.flush()
+
+    result = batch.plan_many(args.tasks, args.output, workers=args.workers, scheduler=args.scheduler,
+                             method=args.method, report=not args.no_report, replay=not args.no_replay,
+                             progress=None if args.quiet else show)
+    counts: dict[int, int] = {}
+    for record in result.records:
+        counts[record.exit_code] = counts.get(record.exit_code, 0) + 1
+    tally = ", ".join(f"{n} exit {code}" for code, n in sorted(counts.items()))
+    state = "interrupted" if result.interrupted else "done"
+    out.write(f"batch {state}: {len(result.records)} task(s) ({tally}) in {result.wall_s:.1f} s; "
+              f"summary {result.summary_csv}, {result.summary_json}\n")
+    return result.exit_code
 
 
 def _interrupt(signum: int, frame: object) -> None:
@@ -368,6 +382,19 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("--lookahead-time", type=float, default=0.1, help="urscript: servoj lookahead_time, 0.03-0.2 s")
     exp.add_argument("--gain", type=float, default=300.0, help="urscript: servoj gain, 100-2000")
     exp.set_defaults(func=cmd_export)
+    bat = sub.add_parser("batch", help="plan many tasks, one output folder each, plus summary.csv / summary.json")
+    bat.add_argument("tasks", nargs="+", help="task files (YAML v1); each one's folder is named after its file")
+    bat.add_argument("-o", "--output", required=True, help="batch folder (created if absent; other files kept)")
+    where = bat.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None,
+                       help="local worker processes (default: the number of CPUs; each task may take 1.5 GB)")
+    where.add_argument("--scheduler", default=None,
+                       help="a Dask scheduler's address (tcp://host:8786) to plan on instead (needs dask[distributed])")
+    bat.add_argument("--method", default=None, help="crossing method, overriding every task's")
+    bat.add_argument("--quiet", action="store_true", help="no line per finished task")
+    bat.add_argument("--no-report", action="store_true", help="do not write report.html")
+    bat.add_argument("--no-replay", action="store_true", help="do not write replay.html")
+    bat.set_defaults(func=cmd_batch)
     return parser
 
 

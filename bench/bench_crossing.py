@@ -43,10 +43,11 @@ import toppra.algorithm as ta_algo
 import toppra.constraint as ta_constraint
 
 from singplan.errors import SingplanError
-from singplan.ik import solve_all, solve_newton
-from singplan.planner import load_task_robot, plan
-from singplan.robot import Robot
-from singplan.task import Task, load_task, parse_task
+from singplan.kinematics.ik.solve import solve_all, solve_newton
+from singplan.kinematics.robot import Robot
+from singplan.planning.planner import load_task_robot
+from singplan.results.plan import plan
+from singplan.task.schema import Task, load_task, parse_task
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))

@@ -32,9 +32,9 @@ from py_opw_kinematics import KinematicModel
 from py_opw_kinematics import Robot as OpwRobot
 from scipy.spatial.transform import RigidTransform
 
-from singplan.ik import closed_form_branches, opw_batch, solve_all
-from singplan.ik_numeric import all_branches
-from singplan.robot import Robot, load_robot, robots_dir
+from singplan.kinematics.ik.numeric import all_branches
+from singplan.kinematics.ik.solve import closed_form_branches, opw_batch, solve_all
+from singplan.kinematics.robot import Robot, load_robot, robots_dir
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the reference lives with its tests
 from tests.test_ik_numeric import brute_force_branches, found_in, has_variant_inside

@@ -73,7 +73,7 @@ def run(task: Path, mode: str, out: Path) -> tuple[int, float, float]:
     """Exit code, peak RSS [MB] and wall time [s] of one subprocess."""
     flags = MODES[mode]
     if flags is None:
-        code = f"from singplan.planner import plan; plan({str(task)!r})"
+        code = f"from singplan.results.plan import plan; plan({str(task)!r})"
         argv = [sys.executable, "-c", code]
     else:
         argv = [sys.executable, "-m", "singplan", "plan", str(task), "-o", str(out), "--quiet", *flags]
@@ -95,9 +95,9 @@ def run(task: Path, mode: str, out: Path) -> tuple[int, float, float]:
 
 def model_mb(task: Path) -> float:
     """The budget's estimate [MB] of a task's peak (singplan/budget.py, as the planner calls it)."""
-    from singplan.budget import check_task, memory_mb
-    from singplan.planner import STEP_M, STEP_RAD, load_task_robot
-    from singplan.task import load_task
+    from singplan.planning.budget import check_task, memory_mb
+    from singplan.planning.planner import STEP_M, STEP_RAD, load_task_robot
+    from singplan.task.schema import load_task
 
     spec = load_task(task)
     robot = load_task_robot(spec)

@@ -22,10 +22,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from singplan import planner
 from singplan.errors import SingplanError
-from singplan.planner import plan
-from singplan.task import Task, load_task, parse_task
+from singplan.planning import planner
+from singplan.planning.records import PlannedMove
+from singplan.results.plan import plan
+from singplan.task.schema import Task, load_task, parse_task
 
 HERE = Path(__file__).resolve().parent
 MARK = "bench_plan"
@@ -103,7 +104,7 @@ class _GeometryMove:
         except SingplanError:
             self.samples = 0  # the method cannot plan this move
 
-    def _plan(self) -> planner.PlannedMove:
+    def _plan(self) -> PlannedMove:
         return planner._plan_move(self.robot, self.task, 0, self.task.moves[0], self.robot.fk(self.q0), self.q0,
                                   self.crossing)
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from singplan.trajectory import Trajectory, save
+from singplan.results.trajectory import Trajectory, save
 
 
 def synthetic(samples: int, joints: int = 6, seed: int = 7) -> Trajectory:

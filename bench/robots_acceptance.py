@@ -59,9 +59,9 @@ import pinocchio as pin
 import yaml
 
 from singplan import __version__, cli
-from singplan.configuration import distances_batch
 from singplan.errors import SingplanError
-from singplan.robot import Robot, bundled_robots, load_robot
+from singplan.kinematics.configuration import distances_batch
+from singplan.kinematics.robot import Robot, bundled_robots, load_robot
 
 CHECKER = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"
 TWIN_TOL = 0.02  # a copy's duration may differ from its twin's by this fraction

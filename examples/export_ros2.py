@@ -19,8 +19,8 @@ import sys
 from pathlib import Path
 
 import singplan
-from singplan import exports
-from singplan.trajectory import load
+from singplan.outputs import exports
+from singplan.results.trajectory import load
 
 
 def main() -> int:

@@ -8,14 +8,15 @@ from __future__ import annotations
 
 import logging
 
-from singplan.configuration import Configuration, SingularityDistances, classify, singularity_distances
 from singplan.errors import InputError, PlanningError, SingplanError
-from singplan.ik import IkSolutions, opw_batch, solve_all
-from singplan.planner import detect, plan
-from singplan.robot import Robot, bundled_robots, load_robot
-from singplan.task import Task, load_task, parse_task
-from singplan.trajectory import Segment, Trajectory, save
-from singplan.viewer import replay
+from singplan.kinematics.configuration import Configuration, SingularityDistances, classify, singularity_distances
+from singplan.kinematics.ik.solve import IkSolutions, opw_batch, solve_all
+from singplan.kinematics.robot import Robot, bundled_robots, load_robot
+from singplan.outputs.viewer import replay
+from singplan.planning.planner import detect
+from singplan.results.plan import plan
+from singplan.results.trajectory import Segment, Trajectory, save
+from singplan.task.schema import Task, load_task, parse_task
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 

@@ -34,13 +34,14 @@ from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any, TextIO
 
-from singplan.budget import TASK_MEMORY_MB
 from singplan.errors import InputError, SingplanError
-from singplan.outputs import check_output_dir, write_files
-from singplan.pages import build_pages
-from singplan.planner import load_task_robot, plan
-from singplan.task import load_task
-from singplan.trajectory import Trajectory, save
+from singplan.outputs.pages import build_pages
+from singplan.planning.budget import TASK_MEMORY_MB
+from singplan.planning.planner import load_task_robot
+from singplan.results.files import check_output_dir, write_files
+from singplan.results.plan import plan
+from singplan.results.trajectory import Trajectory, save
+from singplan.task.schema import load_task
 
 FORMAT = "singplan.batch/1"
 SUMMARY_FILES = ("summary.csv", "summary.json")

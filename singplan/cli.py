@@ -24,21 +24,22 @@ from typing import TextIO
 import numpy as np
 import pinocchio as pin
 
-from singplan import exports
-from singplan.compiled import kernels_cached
-from singplan.configuration import singularity_distances
 from singplan.errors import InputError, SingplanError
-from singplan.families import VERIFY_SAMPLES
-from singplan.ik import solve_all
-from singplan.outputs import check_output_dir
-from singplan.pages import build_pages
-from singplan.planner import detect, load_task_robot, plan
-from singplan.redundancy import HeldJoint, hold_joint
-from singplan.robot import Robot, RobotEntry, bundled_robots, load_robot
-from singplan.summary import summary
-from singplan.task import load_task
-from singplan.trajectory import load, save
-from singplan.viewer import DEFAULT_HOST, LiveReplay, replay
+from singplan.kinematics.configuration import singularity_distances
+from singplan.kinematics.families import VERIFY_SAMPLES
+from singplan.kinematics.ik.opw import kernels_cached
+from singplan.kinematics.ik.solve import solve_all
+from singplan.kinematics.robot import Robot, RobotEntry, bundled_robots, load_robot
+from singplan.outputs import exports
+from singplan.outputs.pages import build_pages
+from singplan.outputs.summary import summary
+from singplan.outputs.viewer import DEFAULT_HOST, LiveReplay, replay
+from singplan.planning.planner import detect, load_task_robot
+from singplan.planning.redundancy import HeldJoint, hold_joint
+from singplan.results.files import check_output_dir
+from singplan.results.plan import plan
+from singplan.results.trajectory import load, save
+from singplan.task.schema import load_task
 
 
 def _reach_m(robot: Robot) -> float:

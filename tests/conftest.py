@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from singplan.robot import Robot, bundled_robots, load_robot
+from singplan.kinematics.robot import Robot, bundled_robots, load_robot
 
 OPW_NAMES = [name for name, entry in bundled_robots().items() if entry.family == "opw"]
 
@@ -37,9 +37,9 @@ SCENARIOS = _SHARED_SCENARIOS if _SHARED_SCENARIOS.is_dir() else None
 @pytest.fixture(scope="session")
 def planned_kuka(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """An output folder of a small plan (a KUKA LIN through a wrist near miss), planned once per session."""
-    from singplan.planner import plan
-    from singplan.task import load_task
-    from singplan.trajectory import save
+    from singplan.results.plan import plan
+    from singplan.results.trajectory import save
+    from singplan.task.schema import load_task
 
     task = Path(__file__).resolve().parent.parent / "singplan" / "demo_task.yaml"
     return save(plan(load_task(task)), tmp_path_factory.mktemp("planned_kuka"))

@@ -25,8 +25,8 @@ import pinocchio as pin
 from hypothesis import strategies as st
 
 from singplan import bundled_robots, load_robot
-from singplan.robot import Robot
-from singplan.task import METHODS
+from singplan.kinematics.robot import Robot
+from singplan.task.schema import METHODS
 
 T = TypeVar("T")
 

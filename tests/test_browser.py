@@ -17,8 +17,8 @@ import pinocchio as pin
 import pytest
 
 from singplan.cli import main
-from singplan.trajectory import Trajectory, load
-from singplan.viewer import ANIMATION_STEP_S, robot_of
+from singplan.outputs.viewer import ANIMATION_STEP_S, robot_of
+from singplan.results.trajectory import Trajectory, load
 
 CHROMIUM = os.environ.get("SINGPLAN_CHROMIUM", "/usr/bin/chromium")
 # the flags this machine needs (no GPU, no sandbox as root, no background network calls)

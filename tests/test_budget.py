@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 import yaml
 
-from singplan import planner, trajectory_build
-from singplan.budget import (
+from singplan.planning import planner
+from singplan.planning.budget import (
     MAX_PATH_SAMPLES,
     TASK_MEMORY_MB,
     BudgetError,
@@ -26,10 +26,12 @@ from singplan.budget import (
     estimate_moves,
     memory_mb,
 )
-from singplan.planner import STEP_M, STEP_RAD, load_task_robot, plan
-from singplan.task import MAX_OUTPUT_SAMPLES, Task, parse_task
-from singplan.timing import sample_ratios
-from singplan.trajectory import finite_differences
+from singplan.planning.planner import STEP_M, STEP_RAD, load_task_robot
+from singplan.planning.timing import sample_ratios
+from singplan.results import build as trajectory_build
+from singplan.results.plan import plan
+from singplan.results.trajectory import finite_differences
+from singplan.task.schema import MAX_OUTPUT_SAMPLES, Task, parse_task
 
 START_DEG = [0, -80, 100, 0, 40, 0]
 GUARD_BYTES = 3_000_000_000  # the subprocess's address space: a regression fails, it cannot eat the machine

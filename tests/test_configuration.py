@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from singplan.configuration import (
+from singplan.errors import TaskError
+from singplan.kinematics.configuration import (
     Configuration,
     classify,
     distances_batch,
@@ -18,8 +19,7 @@ from singplan.configuration import (
     parse_configuration,
     singularity_distances,
 )
-from singplan.errors import TaskError
-from singplan.robot import load_robot
+from singplan.kinematics.robot import load_robot
 
 from .conftest import OPW_NAMES
 

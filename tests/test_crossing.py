@@ -10,10 +10,11 @@ import pinocchio as pin
 import pytest
 
 from singplan.errors import PlanningError
-from singplan.ik import solve_all
-from singplan.planner import candidate_methods, load_task_robot, plan
-from singplan.robot import load_robot
-from singplan.task import load_task, parse_task
+from singplan.kinematics.ik.solve import solve_all
+from singplan.kinematics.robot import load_robot
+from singplan.planning.planner import candidate_methods, load_task_robot
+from singplan.results.plan import plan
+from singplan.task.schema import load_task, parse_task
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 NEAR_MISS = EXAMPLES / "abb_near_miss_auto.yaml"
@@ -50,7 +51,7 @@ def test_wrist_crossings_keep_the_position_exact_and_report_the_true_deviation(m
 
 @pytest.mark.parametrize("method", ["wrist-joint", "axis"])
 def test_crossing_seams_are_c1(method: str) -> None:
-    from singplan.planner import _plan_move  # the joint map before timing
+    from singplan.planning.planner import _plan_move  # the joint map before timing
 
     task = load_task(NEAR_MISS).with_method(method)
     robot = load_task_robot(task)
@@ -121,8 +122,8 @@ def test_axis_at_the_shoulder_keeps_the_orientation_and_leaves_the_path_by_about
 
 
 def test_axis_seams_at_the_shoulder_are_c1() -> None:
-    from singplan.crossing import Axis
-    from singplan.planner import _plan_move
+    from singplan.planning.crossing.methods import Axis
+    from singplan.planning.planner import _plan_move
 
     task = parse_task(_shoulder_near_miss(0.001))
     robot = load_task_robot(task)
@@ -147,7 +148,7 @@ def test_baselines_leave_the_path_and_say_so(method: str) -> None:
 
 
 def test_summary_names_the_choice_the_runner_up_and_the_time_saved() -> None:
-    from singplan.summary import summary
+    from singplan.outputs.summary import summary
 
     task = load_task(NEAR_MISS)
     text = summary(plan(task), task)

@@ -15,11 +15,11 @@ import pytest
 import yaml
 
 from singplan.cli import main
-from singplan.dynamics import effort_limits_nm, has_inertias, no_dynamics_reason, trajectory_torques
 from singplan.errors import TaskError
-from singplan.planner import plan
-from singplan.robot import bundled_robots, load_robot
-from singplan.task import parse_task
+from singplan.kinematics.dynamics import effort_limits_nm, has_inertias, no_dynamics_reason, trajectory_torques
+from singplan.kinematics.robot import bundled_robots, load_robot
+from singplan.results.plan import plan
+from singplan.task.schema import parse_task
 
 VERIFY = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"
 # A UR5 PTP (shoulder pan 90 deg, arm raised) then a LIN; at 40 rad/s^2 the unconstrained timing
@@ -77,7 +77,7 @@ def test_rnea_torques_match_mass_matrix_and_nonlinear_effects_of_the_full_urdf(n
 
 
 def test_peaks_do_not_depend_on_the_chunk_size(monkeypatch: pytest.MonkeyPatch) -> None:
-    import singplan.dynamics as dynamics
+    import singplan.kinematics.dynamics as dynamics
 
     robot = load_robot("ur5")
     q = _sine_samples(robot, 301, 0.004)

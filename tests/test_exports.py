@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 import yaml
 
-from singplan import exports
 from singplan.cli import main
-from singplan.planner import plan
-from singplan.task import load_task
-from singplan.trajectory import Trajectory, load, save
+from singplan.outputs import exports
+from singplan.results.plan import plan
+from singplan.results.trajectory import Trajectory, load, save
+from singplan.task.schema import load_task
 from tests.conftest import SCENARIOS
 
 # Written from the message definitions (ROS 2 common_interfaces / rcl_interfaces):

@@ -14,13 +14,13 @@ import pytest
 import yaml
 
 from singplan.cli import main
-from singplan.configuration import _frames, _signed_distances, classify, distances_batch
-from singplan.families import VERIFY_TOL_M, VERIFY_TOL_RAD, recognise
-from singplan.ik import solve_all
-from singplan.planner import plan
-from singplan.robot import bundled_robots, default_tip, load_robot
-from singplan.summary import summary
-from singplan.task import parse_task
+from singplan.kinematics.configuration import _frames, _signed_distances, classify, distances_batch
+from singplan.kinematics.families import VERIFY_TOL_M, VERIFY_TOL_RAD, recognise
+from singplan.kinematics.ik.solve import solve_all
+from singplan.kinematics.robot import bundled_robots, default_tip, load_robot
+from singplan.outputs.summary import summary
+from singplan.results.plan import plan
+from singplan.task.schema import parse_task
 
 from .conftest import OPW_NAMES
 
@@ -499,7 +499,7 @@ def test_robots_lists_the_recognised_family() -> None:
 def test_a_user_urdf_named_like_a_bundled_arm_is_replayed_as_itself(tmp_path: Path) -> None:
     from types import SimpleNamespace
 
-    from singplan.viewer import robot_of
+    from singplan.outputs.viewer import robot_of
 
     tree = _tree("abb_irb2400")
     _joint(tree.getroot(), "joint_6").find("origin").set("xyz", "0.2 0.0 0.0")  # type: ignore[union-attr]

@@ -14,13 +14,13 @@ import pinocchio as pin
 import pytest
 
 from singplan.cli import main
-from singplan.configuration import classify
 from singplan.errors import RobotModelError
-from singplan.families import crossing_methods
-from singplan.ik import solve_all
-from singplan.ik_numeric import solve_lm
-from singplan.reduced import free_joints, z_angles
-from singplan.robot import load_robot, robots_dir
+from singplan.kinematics.configuration import classify
+from singplan.kinematics.families import crossing_methods
+from singplan.kinematics.ik.numeric import solve_lm
+from singplan.kinematics.ik.solve import solve_all
+from singplan.kinematics.reduced import free_joints, z_angles
+from singplan.kinematics.robot import load_robot, robots_dir
 
 DATA = Path(__file__).parent / "data"
 SCORBOT = DATA / "five_scorbot_er4u.urdf"

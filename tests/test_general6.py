@@ -23,9 +23,9 @@ import pinocchio as pin
 import pytest
 import yaml
 
-from singplan import ik_numeric
 from singplan.cli import main
-from singplan.robot import Robot, load_robot
+from singplan.kinematics.ik import numeric as ik_numeric
+from singplan.kinematics.robot import Robot, load_robot
 
 VERIFY = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"
 erd = pytest.importorskip("example_robot_data")

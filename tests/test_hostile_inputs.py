@@ -16,8 +16,8 @@ from typing import NamedTuple
 import pytest
 
 from singplan.cli import main
-from singplan.robot import MAX_URDF_BYTES, robots_dir
-from singplan.task import MAX_FILE_BYTES
+from singplan.kinematics.robot import MAX_URDF_BYTES, robots_dir
+from singplan.task.schema import MAX_FILE_BYTES
 
 GOOD = (Path(__file__).parent / "data" / "good_task.yaml").read_text()  # every field set
 URDF = (robots_dir() / "abb_irb2400.urdf").read_text()

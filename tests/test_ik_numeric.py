@@ -18,9 +18,9 @@ import pinocchio as pin
 import pytest
 
 from singplan.cli import main
-from singplan.ik import closed_form_branches, solve_all
-from singplan.ik_numeric import all_branches, halton, into_limits
-from singplan.robot import Robot, load_robot, robots_dir
+from singplan.kinematics.ik.numeric import all_branches, halton, into_limits
+from singplan.kinematics.ik.solve import closed_form_branches, solve_all
+from singplan.kinematics.robot import Robot, load_robot, robots_dir
 
 TWO_PI = 2.0 * math.pi
 POSE_TOL = 1e-9  # [m] and [rad]: every solution must reproduce its pose to this

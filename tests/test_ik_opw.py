@@ -10,9 +10,10 @@ import pytest
 from py_opw_kinematics import KinematicModel
 from py_opw_kinematics import Robot as OpwRobot
 
-from singplan.configuration import classify
-from singplan.ik import opw_arm_for_point, opw_batch, solve_all, wrap_to_pi
-from singplan.robot import Robot
+from singplan.kinematics.angles import wrap_to_pi
+from singplan.kinematics.configuration import classify
+from singplan.kinematics.ik.solve import opw_arm_for_point, opw_batch, solve_all
+from singplan.kinematics.robot import Robot
 
 from .conftest import OPW_NAMES, random_q
 

@@ -10,10 +10,10 @@ import pinocchio as pin
 import pytest
 from scipy.optimize import brentq
 
-from singplan.configuration import classify
-from singplan.ik import solve_all
-from singplan.ik_ur import UrParameters, ur_arm_for_point, ur_solutions
-from singplan.robot import load_robot
+from singplan.kinematics.configuration import classify
+from singplan.kinematics.ik.solve import solve_all
+from singplan.kinematics.ik.ur import UrParameters, ur_arm_for_point, ur_solutions
+from singplan.kinematics.robot import load_robot
 
 from .conftest import random_q
 

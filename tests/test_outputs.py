@@ -18,11 +18,12 @@ import numpy as np
 import pytest
 import yaml
 
-from singplan import cli, outputs
-from singplan import trajectory as trajectory_module
+from singplan import cli
 from singplan.cli import main
 from singplan.errors import OutputPathError
-from singplan.trajectory import Trajectory, load, save, write_csv, write_json
+from singplan.results import files as outputs
+from singplan.results import trajectory as trajectory_module
+from singplan.results.trajectory import Trajectory, load, save, write_csv, write_json
 
 ROBOT_URDF = Path(__file__).resolve().parents[1] / "robots" / "urdf" / "kuka_kr6_r900_2.urdf"
 START_DEG = [10, -80, 95, 20, 40, 0]
@@ -172,7 +173,7 @@ def test_a_report_that_fails_unexpectedly_is_a_warning(tmp_path: Path, monkeypat
     def broken(*args: object) -> str:
         raise ZeroDivisionError("in a plot")
 
-    monkeypatch.setattr(cli, "report_html", broken)
+    monkeypatch.setattr("singplan.outputs.pages.report_html", broken)  # the page builder of plan and batch
     code, _, err = _plan(_task(tmp_path), tmp_path / "out", "--no-replay", "--quiet")
     assert code == 0
     assert "report.html not written" in err and "ZeroDivisionError: in a plot" in err
@@ -199,7 +200,7 @@ def test_replay_html_follows_the_same_rules(tmp_path: Path, monkeypatch) -> None
     def interrupted(*args: object) -> str:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("singplan.viewer.replay_html", interrupted)
+    monkeypatch.setattr("singplan.outputs.viewer.replay_html", interrupted)
     stderr = io.StringIO()
     assert main(["replay", str(tmp_path / "out"), "--html", str(tmp_path / "new" / "r.html")], err=stderr) == 130
     assert stderr.getvalue() == "singplan: interrupted\n"

@@ -9,7 +9,8 @@ import pinocchio as pin
 import pytest
 
 from singplan.errors import TaskError
-from singplan.path import make_circ, make_lin, rotation_angle, rpy_deg_to_rotation
+from singplan.kinematics.geometry import rotation_angle, rpy_deg_to_rotation
+from singplan.planning.path import make_circ, make_lin
 
 
 def se3(xyz: list[float], rpy_deg: list[float]) -> pin.SE3:

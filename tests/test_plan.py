@@ -13,9 +13,9 @@ import pytest
 import yaml
 
 from singplan.cli import main
-from singplan.planner import plan
-from singplan.robot import load_robot
-from singplan.task import parse_task
+from singplan.kinematics.robot import load_robot
+from singplan.results.plan import plan
+from singplan.task.schema import parse_task
 
 DEMO = Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml"
 
@@ -170,7 +170,7 @@ def test_report_is_self_contained_with_every_plot(tmp_path: Path) -> None:
 
 def test_replay_is_written_self_contained_and_can_be_rebuilt_from_the_saved_trajectory(tmp_path: Path) -> None:
     import singplan
-    from singplan.trajectory import load
+    from singplan.results.trajectory import load
 
     assert main(["plan", str(DEMO), "-o", str(tmp_path / "out"), "--no-report"], out=io.StringIO()) == 0
     page = (tmp_path / "out" / "replay.html").read_text()

@@ -12,9 +12,9 @@ import pytest
 
 from singplan.cli import main
 from singplan.errors import TaskError, UnreachableError
-from singplan.planner import plan
-from singplan.robot import load_robot
-from singplan.task import parse_task
+from singplan.kinematics.robot import load_robot
+from singplan.results.plan import plan
+from singplan.task.schema import parse_task
 
 BASE = {"robot": "kuka_kr6_r900_2", "tool": {"xyz": [0, 0, 0.1]},
         "start": {"joints_deg": [0, -80, 100, 0, 40, 0]}}

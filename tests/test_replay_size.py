@@ -21,10 +21,8 @@ import pytest
 import umsgpack
 import yaml
 
-from singplan.planner import plan
-from singplan.robot import bundled_robots, load_robot
-from singplan.trajectory import Trajectory
-from singplan.viewer import (
+from singplan.kinematics.robot import bundled_robots, load_robot
+from singplan.outputs.viewer import (
     _KEYFRAME_TURN_RAD,
     _KEYFRAMES,
     _PATH_POINTS,
@@ -34,6 +32,8 @@ from singplan.viewer import (
     replay_html,
     robot_of,
 )
+from singplan.results.plan import plan
+from singplan.results.trajectory import Trajectory
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 SIXTY_MOVES_MAX_BYTES = 5_000_000  # the page of a 60-move program (DESIGN: a page to mail, not a dump)

@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from singplan.errors import RobotModelError, UnknownNameError
-from singplan.robot import MAX_URDF_BYTES, SUPPORTED_JOINT_COUNTS, bundled_robots, load_robot, robots_dir
+from singplan.kinematics.robot import MAX_URDF_BYTES, SUPPORTED_JOINT_COUNTS, bundled_robots, load_robot, robots_dir
 
 from .conftest import OPW_NAMES, random_q
 
@@ -152,7 +152,7 @@ def test_urdf_without_what_planning_needs_names_file_and_joint(tmp_path, capfd, 
 
 
 def test_supported_joint_counts_is_the_one_place(tmp_path, monkeypatch) -> None:
-    import singplan.robot as robot_module
+    import singplan.kinematics.robot as robot_module
 
     five = _urdf(tmp_path, '<joint name="joint_6" type="revolute">', '<joint name="joint_6" type="fixed">')
     assert load_robot(five).n_joints == 5

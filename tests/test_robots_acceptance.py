@@ -27,8 +27,8 @@ import pytest
 import yaml
 
 from singplan.cli import main
-from singplan.configuration import distances_batch
-from singplan.robot import bundled_robots, load_robot
+from singplan.kinematics.configuration import distances_batch
+from singplan.kinematics.robot import bundled_robots, load_robot
 
 BENCH = Path(__file__).resolve().parents[1] / "bench" / "robots_acceptance.py"
 CHECKER = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"

@@ -20,11 +20,11 @@ import pytest
 import yaml
 
 from singplan.cli import main
-from singplan.path import move_piece
-from singplan.planner import plan
-from singplan.redundancy import HeldJoint, hold_joint
-from singplan.robot import Robot, load_robot
-from singplan.task import parse_task
+from singplan.kinematics.robot import Robot, load_robot
+from singplan.planning.path import move_piece
+from singplan.planning.redundancy import HeldJoint, hold_joint
+from singplan.results.plan import plan
+from singplan.task.schema import parse_task
 
 VERIFY = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"
 HELD_TOL_RAD = 1e-9

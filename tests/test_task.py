@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from singplan.errors import TaskError
-from singplan.robot import VELOCITY_LIMIT_RAD_S
-from singplan.task import (
+from singplan.kinematics.robot import VELOCITY_LIMIT_RAD_S
+from singplan.task.schema import (
     ACCELERATION_RAD_S2,
     JOINT_DEG,
     MAX_FILE_BYTES,

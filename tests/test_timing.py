@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from singplan.jointmap import JointMap, JointPart
-from singplan.robot import load_robot
-from singplan.timing import MoveLimits, end_step_ratio, time_move
+from singplan.kinematics.robot import load_robot
+from singplan.planning.jointmap import JointMap, JointPart
+from singplan.planning.timing import MoveLimits, end_step_ratio, time_move
 
 
 def _ptp(robot, q0: np.ndarray, q1: np.ndarray) -> JointMap:

@@ -25,10 +25,10 @@ import numpy as np
 import pytest
 
 from singplan.cli import main
-from singplan.configuration import classify
 from singplan.errors import RobotModelError
-from singplan.robot import Robot, load_robot, robots_dir
-from singplan.vendor_config import (
+from singplan.kinematics.configuration import classify
+from singplan.kinematics.robot import Robot, load_robot, robots_dir
+from singplan.kinematics.vendor_config import (
     abb_confdata,
     convention_for,
     fanuc_configuration,

@@ -1,0 +1,335 @@
+"""Configuration labels (shoulder F/B, elbow U/D, wrist N/F) and signed singularity distances.
+
+The labels are defined from geometry, not from joint values, so one definition serves every
+arm whatever its joint signs and offsets. With the joint frames of Pinocchio:
+
+* ``up`` is axis 1, oriented from the base towards the shoulder; ``forward`` is, for an OPW
+  arm, the x axis of its OPW frame turning with joint 1 (whatever the URDF's zero pose), else
+  the direction perpendicular to axes 1 and 2, turning with joint 1 and pointing along link 1's
+  x axis (the direction the arm points at its zero pose in ROS-Industrial URDFs);
+  ``n = up x forward`` is the normal of the arm plane.
+* The **wrist point** ``w`` is where axes 5 and 6 meet (the wrist centre of a spherical
+  wrist; for a UR arm the origin of the wrist-3 joint).
+* **Shoulder** distance [m]: ``(w - o1) . forward``, the signed distance of the wrist point
+  from axis 1 measured in the arm plane. Where the arm has a lateral offset (OPW ``b``, the
+  UR ``d4``) this is the distance from that offset cylinder. ``F`` (front) when positive.
+* **Elbow** distance [rad]: signed angle, about ``n``, from the upper arm ``o3 - o2`` to the
+  forearm ``e - o3`` (both projected onto the arm plane); 0 when the arm is stretched. ``e``
+  is the wrist point, or where axes 2, 3 and 4 are parallel (UR-type arms) the origin of
+  joint 4, which the planar arm positions.
+  ``U`` (up) when positive.
+* **Wrist** distance [rad]: signed angle from axis 4 to axis 6 about axis 5. Axis 4 is
+  oriented outwards from the elbow, axis 6 outwards to the flange, and axis 5 is oriented at
+  the zero configuration along the first of (n, up, forward) it is not perpendicular to.
+  ``N`` (no flip) when positive; 0 where axes 4 and 6 are collinear.
+
+Each label is the sign of its distance, so a label flips exactly where its distance
+crosses zero, and there the Jacobian loses rank (tested).
+
+A 7-joint arm (family ``seven``) has none of these: its self-motion joins what would be
+branches of a 6R arm, and its singularities are not the 6R wrist, shoulder and elbow. Its
+distances are NaN and its label is ``-`` (:data:`NO_LABEL`). Holding one joint
+(:mod:`singplan.redundancy`) makes it a 6R chain, labelled by the definitions above.
+
+Five-joint arms have their own shoulder and elbow definitions and no wrist flip
+(:mod:`singplan.reduced`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+from singplan.errors import TaskError
+from singplan.kinematics import reduced
+from singplan.kinematics.compiled import jit
+from singplan.kinematics.geometry import cross3
+from singplan.kinematics.robot import Robot
+
+SHOULDER_LABELS = ("F", "B")
+ELBOW_LABELS = ("U", "D")
+WRIST_LABELS = ("N", "F")
+NO_LABEL = "-"  # an arm without configuration labels (7 joints)
+
+
+@dataclass(frozen=True)
+class Configuration:
+    """A branch of the inverse kinematics, as integrators name it."""
+
+    shoulder: str  # "F" front | "B" back
+    elbow: str  # "U" up | "D" down
+    wrist: str  # "N" no flip | "F" flip
+
+    @property
+    def label(self) -> str:
+        """String form, e.g. ``"F U N"``; ``"-"`` for :data:`UNLABELLED`."""
+        if self == UNLABELLED:
+            return NO_LABEL
+        return f"{self.shoulder} {self.elbow} {self.wrist}"
+
+    def __str__(self) -> str:
+        return self.label
+
+
+UNLABELLED = Configuration(NO_LABEL, NO_LABEL, NO_LABEL)  # the configuration of an arm without labels
+
+
+def _unlabelled(robot: Robot) -> bool:
+    return robot.family == "seven"
+
+
+def parse_configuration(text: str, field: str = "config") -> Configuration:
+    """Parse ``"F U N"`` (spaces optional) into a :class:`Configuration`."""
+    letters = text.replace(" ", "").upper()
+    if (len(letters) != 3 or letters[0] not in SHOULDER_LABELS or letters[1] not in ELBOW_LABELS
+            or letters[2] not in WRIST_LABELS):
+        raise TaskError(field, f"expected a configuration like 'F U N' (shoulder F|B, elbow U|D, "
+                               f"wrist N|F), got {text!r}")
+    return Configuration(letters[0], letters[1], letters[2])
+
+
+class SingularityDistances(NamedTuple):
+    """Signed distances to the three singularities; each label is the sign of its distance."""
+
+    wrist_rad: float  # angle between axes 4 and 6 [rad], signed: > 0 no flip
+    shoulder_m: float  # wrist point from axis 1 in the arm plane [m], signed: > 0 front
+    elbow_rad: float  # forearm angle from the stretched arm [rad], signed: > 0 up
+    sigma_min: float  # smallest singular value of the TCP Jacobian
+
+
+class _Reference(NamedTuple):
+    """Per-robot constants of the definitions above (computed at the zero configuration)."""
+
+    up: np.ndarray  # (3,) axis 1 in the base frame, oriented base -> shoulder
+    sign4: float
+    sign5: float
+    sign6: float
+    wrist_in_link5: np.ndarray  # (3,) wrist point in joint 5's frame
+    forward_in_link1: np.ndarray  # (3,) the arm's forward direction in joint 1's frame
+    elbow_joint: int  # 0: elbow point is the wrist point; k: origin of joint k
+    has_wrist: bool  # axes 4 and 6 both off axis 5: turning joint 5 makes axes 4, 5, 6 coplanar somewhere
+
+
+@dataclass(frozen=True)
+class _Frames:
+    """Joint origins and axes (base frame) at one configuration."""
+
+    origins: list[np.ndarray]
+    axes: list[np.ndarray]
+    wrist: np.ndarray
+    forward: np.ndarray
+
+
+def _axes_and_origins(robot: Robot, q: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    model, data = robot.model, robot.data
+    J = pin.computeJointJacobians(model, data, q)  # WORLD frame: columns carry joint axes
+    origins = [np.array(data.oMi[i].translation) for i in range(1, model.njoints)]
+    axes = [np.array(J[3:, model.joints[i].idx_v]) for i in range(1, model.njoints)]
+    return origins, axes
+
+
+def _closest_point_on_first(p1: np.ndarray, d1: np.ndarray, p2: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    """Point of line (p1, d1) closest to line (p2, d2); p1 when they are parallel."""
+    w = p1 - p2
+    b = float(d1 @ d2)
+    denom = 1.0 - b * b
+    if denom < 1e-12:
+        return p1
+    t = (b * float(d2 @ w) - float(d1 @ w)) / denom
+    return p1 + t * d1
+
+
+@lru_cache(maxsize=64)
+def _reference(robot: Robot) -> _Reference:
+    q0 = np.zeros(robot.n_joints)
+    origins, axes = _axes_and_origins(robot, q0)
+    z1 = axes[0]
+    up = z1 if float(z1 @ origins[1]) >= 0 else -z1  # origins are relative to the base origin
+    wrist = _closest_point_on_first(origins[4], axes[4], origins[5], axes[5])
+    wrist_in_link5 = np.array(robot.data.oMi[5].actInv(wrist))
+    forward_in_link1 = _forward_in_link1(robot, up, axes[1])
+    # the signs are read at the OPW zero where there is one: the same arm pose whatever the file's zero
+    q_ref = q0 if robot.opw is None else robot.opw.offsets * robot.opw.signs
+    if robot.opw is not None:
+        origins, axes = _axes_and_origins(robot, q_ref)
+        wrist = np.array(robot.data.oMi[5].act(wrist_in_link5))
+    forward = _forward(robot, up, forward_in_link1)
+    tool0 = robot.fk_tip(q_ref).translation
+    elbow_joint = 4 if _parallel(axes[1], axes[3]) and _parallel(axes[2], axes[3]) else 0
+    sign4 = 1.0 if float(axes[3] @ (wrist - origins[2])) >= 0 else -1.0
+    sign6 = 1.0 if float(axes[5] @ (tool0 - wrist)) >= 0 else -1.0
+    normal = cross3(up, forward)
+    sign5 = 1.0
+    for ref in (normal, up, forward):
+        dot = float(axes[4] @ ref)
+        if abs(dot) > 0.5:
+            sign5 = 1.0 if dot > 0 else -1.0
+            break
+    has_wrist = not (_parallel(axes[3], axes[4]) or _parallel(axes[5], axes[4]))
+    return _Reference(up, sign4, sign5, sign6, wrist_in_link5, forward_in_link1, elbow_joint, has_wrist)
+
+
+def _forward_in_link1(robot: Robot, up: np.ndarray, axis2: np.ndarray) -> np.ndarray:
+    """The arm's forward direction in joint 1's frame (read with robot.data at q = 0).
+
+    For an OPW arm the OPW x axis (the arm plane at q1_opw = 0), for a UR arm its closed form's
+    x axis (ur_description's base x at q1 = 0). Otherwise the direction
+    perpendicular to axes 1 and 2 (the arm plane's in-plane horizontal, whatever the file's
+    frames), pointing along joint 1's x axis as ROS-Industrial files do, or where that x is
+    perpendicular to it, towards the shoulder joint's offset from axis 1 (else either way).
+    """
+    R1 = robot.data.oMi[1].rotation
+    R_base_closed = robot.recognition.T_base_closed[:3, :3]
+    if robot.opw is not None:
+        t1 = -robot.opw.offsets_rad[0]  # OPW angle of joint 1 at the robot's zero
+        return R1.T @ R_base_closed @ np.array([math.cos(t1), math.sin(t1), 0.0])
+    if robot.ur is not None:  # the closed form's x at q = 0, whatever the file's joint-1 frame
+        return R1.T @ R_base_closed @ np.array([1.0, 0.0, 0.0])
+    across = cross3(axis2, up)
+    if float(np.linalg.norm(across)) < 1e-9:  # axis 2 along axis 1: keep joint 1's x
+        return np.array([1.0, 0.0, 0.0])
+    across = across / np.linalg.norm(across)
+    offset = robot.data.oMi[2].translation - robot.data.oMi[1].translation
+    for hint in (R1[:, 0], offset):
+        dot = float(across @ hint)
+        if abs(dot) > 1e-9:
+            return R1.T @ (across if dot > 0 else -across)
+    return R1.T @ across
+
+
+def _parallel(a: np.ndarray, b: np.ndarray) -> bool:
+    return float(np.linalg.norm(cross3(a, b))) < 1e-9
+
+
+def _forward(robot: Robot, up: np.ndarray, forward_in_link1: np.ndarray) -> np.ndarray:
+    x1 = robot.data.oMi[1].rotation @ forward_in_link1
+    f = x1 - float(x1 @ up) * up
+    return f / np.linalg.norm(f)
+
+
+def _frames(robot: Robot, q: np.ndarray) -> tuple[_Reference, _Frames]:
+    ref = _reference(robot)
+    origins, axes = _axes_and_origins(robot, q)
+    wrist = np.array(robot.data.oMi[5].act(ref.wrist_in_link5))
+    return ref, _Frames(origins, axes, wrist, _forward(robot, ref.up, ref.forward_in_link1))
+
+
+def _signed_distances(ref: _Reference, fr: _Frames) -> tuple[float, float, float]:
+    o, z = fr.origins, fr.axes
+    shoulder = float((fr.wrist - o[0]) @ fr.forward)
+    n = cross3(ref.up, fr.forward)
+    elbow_point = fr.wrist if ref.elbow_joint == 0 else o[ref.elbow_joint - 1]
+    upper, fore = o[2] - o[1], elbow_point - o[2]
+    upper = upper - float(upper @ n) * n
+    fore = fore - float(fore @ n) * n
+    elbow = float(np.arctan2(cross3(upper, fore) @ n, upper @ fore))
+    z4, z5, z6 = ref.sign4 * z[3], ref.sign5 * z[4], ref.sign6 * z[5]
+    # no wrist singularity (axis 4 or 6 along axis 5): never in a wrist zone, label N
+    wrist = float(np.arctan2(cross3(z4, z6) @ z5, z4 @ z6)) if ref.has_wrist else math.pi
+    return wrist, shoulder, elbow
+
+
+def _label(wrist: float, shoulder: float, elbow: float) -> Configuration:
+    return Configuration("F" if shoulder >= 0 else "B", "U" if elbow >= 0 else "D", "N" if wrist >= 0 else "F")
+
+
+def classify(robot: Robot, q: np.ndarray) -> Configuration:
+    """The configuration (shoulder, elbow, wrist) of joint values ``q`` (n,) [rad]; UNLABELLED for 7 joints."""
+    if _unlabelled(robot):
+        return UNLABELLED
+    if reduced.is_reduced(robot):
+        return _label(*reduced.distances(robot, q))
+    ref, fr = _frames(robot, np.asarray(q, dtype=float))
+    return _label(*_signed_distances(ref, fr))
+
+
+def singularity_distances(robot: Robot, q: np.ndarray) -> SingularityDistances:
+    """Signed distances of ``q`` to the wrist, shoulder and elbow singularities.
+
+    Also the smallest singular value of the 6 x n TCP Jacobian, a unit-mixed but
+    method-independent measure of how close ``q`` is to any singularity.
+    """
+    q = np.asarray(q, dtype=float)
+    if _unlabelled(robot):
+        wrist, shoulder, elbow = (math.nan,) * 3
+    elif reduced.is_reduced(robot):
+        return SingularityDistances(*reduced.distances(robot, q), reduced.sigma_min(robot, q))
+    else:
+        wrist, shoulder, elbow = _signed_distances(*_frames(robot, q))
+    sigma = float(np.linalg.svd(robot.jacobian(q), compute_uv=False)[-1])
+    return SingularityDistances(wrist, shoulder, elbow, sigma)
+
+
+def label_and_distances(robot: Robot, q: np.ndarray) -> tuple[Configuration, SingularityDistances]:
+    """Both at once (one forward kinematics), for sampling along paths."""
+    d = singularity_distances(robot, q)
+    return _label(d.wrist_rad, d.shoulder_m, d.elbow_rad), d
+
+
+def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """Signed (wrist [rad], shoulder [m], elbow [rad]) distances of many samples q (N, n).
+
+    For OPW arms this is closed form, one compiled loop, from the OPW joint angles: the wrist
+    distance is q5 (axes 4 and 6 meet at the wrist centre at that angle), the shoulder
+    distance is the wrist centre's forward coordinate in the arm plane,
+    ``a1 + c2 sin q2 + k sin(q2 + q3 + psi)`` with ``k = hypot(a2, c3)``, ``psi = atan2(a2, c3)``,
+    and the elbow distance is ``q3 + psi``, the angle from the upper arm to the forearm.
+    For UR arms (the ur_description layout of :mod:`singplan.ik_ur`) they are ``-q5``, the
+    wrist point's forward coordinate in frame 1, ``l2 cos q2 + l3 cos(q2 + q3) - d5 sin(q2 + q3 + q4)``,
+    and ``q3``. These equal the frame-based definitions above (tested); other arms use those,
+    per sample.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if _unlabelled(robot):
+        return np.full((len(q), 3), np.nan)
+    p = robot.opw
+    ur = robot.ur
+    if reduced.is_reduced(robot):
+        return reduced.distances_batch(robot, q)
+    if p is None and ur is not None:
+        return _ur_distances(np.ascontiguousarray(q), ur.l2, ur.l3, ur.d5)
+    if p is None:
+        return np.array([_signed_distances(*_frames(robot, qk)) for qk in q]).reshape(-1, 3)
+    return _opw_distances(np.ascontiguousarray(q), p.signs, p.offsets, p.a1, p.c2, math.hypot(p.a2, p.c3),
+                          math.atan2(p.a2, p.c3))
+
+
+@jit
+def _opw_distances(q: np.ndarray, signs: np.ndarray, offsets: np.ndarray, a1: float, c2: float, k: float,
+                   psi: float) -> np.ndarray:
+    """:func:`distances_batch` of an OPW arm: (q5, shoulder, q3 + psi), angles wrapped to (-pi, pi]."""
+    out = np.empty((q.shape[0], 3))
+    for i in range(q.shape[0]):
+        t2, t3, t5 = (q[i, 1] * signs[1] - offsets[1], q[i, 2] * signs[2] - offsets[2],
+                      q[i, 4] * signs[4] - offsets[4])
+        out[i, 0] = math.pi - (math.pi - t5) % (2.0 * math.pi)
+        out[i, 1] = a1 + c2 * math.sin(t2) + k * math.sin(t2 + t3 + psi)
+        out[i, 2] = math.pi - (math.pi - (t3 + psi)) % (2.0 * math.pi)
+    return out
+
+
+def labels_from_distances(d: np.ndarray) -> list[str]:
+    """Configuration labels of distance rows (N, 3): the sign of each distance; NO_LABEL for an all-NaN row."""
+    shoulder = np.where(d[:, 1] >= 0, "F", "B")
+    elbow = np.where(d[:, 2] >= 0, "U", "D")
+    wrist = np.where(d[:, 0] >= 0, "N", "F")
+    none = np.isnan(d).all(axis=1).tolist()
+    return [NO_LABEL if n else f"{s} {e} {w}"
+            for s, e, w, n in zip(shoulder.tolist(), elbow.tolist(), wrist.tolist(), none, strict=True)]
+
+
+@jit
+def _ur_distances(q: np.ndarray, l2: float, l3: float, d5: float) -> np.ndarray:
+    """:func:`distances_batch` of a UR arm: (-q5, shoulder, q3), angles wrapped to (-pi, pi]."""
+    out = np.empty((q.shape[0], 3))
+    for i in range(q.shape[0]):
+        out[i, 0] = math.pi - (math.pi + q[i, 4]) % (2.0 * math.pi)
+        q2, q23 = q[i, 1], q[i, 1] + q[i, 2]
+        out[i, 1] = l2 * math.cos(q2) + l3 * math.cos(q23) - d5 * math.sin(q23 + q[i, 3])
+        out[i, 2] = math.pi - (math.pi - q[i, 2]) % (2.0 * math.pi)
+    return out

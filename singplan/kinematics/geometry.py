@@ -1,0 +1,22 @@
+"""Small rotation and vector helpers shared by kinematics and planning."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+
+def rpy_deg_to_rotation(rpy_deg: tuple[float, float, float] | np.ndarray) -> np.ndarray:
+    """URDF fixed-axis roll-pitch-yaw [deg] to a rotation matrix: Rz(yaw) Ry(pitch) Rx(roll)."""
+    r, p, y = np.radians(np.asarray(rpy_deg, dtype=float))
+    return np.asarray(pin.rpy.rpyToMatrix(float(r), float(p), float(y)))
+
+
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """3-vector cross product (np.cross costs ten times more on single vectors)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
+    """Angle [rad] of the rotation from R_a to R_b."""
+    return float(np.linalg.norm(pin.log3(R_a.T @ R_b)))

@@ -1,0 +1,358 @@
+"""Numeric inverse kinematics for any serial chain: every branch inside the joint limits.
+
+A general 6R arm (no closed form, e.g. a wrist whose axes do not meet) has up to 16 solutions
+per pose; a 7R arm has one-parameter families of them. :func:`all_branches` finds them with
+Levenberg-Marquardt (Pinocchio Jacobians, SE(3) log error, one damped least-squares helper)
+run from a deterministic seed set:
+
+1. the caller's seed, if any;
+2. every solution found so far, flipped at the shoulder, elbow and wrist (6R arms): a flip of
+   a general arm is not a solution, but it lies in the basin of the neighbouring branch;
+3. quasi-random (Halton) points over the joint box, spread evenly whatever the arm.
+
+Each iterate is kept inside the joint limits (whole turns first, then clamping), so a run
+never ends on a solution the limits forbid and a redundant arm settles on an allowed point of
+its family. The search stops when ``patience`` quasi-random seeds in a row found nothing new
+(at least ``min_seeds`` tried, at most ``max_seeds``). Solutions are the same branch when
+they agree modulo whole turns (6R) or carry the same configuration label (7R: one per
+configuration found, the one nearest the seed).
+
+:func:`newton` is the fast seeded solve the per-sample tracking uses (no limits, no search).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from singplan.kinematics import reduced
+from singplan.kinematics.angles import TWO_PI
+from singplan.kinematics.robot import Robot
+
+_HALTON_PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37)
+_SAME_BRANCH_RAD = 1e-6  # two converged solutions closer than this (mod 2*pi) are one branch
+_FAR_COST = 1e-4  # squared log error [m^2, rad^2] of a run given up half way
+# a five-joint arm's residual accepted where the iteration stalls: 0.1 um and 0.6 mdeg, far
+# inside the 0.01 mm / 0.01 deg the path is held to
+REDUCED_RESIDUAL_M = 1e-7
+REDUCED_RESIDUAL_RAD = 1e-5
+_ROUND_OFF = 1e-15  # [m, rad] an error at round-off: no step can improve it
+_REACHABLE_TOL = 1e-14  # [m, rad]: the reachable part of such a residual is converged
+_SLIDE_ITERATIONS = 60  # null-space steps of a redundant arm toward the seed (each halves the gap)
+
+
+@dataclass(frozen=True)
+class NumericIkOptions:
+    """Tuning of the all-branch search (defaults measured in docs/kinematics.md).
+
+    Attributes:
+        min_seeds: quasi-random seeds always tried.
+        patience: stop after this many quasi-random seeds in a row gave no new branch.
+        max_seeds: quasi-random seeds at most.
+        max_iterations: Levenberg-Marquardt iterations per seed.
+        tol: norm of the SE(3) log error at convergence [m, rad].
+    """
+
+    min_seeds: int = 24
+    patience: int = 24
+    max_seeds: int = 200
+    max_iterations: int = 100
+    tol: float = 1e-12
+
+
+def damped_step(J: np.ndarray, err: np.ndarray, damping: float) -> np.ndarray:
+    """The step ``dq`` minimising ``|J dq - err|^2 + damping |dq|^2`` (J of shape (m, n): 6 rows, or 5 reduced).
+
+    A reduced (five-row) Jacobian may lack rank everywhere (a roll about the tool axis moves
+    nothing it keeps): there the minimum-norm least-squares step of the stacked system is
+    taken, as the normal equations would divide round-off by a vanishing damping.
+    """
+    if J.shape[0] < 6:
+        stacked = np.vstack([J, math.sqrt(damping) * np.eye(J.shape[1])])
+        return np.linalg.lstsq(stacked, np.concatenate([err, np.zeros(J.shape[1])]), rcond=None)[0]
+    return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), err)
+
+
+def _tip_target(robot: Robot, T_base_tcp: pin.SE3) -> pin.SE3:
+    return T_base_tcp * robot.T_tip_tcp.inverse()
+
+
+def _error(robot: Robot, T_target_tip: pin.SE3, q: np.ndarray) -> tuple[np.ndarray, pin.SE3]:
+    """``log6(T(q)^-1 T_target)`` (tip frame) and the tip pose T(q); for a five-joint arm the
+    reduced error of :func:`singplan.reduced.error` (position and tool z axis, 5 rows)."""
+    pin.forwardKinematics(robot.model, robot.data, q)
+    T = pin.updateFramePlacement(robot.model, robot.data, robot.tip_frame_id)
+    if reduced.is_reduced(robot):
+        return reduced.error(T_target_tip * robot.T_tip_tcp, T * robot.T_tip_tcp), T
+    return pin.log6(T.actInv(T_target_tip)).vector, T
+
+
+def _error_jacobian(robot: Robot, T_target_tip: pin.SE3, q: np.ndarray, T: pin.SE3) -> np.ndarray:
+    """d(-error)/dq: the Jacobian of ``log6(T_target^-1 T(q))`` (6, n), or the reduced one (5, n)."""
+    if reduced.is_reduced(robot):
+        return reduced.jacobian(robot, q, T.rotation @ robot.T_tip_tcp.rotation)
+    J_local = pin.computeFrameJacobian(robot.model, robot.data, q, robot.tip_frame_id, pin.LOCAL)
+    return pin.Jlog6(T_target_tip.actInv(T)) @ J_local
+
+
+def newton(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray, tol: float = 1e-12,
+           max_iterations: int = 60) -> np.ndarray | None:
+    """Damped Newton on the pose error from ``seed``; the converged joints [rad] or None.
+
+    The damping vanishes with the error, so convergence is quadratic away from singularities.
+    No limits and no step control: the tracking calls it with the previous sample as seed.
+    """
+    q = np.array(seed, dtype=float)
+    T_target_tip = _tip_target(robot, T_base_tcp)
+    # a five-joint arm takes one step even under tol: the reference samples a few 1e-9 of the
+    # path apart must agree to round-off, or their slopes differ by 1e-4 (TOPP-RA's spline)
+    floor = _ROUND_OFF if reduced.is_reduced(robot) else tol
+    for iteration in range(max_iterations):
+        err, T = _error(robot, T_target_tip, q)
+        norm = float(np.linalg.norm(err))
+        if norm < floor or (norm < tol and iteration > 0):
+            return q
+        J = _error_jacobian(robot, T_target_tip, q, T)
+        if _stalled(robot, err, J):
+            return q
+        q = q + damped_step(J, err, min(1e-2, norm) ** 2)
+    return None
+
+
+def _stalled(robot: Robot, err: np.ndarray, J: np.ndarray) -> bool:
+    """A five-joint arm at the least-squares solution of an error it cannot cancel: what is left
+    is outside the Jacobian's range (no joint motion reduces it to first order), with the
+    position within REDUCED_RESIDUAL_M and the tool axis within REDUCED_RESIDUAL_RAD. (The
+    SO-100's URDF tilts axis 1 by 6e-6 rad: a vertical tool axis is that far out of its arm
+    plane away from q1 = 0.)"""
+    if not (reduced.is_reduced(robot) and float(np.linalg.norm(err[:3])) < REDUCED_RESIDUAL_M
+            and float(np.linalg.norm(err[3:])) < REDUCED_RESIDUAL_RAD * reduced.ANGLE_WEIGHT_M):
+        return False
+    reachable = J @ np.linalg.lstsq(J, err, rcond=1e-10)[0]  # the part joint motion can cancel
+    return float(np.linalg.norm(reachable)) < _REACHABLE_TOL
+
+
+def into_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Each joint moved by whole turns next to the middle of its range, then clamped to it.
+
+    The variant nearest the middle is the one inside the range whenever one exists.
+    """
+    middle = 0.5 * (lower + upper)
+    return np.clip(q + TWO_PI * np.round((middle - q) / TWO_PI), lower, upper)
+
+
+def solve_lm(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray,
+             options: NumericIkOptions = NumericIkOptions()) -> np.ndarray | None:
+    """Levenberg-Marquardt inside the joint limits from ``seed``; the solution [rad] or None.
+
+    The damping follows Nielsen's rule (K. Madsen, H. B. Nielsen, O. Tingleff, "Methods for
+    non-linear least squares problems", 2004): it shrinks by how well the linear model
+    predicted the step's gain, and doubles its growth after each refused step, which keeps
+    the iteration moving through the ill-conditioned region near a singular pose. A run still
+    far from any solution half way through its iterations is given up.
+    """
+    lower, upper = robot.lower_rad, robot.upper_rad
+    T_target_tip = _tip_target(robot, T_base_tcp)
+    q = into_limits(np.asarray(seed, dtype=float), lower, upper)
+    err, T = _error(robot, T_target_tip, q)
+    cost, damping, growth = float(err @ err), 1e-2, 2.0
+    J = _error_jacobian(robot, T_target_tip, q, T)
+    for iteration in range(options.max_iterations):
+        if cost < options.tol ** 2 or _stalled(robot, err, J):
+            return q
+        if iteration == options.max_iterations // 2 and cost > _FAR_COST:
+            return None
+        step = damped_step(J, err, damping)
+        q_new = into_limits(q + step, lower, upper)
+        err_new, T_new = _error(robot, T_target_tip, q_new)
+        cost_new = float(err_new @ err_new)
+        predicted = cost - float(np.sum((err - J @ step) ** 2))
+        gain = (cost - cost_new) / predicted if predicted > 0.0 else -1.0
+        if gain > 0.0:
+            q, err, cost = q_new, err_new, cost_new
+            damping *= max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)
+            growth = 2.0
+            J = _error_jacobian(robot, T_target_tip, q, T_new)
+        else:
+            damping *= growth
+            growth *= 2.0
+            if damping > 1e12:
+                break
+    return q if cost < options.tol ** 2 or _stalled(robot, err, J) else None
+
+
+def halton(count: int, dim: int, skip: int = 1) -> np.ndarray:
+    """The Halton points ``skip .. skip + count - 1`` in [0, 1)^dim (count, dim), deterministic."""
+    out = np.empty((count, dim))
+    for j in range(dim):
+        base = _HALTON_PRIMES[j]
+        for i in range(count):
+            k, f, x = i + skip, 1.0, 0.0
+            while k > 0:
+                f /= base
+                x += f * (k % base)
+                k //= base
+            out[i, j] = x
+    return out
+
+
+def flips(q: np.ndarray) -> list[np.ndarray]:
+    """Seeds near the other branches of a 6R solution: shoulder, elbow and wrist flipped alone
+    and together (exact flips of an ortho-parallel arm with zero offsets; near ones otherwise)."""
+    out = []
+    for shoulder in (False, True):
+        for elbow in (False, True):
+            for wrist in (False, True):
+                if not (shoulder or elbow or wrist):
+                    continue
+                s = np.array(q, dtype=float)
+                if shoulder:
+                    s[0], s[1], s[2] = s[0] + math.pi, -s[1], math.pi - s[2]
+                if elbow:
+                    s[1], s[2] = s[1] + s[2], -s[2]
+                if wrist:
+                    s[3], s[4], s[5] = s[3] + math.pi, -s[4], s[5] + math.pi
+                out.append(s)
+    return out
+
+
+@dataclass
+class _Found:
+    """Solutions found so far, one per branch, and the key that tells branches apart."""
+
+    key: Callable[[np.ndarray], str] | None  # configuration label (redundant arms) or None (6R)
+    seed: np.ndarray | None
+    rows: list[np.ndarray]
+    origins: list[int]
+    keys: list[str]
+
+    def add(self, q: np.ndarray, origin: int) -> bool:
+        """Keep ``q``; True when it is a new branch (a redundant arm's nearer point replaces the old)."""
+        if self.key is None:
+            if any(np.all(np.abs(_wrap(q - r)) < _SAME_BRANCH_RAD) for r in self.rows):
+                return False
+            self.rows.append(q)
+            self.origins.append(origin)
+            return True
+        key = self.key(q)
+        if key in self.keys:
+            k = self.keys.index(key)
+            if self.seed is not None and _distance(q, self.seed) < _distance(self.rows[k], self.seed):
+                self.rows[k], self.origins[k] = q, origin
+            return False
+        self.rows.append(q)
+        self.origins.append(origin)
+        self.keys.append(key)
+        return True
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return a - TWO_PI * np.round(a / TWO_PI)
+
+
+def _distance(q: np.ndarray, seed: np.ndarray) -> float:
+    return float(np.linalg.norm(q - seed))  # Euclidean: what the null-space pull minimises
+
+
+def _box_seeds(robot: Robot, options: NumericIkOptions) -> Iterator[np.ndarray]:
+    # a joint wider than a turn is sampled over one turn around its middle: the rest repeats it
+    middle = 0.5 * (robot.lower_rad + robot.upper_rad)
+    half = np.minimum(0.5 * (robot.upper_rad - robot.lower_rad), math.pi)
+    for u in halton(options.max_seeds, robot.n_joints):
+        yield middle + (2.0 * u - 1.0) * half
+
+
+def all_branches(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None,
+                 label: Callable[[np.ndarray], str] | None = None,
+                 options: NumericIkOptions = NumericIkOptions()) -> tuple[list[np.ndarray], list[int]]:
+    """Every IK branch of a TCP pose inside the joint limits, by seeded Levenberg-Marquardt.
+
+    Args:
+        robot: any serial arm with n >= 5 joints (five: position and tool z axis only).
+        T_base_tcp: the target TCP pose.
+        seed: tried first; with a redundant arm, each configuration keeps its point nearest it.
+        label: configuration label of a joint vector; a redundant arm (n > 6) gives one
+            solution per label (one in all without it); a 6R arm's branches are told apart
+            by their joints.
+        options: seed counts and convergence.
+
+    Returns:
+        The solutions (each inside the limits, pose error below ``options.tol``) and, for
+        each, the index of the seed it came from (0 = the caller's seed when given).
+    """
+    redundant = robot.n_joints > 6
+    key = (label or _one_configuration) if redundant else None
+    found = _Found(key=key, seed=seed, rows=[], origins=[], keys=[])
+    pending: list[np.ndarray] = [] if seed is None else [np.asarray(seed, dtype=float)]
+    tried, box_tried, quiet = 0, 0, 0
+    box = _box_seeds(robot, options)
+    while box_tried < options.max_seeds and (box_tried < options.min_seeds or quiet < options.patience):
+        is_box = not pending
+        q = solve_lm(robot, T_base_tcp, next(box) if is_box else pending.pop(0), options)
+        if q is not None and reduced.is_reduced(robot):
+            q = reduced.settle_free(robot, q, seed)  # a roll about the tool axis stays at the seed's
+        new = q is not None and found.add(q, tried)
+        tried += 1
+        if new and robot.n_joints == 6:
+            pending.extend(flips(found.rows[-1]))
+        if is_box:
+            box_tried += 1
+            quiet = 0 if new else quiet + 1
+    if key is not None and seed is not None:
+        return _nearest_per_label(robot, T_base_tcp, found, np.asarray(seed, dtype=float), key, options)
+    return found.rows, found.origins
+
+
+def _one_configuration(q: np.ndarray) -> str:
+    return ""  # a redundant arm searched without labels: one solution
+
+
+def _nearest_per_label(robot: Robot, T_base_tcp: pin.SE3, found: _Found, seed: np.ndarray,
+                       label: Callable[[np.ndarray], str],
+                       options: NumericIkOptions) -> tuple[list[np.ndarray], list[int]]:
+    """A redundant arm's solutions slid toward the seed; per label the nearest point found, nearest first.
+
+    A slide may cross into another label (the labels of a 7R arm are not its self-motion's
+    boundaries), so the slid and the unslid points compete for their own labels.
+    """
+    best: dict[str, tuple[float, np.ndarray, int]] = {}
+    for q, origin in zip(found.rows, found.origins, strict=True):
+        slid = _slide_toward(robot, T_base_tcp, q, seed, options)
+        for candidate in (q,) if slid is None else (q, slid):
+            key, d = label(candidate), _distance(candidate, seed)
+            if key not in best or d < best[key][0]:
+                best[key] = (d, candidate, origin)
+    rows: list[np.ndarray] = []
+    origins: list[int] = []
+    for _, q, origin in sorted(best.values(), key=lambda item: item[0]):
+        # on a label boundary one point carries both labels: keep it once
+        if not any(np.all(np.abs(_wrap(q - r)) < _SAME_BRANCH_RAD) for r in rows):
+            rows.append(q)
+            origins.append(origin)
+    return rows, origins
+
+
+def _slide_toward(robot: Robot, T_base_tcp: pin.SE3, q: np.ndarray, target: np.ndarray,
+                  options: NumericIkOptions) -> np.ndarray | None:
+    """A redundant arm's solution moved along its self-motion toward ``target``, same pose; None if lost.
+
+    Each step pulls halfway to the target inside the Jacobian's null space and corrects the
+    pose error; a final Levenberg-Marquardt run restores the pose exactly where the limits
+    clamped a step.
+    """
+    T_target_tip = _tip_target(robot, T_base_tcp)
+    moved = np.array(q)
+    for _ in range(_SLIDE_ITERATIONS):
+        err, T = _error(robot, T_target_tip, moved)
+        J = _error_jacobian(robot, T_target_tip, moved, T)
+        J_pinv = np.linalg.pinv(J, rcond=1e-6)
+        pull = 0.5 * (target - moved)
+        null_step = pull - J_pinv @ (J @ pull)
+        moved = into_limits(moved + J_pinv @ err + null_step, robot.lower_rad, robot.upper_rad)
+        if np.max(np.abs(null_step)) < _SAME_BRANCH_RAD:
+            break
+    return solve_lm(robot, T_base_tcp, moved, options)

@@ -1,0 +1,464 @@
+"""Robots: the bundled registry, URDF loading through Pinocchio, FK and Jacobians.
+
+A :class:`Robot` is a Pinocchio model reduced to the serial chain from the base to the tip
+frame, plus a fixed tool transform ``T_tip_tcp``. Every pose it returns is the TCP in the
+robot base frame (``T_base_tcp``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+from functools import cache, cached_property
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import yaml
+
+from singplan.errors import RobotModelError, UnknownNameError
+from singplan.kinematics.families import Family, OpwParameters, Recognition, recognise
+from singplan.kinematics.ik.ur import UrParameters
+
+logger = logging.getLogger(__name__)
+
+DEFAULT_ACCELERATION_RAD_S2 = 10.0
+SUPPORTED_JOINT_COUNTS = (5, 6, 7)  # actuated revolute joints from the root to the tip
+MAX_URDF_BYTES = 32 * 1024 * 1024
+VELOCITY_LIMIT_RAD_S = (1e-3, 1e3)  # a joint slower than 0.001 rad/s would make durations overflow
+MAX_JOINT_SPAN_RAD = 8 * math.pi  # 4 turns: the IK lists every 2*pi variant inside the range
+_FK_CHUNK = 16_384  # samples whose chain transforms are formed at once (~0.5 kB of temporaries each)
+MAX_REACH_M = 1000.0  # any joint or the tip farther from the base is a unit error (mm for m)
+_PACKAGE_DIR = Path(__file__).resolve().parents[1]  # the singplan package folder
+
+
+def robots_dir() -> Path:
+    """Folder of the bundled URDFs and robots.yaml (in the wheel or in a source checkout)."""
+    installed = _PACKAGE_DIR / "_robots"
+    return installed if installed.is_dir() else _PACKAGE_DIR.parent / "robots" / "urdf"
+
+
+@dataclass(frozen=True)
+class RobotEntry:
+    """One robot of the registry (``singplan robots``)."""
+
+    name: str
+    display_name: str
+    family: str  # as written in robots.yaml: a test reference for the recognition (singplan.families)
+    tip: str
+    sources: tuple[str, ...]
+    urdf_file: str | None = None  # bundled URDF name, relative to robots_dir()
+    example_robot_data: str | None = None  # loader name in example-robot-data
+    opw: OpwParameters | None = None  # robots.yaml's published parameters: a test reference only
+
+    def urdf_path(self) -> Path:
+        """Absolute path of the URDF (bundled, or resolved from example-robot-data)."""
+        if self.urdf_file is not None:
+            return robots_dir() / self.urdf_file
+        import example_robot_data.robots_loader as loaders
+
+        loader = loaders.ROBOTS[str(self.example_robot_data)]
+        root = Path(loaders.getModelPath(loader.path))
+        return (root / loader.path / loader.urdf_subpath / loader.urdf_filename).resolve()
+
+
+def _entry(name: str, spec: dict[str, Any]) -> RobotEntry:
+    opw = None
+    if spec.get("family") == "opw":
+        p = spec["opw"]
+        opw = OpwParameters(
+            a1=float(p["a1"]), a2=float(p["a2"]), b=float(p["b"]), c1=float(p["c1"]),
+            c2=float(p["c2"]), c3=float(p["c3"]), c4=float(p["c4"]),
+            offsets_rad=tuple(math.radians(v) for v in spec["opw_offsets_deg"]),
+            sign_corrections=tuple(float(v) for v in spec["opw_sign_corrections"]),
+        )
+    return RobotEntry(name=name, display_name=str(spec["display_name"]), family=str(spec["family"]),
+                      tip=str(spec["tip"]), sources=tuple(spec.get("sources", ())),
+                      urdf_file=spec.get("urdf"), example_robot_data=spec.get("example_robot_data"), opw=opw)
+
+
+@cache
+def bundled_robots() -> dict[str, RobotEntry]:
+    """The registry of robots/urdf/robots.yaml, by name."""
+    registry = yaml.safe_load((robots_dir() / "robots.yaml").read_text())
+    return {name: _entry(name, spec) for name, spec in registry["robots"].items()}
+
+
+class Robot:
+    """A serial arm: Pinocchio model and data, tip frame, tool, limits.
+
+    Attributes:
+        name: registry name, or the URDF file stem.
+        urdf_path: absolute path of the URDF that was loaded.
+        model, data: the Pinocchio model reduced to the base -> tip chain, and its data.
+        tip: name of the frame the tool hangs on.
+        T_tip_tcp: tool transform (TCP in the tip frame).
+        joint_names: the chain's joint names, base to tip.
+        lower_rad, upper_rad: joint position limits, shape (n,).
+        velocity_rad_s: joint speed limits, shape (n,).
+        acceleration_rad_s2: default joint acceleration limits, shape (n,).
+        entry: registry entry for a bundled robot, else None.
+    """
+
+    def __init__(self, name: str, urdf_path: Path, model: pin.Model, tip: str, T_tip_tcp: pin.SE3,
+                 entry: RobotEntry | None) -> None:
+        self.name = name
+        self.urdf_path = urdf_path
+        self.model = model
+        self.data = model.createData()
+        self.tip = tip
+        self.tip_frame_id = frame_id(model, tip)
+        self.T_tip_tcp = T_tip_tcp
+        self.T_tcp_tip_h = T_tip_tcp.inverse().homogeneous  # (4, 4): TCP poses -> tip poses, many at a time
+        self.entry = entry
+        self.joint_names = tuple(model.names[i] for i in range(1, model.njoints))
+        self.lower_rad = np.array(model.lowerPositionLimit, dtype=float)
+        self.upper_rad = np.array(model.upperPositionLimit, dtype=float)
+        self.velocity_rad_s = np.array(model.velocityLimit, dtype=float)
+        self.acceleration_rad_s2 = np.full(model.nq, DEFAULT_ACCELERATION_RAD_S2)
+
+    @property
+    def n_joints(self) -> int:
+        return int(self.model.nq)
+
+    @cached_property
+    def recognition(self) -> Recognition:
+        """The kinematic family read from the chain and its tip (:mod:`singplan.families`, cached)."""
+        return recognise(self.model, self.tip_frame_id)
+
+    @property
+    def family(self) -> Family:
+        return self.recognition.family
+
+    @property
+    def opw(self) -> OpwParameters | None:
+        """Verified OPW parameters of the chain to the tip, or None when it is not an OPW arm."""
+        return self.recognition.opw
+
+    @property
+    def ur(self) -> UrParameters | None:
+        """Verified UR parameters of the chain to the tip, or None when it is not a UR-type arm."""
+        return self.recognition.ur
+
+    def with_tool(self, T_tip_tcp: pin.SE3) -> Robot:
+        """The same robot with another tool (a new Data, the model is shared)."""
+        return Robot(self.name, self.urdf_path, self.model, self.tip, T_tip_tcp, self.entry)
+
+    def fk(self, q: np.ndarray) -> pin.SE3:
+        """TCP pose in the base frame, ``T_base_tcp``, for joint values ``q`` (n,) [rad]."""
+        pin.forwardKinematics(self.model, self.data, q)
+        return pin.updateFramePlacement(self.model, self.data, self.tip_frame_id) * self.T_tip_tcp
+
+    def tcp_positions(self, q: np.ndarray) -> np.ndarray:
+        """TCP positions [m] in the base frame (N, 3) of joint samples ``q`` (N, n).
+
+        The chain's transforms are composed in numpy for a chunk of samples at a time: one
+        Pinocchio call per sample costs ~5 us and a Python object each, which for a million
+        samples is seconds and hundreds of MB; this is ~0.3 us and a bounded workspace.
+        """
+        q = np.asarray(q, dtype=float).reshape(-1, self.n_joints)
+        out = np.empty((len(q), 3))
+        for c in range(0, len(q), _FK_CHUNK):
+            out[c:c + _FK_CHUNK] = self._tcp_chunk(q[c:c + _FK_CHUNK])
+        return out
+
+    def _tcp_chunk(self, q: np.ndarray) -> np.ndarray:
+        rotation = np.broadcast_to(np.eye(3), (len(q), 3, 3))  # (N, 3, 3): base -> current joint frame
+        position = np.zeros((len(q), 3))
+        for placement, axis, iq in self._chain_steps:
+            position = position + rotation @ placement.translation
+            rotation = rotation @ placement.rotation @ _rotations_about(axis, q[:, iq])
+        tool = self.model.frames[self.tip_frame_id].placement * self.T_tip_tcp
+        return position + rotation @ tool.translation
+
+    @cached_property
+    def _chain_steps(self) -> list[tuple[pin.SE3, np.ndarray, int]]:
+        """Base to tip: each joint's placement in its parent's frame, its unit axis and its q index.
+
+        The axis is read from Pinocchio's own motion of the joint (1 rad from neutral), so any
+        revolute joint kind (RX, RY, RZ, unaligned) gives it without a case per kind.
+        """
+        data = self.model.createData()
+        pin.forwardKinematics(self.model, data, pin.neutral(self.model) + 1.0)  # liMi[j] = placement * turn(1 rad)
+        steps = []
+        for j in list(self.model.supports[self.model.frames[self.tip_frame_id].parentJoint])[1:]:
+            placement = self.model.jointPlacements[j]
+            turn = placement.rotation.T @ data.liMi[j].rotation
+            steps.append((placement, pin.log3(turn), self.model.joints[j].idx_q))
+        return steps
+
+    def fk_tip(self, q: np.ndarray) -> pin.SE3:
+        """Tip-frame pose in the base frame (no tool)."""
+        pin.forwardKinematics(self.model, self.data, q)
+        return pin.updateFramePlacement(self.model, self.data, self.tip_frame_id).copy()
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """TCP Jacobian (6, n) in the LOCAL_WORLD_ALIGNED frame.
+
+        Rows 0-2 map qd to the TCP point's linear velocity in base coordinates [m/s], rows 3-5
+        to the tool's angular velocity in base coordinates [rad/s].
+        """
+        pin.computeJointJacobians(self.model, self.data, q)
+        pin.updateFramePlacements(self.model, self.data)
+        J = pin.getFrameJacobian(self.model, self.data, self.tip_frame_id, pin.LOCAL_WORLD_ALIGNED)
+        # shift the reference point from the tip origin to the TCP: v_tcp = v_tip + w x r
+        r = self.data.oMf[self.tip_frame_id].rotation @ self.T_tip_tcp.translation
+        J = J.copy()
+        J[:3] -= pin.skew(r) @ J[3:]
+        return J
+
+    def joint_placements(self, q: np.ndarray) -> list[pin.SE3]:
+        """Placements of the joint frames 1..n in the base frame."""
+        pin.forwardKinematics(self.model, self.data, q)
+        return [self.data.oMi[i] for i in range(1, self.model.njoints)]
+
+    def wrist_center(self, q: np.ndarray) -> np.ndarray:
+        """Wrist centre [m] in the base frame: the origin of joint 5's frame.
+
+        For a spherical wrist this point lies on axes 4, 5 and 6. For other 6R arms (UR) it is
+        the point on axis 5 where the joint frame sits.
+        """
+        pin.forwardKinematics(self.model, self.data, q)
+        return np.array(self.data.oMi[5].translation)
+
+    def within_limits(self, q: np.ndarray, tol: float = 1e-9) -> bool:
+        return bool(np.all(q >= self.lower_rad - tol) and np.all(q <= self.upper_rad + tol))
+
+
+def _rotations_about(axis: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
+    """Rotation matrices (N, 3, 3) about the unit ``axis`` by ``angle_rad`` (N,) (Rodrigues)."""
+    k = pin.skew(axis)
+    s, c = np.sin(angle_rad)[:, None, None], np.cos(angle_rad)[:, None, None]
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
+
+
+def frame_id(model: pin.Model, name: str) -> int:
+    """The frame named ``name``; the link's where a joint has the same name (the SO-100's ``gripper``)."""
+    if model.existFrame(name, pin.FrameType.BODY):
+        return int(model.getFrameId(name, pin.FrameType.BODY))
+    return int(model.getFrameId(name))
+
+
+def _chain_joint_ids(model: pin.Model, frame_id: int) -> list[int]:
+    ids = []
+    j = model.frames[frame_id].parentJoint
+    while j > 0:
+        ids.append(j)
+        j = model.parents[j]
+    return ids
+
+
+def _load_model(urdf_path: Path) -> pin.Model:
+    _check_urdf_file(urdf_path)
+    with tempfile.TemporaryFile() as messages:
+        try:
+            model = _build_quietly(urdf_path, messages.fileno())
+        except (RuntimeError, ValueError) as exc:
+            messages.seek(0)
+            reason = _urdfdom_reason(messages.read(8192).decode("utf-8", "replace")) or str(exc)
+            raise RobotModelError(str(urdf_path), f"cannot be read as URDF: {reason}") from None
+    if not any(f.type == pin.FrameType.BODY for f in model.frames):
+        raise RobotModelError(str(urdf_path), "has no links")
+    return model
+
+
+def _check_urdf_file(urdf_path: Path) -> None:
+    """A readable regular file within the size cap."""
+    try:
+        if urdf_path.is_dir():
+            raise RobotModelError(str(urdf_path), "is a directory, not a URDF file")
+        if not urdf_path.is_file():
+            raise RobotModelError(str(urdf_path), "no such URDF file")
+        size = urdf_path.stat().st_size
+        with urdf_path.open("rb") as f:
+            f.read(1)
+    except OSError as exc:
+        raise RobotModelError(str(urdf_path), f"cannot be read ({exc.strerror or exc})") from None
+    if size > MAX_URDF_BYTES:
+        raise RobotModelError(str(urdf_path), f"{size} bytes is over the {MAX_URDF_BYTES}-byte cap for a URDF")
+
+
+def _build_quietly(urdf_path: Path, sink_fd: int) -> pin.Model:
+    """``pin.buildModelFromUrdf`` with urdfdom's messages (written to fd 2) sent to ``sink_fd``.
+
+    urdfdom explains a rejected file only on stderr; keeping its lines lets the error name
+    the joint and the value.
+    """
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr to redirect
+        return pin.buildModelFromUrdf(str(urdf_path))
+    os.dup2(sink_fd, 2)
+    try:
+        return pin.buildModelFromUrdf(str(urdf_path))
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def _urdfdom_reason(messages: str) -> str:
+    """urdfdom's first two error lines: the problem, then usually the joint or link it is in."""
+    errors = [line.strip().removeprefix("Error:").strip()[:160] for line in messages.splitlines()
+              if line.strip().startswith("Error:")]
+    return "; ".join(errors[:2])
+
+
+TIP_NAMES = ("tool0", "flange", "tcp")  # in this order of preference, also with a prefix ("ur_tool0")
+END_EFFECTOR_JOINT_WORDS = ("gripper", "finger", "jaw")  # a revolute joint so named moves a gripper, not the arm
+
+
+def default_tip(model: pin.Model) -> str:
+    """The tip of a URDF given by path (DESIGN "Robots"): a link named ``tool0``, ``flange`` or
+    ``tcp`` (or ending in ``_tool0`` ...) at the end of the chain, else the chain's last link.
+
+    The chain ends at its deepest revolute joint that is not an end effector's (a joint whose
+    name contains ``gripper``, ``finger`` or ``jaw``, e.g. the SO-100's revolute jaw); its end
+    links are those fixed to that joint (Pinocchio merges fixed joints into the body they hang
+    on), which leaves out fingers and other joints branching off. The last link is the one
+    most fixed joints away from that joint (the first in the file among equals).
+    """
+    revolute = [j for j in range(1, model.njoints) if model.joints[j].shortname().removeprefix("JointModel")
+                in ("RX", "RY", "RZ", "RevoluteUnaligned")
+                and not any(word in model.names[j].lower() for word in END_EFFECTOR_JOINT_WORDS)]
+    if not revolute:
+        return model.frames[len(model.frames) - 1].name
+    end = max(revolute, key=lambda j: len(model.supports[j]))
+    links = [k for k, f in enumerate(model.frames) if f.type == pin.FrameType.BODY and f.parentJoint == end]
+    for wanted in TIP_NAMES:
+        named = [model.frames[k].name for k in links
+                 if model.frames[k].name == wanted or model.frames[k].name.endswith("_" + wanted)]
+        if named:
+            return named[0]
+    return model.frames[max(links, key=lambda k: _fixed_depth(model, k))].name
+
+
+def _fixed_depth(model: pin.Model, frame_id: int) -> int:
+    """How many frames lie between a frame and its joint (fixed joints and the links they carry)."""
+    depth = 0
+    while model.frames[frame_id].type != pin.FrameType.JOINT and frame_id > 0:
+        frame_id = model.frames[frame_id].parentFrame
+        depth += 1
+    return depth
+
+
+def _reduce_to_chain(model: pin.Model, tip: str, urdf_path: Path) -> pin.Model:
+    """Lock every joint that is not on the base -> tip chain (e.g. gripper fingers)."""
+    frames = [f.name for f in model.frames]
+    if not model.existFrame(tip):
+        raise UnknownNameError("tip frame", tip, frames, where=str(urdf_path))
+    chain = sorted(_chain_joint_ids(model, frame_id(model, tip)))
+    _check_chain(model, chain, tip, urdf_path)
+    others = [j for j in range(1, model.njoints) if j not in chain]
+    if not others:
+        return model
+    _rename_clashing_joints(model, others)
+    return pin.buildReducedModel(model, others, pin.neutral(model))
+
+
+def _rename_clashing_joints(model: pin.Model, joints: list[int]) -> None:
+    """Rename joints about to be locked whose name is also a link's (``gripper`` on the SO-100).
+
+    A locked joint becomes a fixed frame, and Pinocchio refuses to reduce a model where that
+    frame would share its name with the link; the locked joint's name is never used again.
+    """
+    for j in joints:
+        name = model.names[j]
+        if not model.existFrame(name, pin.FrameType.BODY):
+            continue
+        k = model.getFrameId(name, pin.FrameType.JOINT)
+        frame = model.frames[k]
+        frame.name = model.names[j] = f"{name}_locked_joint"
+        model.frames[k] = frame
+
+
+def _check_chain(model: pin.Model, chain: list[int], tip: str, urdf_path: Path) -> None:
+    """Every chain joint revolute, and a supported number of them.
+
+    Continuous joints are refused rather than given invented limits: Pinocchio represents them
+    by (cos, sin) pairs, and planning needs a position range to choose among 2*pi variants.
+    """
+    for j in chain:
+        kind = model.joints[j].shortname().removeprefix("JointModel")
+        name = model.names[j]
+        if kind.startswith("RUB"):
+            raise RobotModelError(str(urdf_path), f"joint {name!r} is continuous; singplan needs position limits: "
+                                                  "declare it revolute with <limit lower=... upper=...>")
+        if kind in ("PX", "PY", "PZ", "PrismaticUnaligned"):
+            raise RobotModelError(str(urdf_path), f"joint {name!r} is prismatic; singplan plans revolute arms")
+        if kind not in ("RX", "RY", "RZ", "RevoluteUnaligned"):
+            raise RobotModelError(str(urdf_path), f"joint {name!r} is a {kind} joint; singplan needs revolute joints")
+    if len(chain) not in SUPPORTED_JOINT_COUNTS:
+        counts = ", ".join(str(n) for n in SUPPORTED_JOINT_COUNTS[:-1]) + f" or {SUPPORTED_JOINT_COUNTS[-1]}"
+        raise RobotModelError(str(urdf_path), f"{len(chain)} revolute joints from {_root_link(model)} to {tip}; "
+                                              f"singplan plans arms with {counts}")
+
+
+def _root_link(model: pin.Model) -> str:
+    return next((f.name for f in model.frames if f.type == pin.FrameType.BODY), "the root")
+
+
+def _check_limits(model: pin.Model, urdf_path: Path) -> None:
+    """Finite position limits, lower < upper, within 4 turns; a usable velocity limit."""
+    v_low, v_high = VELOCITY_LIMIT_RAD_S
+    for j in range(model.nq):
+        name = model.names[j + 1]
+        lower, upper = float(model.lowerPositionLimit[j]), float(model.upperPositionLimit[j])
+        velocity = float(model.velocityLimit[j])
+        if not (math.isfinite(lower) and math.isfinite(upper) and lower < upper):
+            raise RobotModelError(str(urdf_path), f"joint {name!r} has position limits [{lower:g}, {upper:g}] rad; "
+                                                  "they must be finite with lower < upper")
+        if max(abs(lower), abs(upper), upper - lower) > MAX_JOINT_SPAN_RAD:
+            raise RobotModelError(str(urdf_path), f"joint {name!r} has position limits [{lower:g}, {upper:g}] rad; "
+                                                  f"at most {MAX_JOINT_SPAN_RAD:.4g} rad (4 turns) is supported")
+        if not v_low <= velocity <= v_high:
+            raise RobotModelError(str(urdf_path), f"joint {name!r} has velocity limit {velocity:g} rad/s; it must be "
+                                                  f"between {v_low:g} and {v_high:g}")
+
+
+def _check_forward_kinematics(robot: Robot) -> None:
+    """Finite joint and tip coordinates within MAX_REACH_M at the zero, lower, upper and mid joints."""
+    lo, hi = robot.lower_rad, robot.upper_rad
+    for q in (np.clip(np.zeros(robot.n_joints), lo, hi), lo, hi, (lo + hi) / 2):
+        points = [T.translation for T in robot.joint_placements(q)] + [robot.fk_tip(q).translation]
+        farthest = float(np.max(np.abs(points)))  # a coordinate, not a norm: no overflow on 1e308
+        if not farthest <= MAX_REACH_M:  # also catches NaN
+            raise RobotModelError(str(robot.urdf_path), f"forward kinematics puts a joint or the tip {farthest:g} m "
+                                                        f"from the base (at most {MAX_REACH_M:g} m; units in mm?)")
+
+
+def load_robot(name_or_urdf: str | Path, tip: str | None = None, tool: pin.SE3 | None = None) -> Robot:
+    """Load a bundled robot by name, or any URDF by path.
+
+    Args:
+        name_or_urdf: a registry name (``singplan robots``) or a path to a ``.urdf`` file.
+        tip: frame the tool hangs on; default the registry's tip, else :func:`default_tip`.
+        tool: ``T_tip_tcp``; default identity.
+
+    The chain from the URDF's root link to the tip must have :data:`SUPPORTED_JOINT_COUNTS`
+    revolute joints, each with finite position limits (lower < upper, at most 4 turns) and a
+    velocity limit in :data:`VELOCITY_LIMIT_RAD_S`; continuous, prismatic and other joints on
+    the chain are refused (joints off the chain, e.g. gripper fingers, are locked).
+
+    Raises:
+        UnknownNameError: unknown robot name (lists the valid ones) or unknown tip frame.
+        RobotModelError: the URDF is missing, unreadable, over :data:`MAX_URDF_BYTES`, or lacks
+            what planning needs (named joint and reason).
+    """
+    registry = bundled_robots()
+    text = str(name_or_urdf)
+    entry = registry.get(text)
+    if entry is None and not text.lower().endswith(".urdf"):
+        raise UnknownNameError("robot", text, sorted(registry))
+    urdf_path = entry.urdf_path() if entry is not None else Path(text).expanduser().resolve()
+    model = _load_model(urdf_path)
+    tip_name = tip or (entry.tip if entry is not None else default_tip(model))
+    model = _reduce_to_chain(model, tip_name, urdf_path)
+    _check_limits(model, urdf_path)
+    name = entry.name if entry is not None else urdf_path.stem
+    robot = Robot(name, urdf_path, model, tip_name, tool if tool is not None else pin.SE3.Identity(), entry)
+    _check_forward_kinematics(robot)
+    return robot

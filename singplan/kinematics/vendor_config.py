@@ -1,0 +1,263 @@
+"""Vendor configuration data: ABB confdata, KUKA Status and Turn, FANUC configuration strings.
+
+A pose target on an industrial controller names its IK branch in the vendor's own terms,
+computed from the **controller's** axis values. Those differ from the URDF joint values by
+signs, offsets and couplings (FANUC J2/J3, the ABB IRB 2400 parallel linkage), which
+``robots/urdf/robots.yaml`` records per bundled arm under ``controller`` (with sources)::
+
+    axis_i = axis_signs[i] * joint_i + axis_offsets_deg[i] + sum(f * joint_j for {axis: i, joint: j, factor: f})
+
+A user URDF declares its convention in a sidecar file next to it, ``<name>.controller.yaml``,
+holding the same ``controller:`` mapping; without one its vendor configuration is null.
+
+The forms (degrees of the controller axes ``a1..a6``):
+
+* ABB ``confdata`` (RAPID reference, data type confdata): ``cf1, cf4, cf6 = floor(a / 90)``
+  of axes 1, 4, 6; ``cfx = 4 * behind_axis1 + 2 * behind_lower_arm + (a5 < 0)``: the wrist
+  centre behind axis 1, behind the lower arm (the line through axes 2 and 3), axis 5 negative.
+* KUKA ``Status`` bit 0: wrist point overhead (x < 0 in the A1 frame); bit 1: ``A3 >= phi``,
+  phi the A3 value where the arm is stretched (wrist point on the line through A2 and A3);
+  bit 2: ``A5 <= 0`` (wrapped to (-180, 180]; DESIGN.md's wording of KUKA's table);
+  ``Turn`` bit i set when axis i+1 < 0.
+* FANUC configuration string ``"F|N U|D T|B, t1, t4, t6"``: flip when J5 > 0 (no flip
+  otherwise), elbow up/down, wrist centre in front of (T) or behind (B) J1; turn numbers
+  ``floor((a + 180) / 360)`` of J1, J4, J6.
+
+The wrist letter of singplan's own labels (:mod:`singplan.configuration`) is geometric: it
+is the vendor's flip indicator on every bundled arm, in controller terms: ``N`` is ABB axis 5
+>= 0, KUKA Status bit 2 clear (A5 > 0), FANUC ``N`` (J5 <= 0), whatever the URDF's q5 sign (tested;
+at exactly A5 = 0, the singularity itself, KUKA's bit is set while the label says ``N``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from functools import cache, lru_cache
+from pathlib import Path
+from typing import Any, Literal, NamedTuple, cast
+
+import numpy as np
+import yaml
+
+from singplan.errors import RobotModelError
+from singplan.kinematics.configuration import distances_batch
+from singplan.kinematics.robot import Robot, robots_dir
+
+Vendor = Literal["abb", "kuka", "fanuc", "staubli", "none"]
+VENDORS: tuple[Vendor, ...] = ("abb", "kuka", "fanuc", "staubli", "none")
+SIDECAR_SUFFIX = ".controller.yaml"
+_N_AXES = 6
+
+
+@dataclass(frozen=True)
+class ControllerConvention:
+    """How a robot's controller axes relate to its URDF joints: ``axes = matrix @ q + offsets_rad``."""
+
+    vendor: Vendor
+    matrix: tuple[tuple[float, ...], ...]  # (6, 6)
+    offsets_rad: tuple[float, ...]  # (6,)
+    sources: tuple[str, ...] = ()
+
+    def axes_rad(self, q: np.ndarray) -> np.ndarray:
+        """Controller axis values [rad] of URDF joint values q, (6,) or (N, 6)."""
+        return np.asarray(q, dtype=float) @ np.asarray(self.matrix).T + np.asarray(self.offsets_rad)
+
+    def joints_rad(self, axes_rad: np.ndarray) -> np.ndarray:
+        """URDF joint values [rad] of controller axis values, (6,) or (N, 6)."""
+        rhs = np.asarray(axes_rad, dtype=float) - np.asarray(self.offsets_rad)
+        return cast(np.ndarray, np.linalg.solve(np.asarray(self.matrix), rhs.T).T)
+
+
+class AbbConfdata(NamedTuple):
+    cf1: int
+    cf4: int
+    cf6: int
+    cfx: int
+
+
+class KukaStatusTurn(NamedTuple):
+    status: int
+    turn: int
+
+
+def _wrap_deg(a: np.ndarray) -> np.ndarray:
+    """Angles into (-180, 180]."""
+    return 180.0 - np.mod(180.0 - a, 360.0)
+
+
+def abb_confdata(axes_deg: Sequence[float], behind_axis1: bool, behind_lower_arm: bool) -> AbbConfdata:
+    """ABB confdata of one set of controller axis values [deg] and the two geometric flags."""
+    a = np.asarray(axes_deg, dtype=float)
+    cf = np.floor(a[[0, 3, 5]] / 90.0).astype(int)
+    cfx = 4 * int(behind_axis1) + 2 * int(behind_lower_arm) + int(a[4] < 0.0)
+    return AbbConfdata(int(cf[0]), int(cf[1]), int(cf[2]), cfx)
+
+
+def kuka_status_turn(axes_deg: Sequence[float], overhead: bool, phi_deg: float) -> KukaStatusTurn:
+    """KUKA Status and Turn of controller axis values [deg]; ``phi_deg`` is the A3 of the stretched arm."""
+    a = np.asarray(axes_deg, dtype=float)
+    status = int(overhead) | (int(a[2] >= phi_deg) << 1) | (int(_wrap_deg(a[4:5])[0] <= 0.0) << 2)
+    turn = sum(1 << i for i in range(_N_AXES) if a[i] < 0.0)
+    return KukaStatusTurn(status, turn)
+
+
+def fanuc_turn(angle_deg: float) -> int:
+    """FANUC turn number: 0 for [-180, 180), 1 for [180, 540), -1 for [-540, -180) ..."""
+    return math.floor((angle_deg + 180.0) / 360.0)
+
+
+def fanuc_configuration(axes_deg: Sequence[float], up: bool, front: bool) -> str:
+    """FANUC configuration string, e.g. ``"N U T, 0, 0, 0"``, of controller axis values [deg]."""
+    a = [float(v) for v in axes_deg]
+    flip = "F" if _wrap_deg(np.array([a[4]]))[0] > 0.0 else "N"
+    return (f"{flip} {'U' if up else 'D'} {'T' if front else 'B'}, "
+            f"{fanuc_turn(a[0])}, {fanuc_turn(a[3])}, {fanuc_turn(a[5])}")
+
+
+# --- conventions: bundled registry and user sidecars -------------------------------------------
+
+@cache
+def _registry_conventions() -> dict[str, ControllerConvention | None]:
+    """Bundled URDF file path (resolved) -> convention, from robots.yaml."""
+    registry = yaml.safe_load((robots_dir() / "robots.yaml").read_text())["robots"]
+    out: dict[str, ControllerConvention | None] = {}
+    for name, spec in registry.items():
+        convention = parse_convention(spec.get("controller"), f"robots.yaml: robots.{name}.controller")
+        if "urdf" in spec:  # the example-robot-data arms (UR5, Panda) have vendor none
+            out[str((robots_dir() / spec["urdf"]).resolve())] = convention
+    return out
+
+
+def parse_convention(spec: object, where: str) -> ControllerConvention | None:
+    """A ``controller:`` mapping -> convention (None for vendor ``none`` or no mapping)."""
+    if spec is None:
+        return None
+    if not isinstance(spec, Mapping):
+        raise RobotModelError(where, "expected a mapping with vendor, axis_signs, axis_offsets_deg, couplings")
+    vendor = spec.get("vendor")
+    if vendor not in VENDORS:
+        raise RobotModelError(where, f"vendor: expected one of {', '.join(VENDORS)}, got {vendor!r}")
+    if vendor == "none":
+        return None
+    unknown = set(spec) - {"vendor", "axis_signs", "axis_offsets_deg", "couplings", "sources"}
+    if unknown:
+        raise RobotModelError(where, f"unknown key(s) {', '.join(sorted(map(str, unknown)))}")
+    signs = _numbers(spec.get("axis_signs", [1] * _N_AXES), f"{where}.axis_signs")
+    if any(s not in (1.0, -1.0) for s in signs):
+        raise RobotModelError(where, f"axis_signs: each must be 1 or -1, got {signs}")
+    offsets = _numbers(spec.get("axis_offsets_deg", [0] * _N_AXES), f"{where}.axis_offsets_deg")
+    matrix = np.diag(signs)
+    for k, c in enumerate(spec.get("couplings") or []):
+        axis, joint, factor = _coupling(c, f"{where}.couplings[{k}]")
+        matrix[axis - 1, joint - 1] += factor
+    if abs(np.linalg.det(matrix)) < 1e-9:
+        raise RobotModelError(where, "couplings: the axes would not determine the joints (singular mapping)")
+    return ControllerConvention(cast(Vendor, vendor), tuple(map(tuple, matrix.tolist())),
+                                tuple(math.radians(v) for v in offsets), tuple(map(str, spec.get("sources", ()))))
+
+
+def _numbers(value: object, where: str) -> list[float]:
+    ok = isinstance(value, list) and len(value) == _N_AXES and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+    if not ok:
+        raise RobotModelError(where, f"expected {_N_AXES} finite numbers, got {value!r}")
+    return [float(v) for v in cast(list[float], value)]
+
+
+def _coupling(c: object, where: str) -> tuple[int, int, float]:
+    if not isinstance(c, Mapping) or set(c) != {"axis", "joint", "factor"}:
+        raise RobotModelError(where, "expected {axis: i, joint: j, factor: f}")
+    axis, joint, factor = c["axis"], c["joint"], c["factor"]
+    if axis not in range(1, _N_AXES + 1) or joint not in range(1, _N_AXES + 1) or axis == joint:
+        raise RobotModelError(where, f"axis and joint: two different numbers 1..{_N_AXES}, got {axis}, {joint}")
+    if not isinstance(factor, (int, float)) or isinstance(factor, bool) or not math.isfinite(factor):
+        raise RobotModelError(where, f"factor: expected a finite number, got {factor!r}")
+    return int(axis), int(joint), float(factor)
+
+
+def sidecar_path(urdf_path: str | Path) -> Path:
+    """Where a user URDF's convention is looked for: ``arm.urdf`` -> ``arm.controller.yaml``."""
+    p = Path(urdf_path)
+    return p.with_name(p.stem + SIDECAR_SUFFIX)
+
+
+def _convention_of_file(urdf_path: str) -> ControllerConvention | None:
+    bundled = _registry_conventions()
+    if urdf_path in bundled:
+        return bundled[urdf_path]
+    side = sidecar_path(urdf_path)
+    try:
+        stamp = side.stat().st_mtime_ns
+    except OSError:
+        return None
+    return _read_sidecar(str(side), stamp)
+
+
+@lru_cache(maxsize=64)
+def _read_sidecar(side: str, mtime_ns: int) -> ControllerConvention | None:
+    """A sidecar's convention, cached per modification time (an edited sidecar is read again)."""
+    try:
+        doc = yaml.safe_load(Path(side).read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise RobotModelError(side, f"cannot read the controller convention ({exc})") from None
+    if not isinstance(doc, Mapping) or "controller" not in doc:
+        raise RobotModelError(side, "expected a mapping with the key 'controller'")
+    return parse_convention(doc["controller"], f"{side}: controller")
+
+
+def convention_for(robot: Robot) -> ControllerConvention | None:
+    """The robot's controller convention: robots.yaml for a bundled URDF, else its sidecar, else None."""
+    if robot.n_joints != _N_AXES:
+        return None
+    return _convention_of_file(str(Path(robot.urdf_path).resolve()))
+
+
+# --- per robot and joint values ------------------------------------------------------------------
+
+def vendor_configs(robot: Robot, q: np.ndarray) -> list[dict[str, Any] | None]:
+    """The trajectory.json ``vendor_config`` of each row of q (N, n) [rad]; None without a convention."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    conv = convention_for(robot)
+    if conv is None or conv.vendor == "staubli":  # the contract has no Staubli form
+        return [None] * len(q)
+    axes = np.degrees(conv.axes_rad(q))
+    d = distances_batch(robot, q)  # (wrist, shoulder, elbow)
+    behind_axis1 = d[:, 1] < 0.0
+    elbow_up = d[:, 2] >= 0.0
+    if conv.vendor == "abb":
+        return [{"abb": abb_confdata(a, b, not u)._asdict()} for a, b, u in zip(axes, behind_axis1, elbow_up,
+                                                                                strict=True)]
+    if conv.vendor == "kuka":
+        # A3 - phi is +-(elbow angle): A3 >= phi exactly where the arm is on the vendor's "up" side
+        phi = axes[:, 2] - _kuka_elbow_direction(robot, conv) * np.degrees(d[:, 2])
+        return [{"kuka": kuka_status_turn(a, b, p)._asdict()} for a, b, p in zip(axes, behind_axis1, phi, strict=True)]
+    return [{"fanuc": fanuc_configuration(a, u, not b)} for a, b, u in zip(axes, behind_axis1, elbow_up, strict=True)]
+
+
+def vendor_config(robot: Robot, q: np.ndarray) -> dict[str, Any] | None:
+    """``vendor_config`` of one joint vector q (n,) [rad]."""
+    return vendor_configs(robot, np.asarray(q, dtype=float)[None, :])[0]
+
+
+@lru_cache(maxsize=64)
+def _kuka_elbow_direction(robot: Robot, conv: ControllerConvention) -> float:
+    """+1 when the elbow angle grows with A3 (KUKA's A3 >= phi is elbow up), else -1."""
+    q0 = np.zeros((2, _N_AXES))
+    step = math.radians(1.0)
+    q0[1] = conv.joints_rad(conv.axes_rad(q0[0]) + np.array([0, 0, step, 0, 0, 0]))
+    d = distances_batch(robot, q0)[:, 2]
+    return 1.0 if d[1] > d[0] else -1.0
+
+
+def format_vendor_config(value: dict[str, Any] | None) -> str:
+    """One-line text form: ``[cf1,cf4,cf6,cfx]``, ``S 2 T 18``, the FANUC string, or empty."""
+    if value is None:
+        return ""
+    if "abb" in value:
+        c = value["abb"]
+        return f"[{c['cf1']},{c['cf4']},{c['cf6']},{c['cfx']}]"
+    if "kuka" in value:
+        return f"S {value['kuka']['status']} T {value['kuka']['turn']}"
+    return str(value["fanuc"])

@@ -1,0 +1,1 @@
+"""What is made from a trajectory: summary, report page, replay, controller exports (imported lazily)."""

@@ -1,0 +1,71 @@
+"""The human-readable summary `singplan plan` prints: moves, zones and crossings, metrics."""
+
+from __future__ import annotations
+
+import math
+
+from singplan.results.trajectory import Trajectory
+from singplan.task.schema import Task
+
+
+def summary(traj: Trajectory, task: Task) -> str:
+    """Multi-line text: one line per move, one per crossing, then the metrics."""
+    lines = [f"{traj.robot} (tip {traj.tip}): {len(task.moves)} move(s), {traj.duration_s:.3f} s, "
+             f"{len(traj.t)} samples at {traj.period * 1e3:g} ms"]
+    for i, move in enumerate(task.moves):
+        segs = [s for s in traj.segments if s.move == i]
+        t0, t1 = segs[0].t0, segs[-1].t1
+        what = f"{move.speed_m_s:g} m/s" if move.kind != "ptp" else f"velocity x{move.velocity_scale:g}"
+        lines.append(f"  move {i} {move.kind:4s} {t0:8.3f} .. {t1:8.3f} s  {what:16s} "
+                     f"{segs[0].config_before} -> {segs[-1].config_after}")
+        for s in segs:
+            if s.kind != "crossing":
+                continue
+            d = s.details
+            unit_value = (f"{d['min_distance'] * 1e3:.3f} mm" if d.get("min_distance_unit") == "m"
+                          else f"{math.degrees(d['min_distance']):.4f} deg")
+            how = "changing branch" if d.get("changes_branch") else "keeping the branch (joints swing, path slowed)"
+            lines.append(f"      {s.singularity} zone {s.t0:.3f} .. {s.t1:.3f} s: closest {unit_value}, "
+                         f"method {s.method} {how}, {s.config_before} -> {s.config_after}, "
+                         f"dev {d['max_position_error_mm']:.4f} mm / {d['max_orientation_error_deg']:.4f} deg, "
+                         f"time lost {d['time_lost_s']:.3f} s")
+            choice = _choice(d.get("alternatives") or [])
+            if choice:
+                lines.append(f"        {choice}")
+    m = traj.metrics
+    lines.append(f"metrics: position error {m['max_position_error_mm']:.5f} mm, orientation error "
+                 f"{m['max_orientation_error_deg']:.5f} deg, joint speed x{m['max_joint_speed_ratio']:.3f}, "
+                 f"joint accel x{m['max_joint_accel_ratio']:.3f}, planning {m['planning_time_s']:.2f} s")
+    lines.append(_torque_line(traj, task))
+    return "\n".join(lines) + "\n"
+
+
+def _torque_line(traj: Trajectory, task: Task) -> str:
+    """The torque figures: the peak against the limit, or why there are none."""
+    m = traj.metrics
+    if "max_torque_ratio" not in m:
+        return f"torques: {m.get('torques', 'not computed')}"
+    scale = task.limits.torque_scale
+    limit = f"effort x{scale:g} (enforced)" if scale is not None else "the URDF effort (not enforced: no torque_scale)"
+    return f"torques: peak x{m['max_torque_ratio']:.3f} of {limit} at {m['max_torque_joint']}"
+
+
+def _choice(alternatives: list[dict[str, object]]) -> str:
+    """'auto chose X (n s); runner-up Y (m s), k s saved; infeasible: Z' from a crossing's alternatives."""
+    feasible = [a for a in alternatives if a.get("feasible")]
+    if len(alternatives) < 2 or not feasible:
+        return ""
+
+    def name(a: dict[str, object]) -> str:
+        return f"{a['method']}{' ' + str(a['variant']) if a.get('variant') else ''}"
+
+    best = feasible[0]
+    text = f"auto chose {name(best)} ({float(best['duration_s']):.3f} s move)"  # type: ignore[arg-type]
+    others = [a for a in feasible[1:] if a["method"] != best["method"]] or feasible[1:]
+    if others:
+        saved = float(others[0]["duration_s"]) - float(best["duration_s"])  # type: ignore[arg-type]
+        text += f"; runner-up {name(others[0])} ({float(others[0]['duration_s']):.3f} s), {saved:.3f} s saved"  # type: ignore[arg-type]
+    infeasible = sorted({str(a["method"]) for a in alternatives if not a.get("feasible")})
+    if infeasible:
+        text += f"; infeasible: {', '.join(infeasible)}"
+    return text

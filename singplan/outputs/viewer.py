@@ -1,0 +1,432 @@
+"""Replay a trajectory in the browser: a self-contained HTML page, or a live meshcat server.
+
+The scene is the same in both: the robot's visual geometry through Pinocchio's
+MeshcatVisualizer, the programmed and executed TCP paths, markers at the crossings, and an
+animation of every link at the trajectory's real timing. For the page, no server is started:
+a recorder stands in for meshcat's ZMQ window and keeps the commands, and the template in
+:func:`viewer_dir` inlines meshcat's viewer bundle, replays them in order and adds the legend,
+the segment list, the crossing labels and the joint-speed strip, so it works offline in any
+current browser. :func:`serve_replay` sends the same commands to a meshcat server listening
+on loopback only, unless another address is asked for (:mod:`singplan.meshcat_server`).
+"""
+
+from __future__ import annotations
+
+import atexit
+import base64
+import contextlib
+import io
+import itertools
+import json
+import math
+import re
+import socket
+import subprocess
+import sys
+from dataclasses import dataclass
+from html import escape
+from pathlib import Path
+from typing import Any
+
+import meshcat
+import meshcat.animation
+import meshcat.geometry as mg
+import meshcat.transformations as mtf
+import numpy as np
+import pinocchio as pin
+import umsgpack
+from pinocchio.visualize import MeshcatVisualizer
+
+from singplan.errors import InputError, RobotModelError
+from singplan.kinematics.geometry import rpy_deg_to_rotation
+from singplan.kinematics.robot import Robot, bundled_robots, load_robot
+from singplan.planning.path import move_piece
+from singplan.results.files import check_output_file, text_writer, write_file
+from singplan.results.trajectory import Segment, Trajectory, load
+from singplan.task.schema import parse_task
+
+DEFAULT_HOST = "127.0.0.1"  # the live server is for this machine unless asked otherwise
+_SERVER_START_S = 60.0  # longest wait for the live server to report its address
+ANIMATION_STEP_S = 0.02  # animation keyframes at most this often; the browser interpolates between them
+SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575}
+# What the page holds is bounded whatever the number of samples (a million samples would be
+# hundreds of MB of page and a minute of building): a time grid of at most so many points, more
+# where the joints move fast (no joint turns more than the turn between two kept samples, so a
+# wrist flip stays a flip and not a shortcut; at most so many such points), and the segments'
+# boundaries and crossings' midpoints, exactly.
+_KEYFRAMES = 600  # animation keyframes on the time grid (~1 kB of page each; a 60-move program: ~2.5 MB)
+_KEYFRAME_TURN_RAD = 0.15  # ... and one at least every 0.15 rad of a joint (a 3 mm chord at 1 m)
+_PATH_POINTS = 10_000  # executed-path points on the time grid (a line, and every _DOT_EVERY-th a dot)
+_PATH_TURN_RAD = 0.01  # ... and at least every 0.01 rad of a joint
+_DOT_EVERY = 3  # executed-path dots: one per this many path points
+_STRIP_POINTS = 1500  # joint-speed strip: at most this many points (each bucket's lowest and highest)
+_VIEW_DIRECTION = np.array([0.8, -1.0, 0.75]) / np.linalg.norm([0.8, -1.0, 0.75])  # camera side of the scene
+_PACKAGE_DIR = Path(__file__).resolve().parents[1]  # the singplan package folder
+
+
+def viewer_dir() -> Path:
+    """Folder of the replay page's template, script and style (in the wheel or a source checkout)."""
+    installed = _PACKAGE_DIR / "_viewer"
+    return installed if installed.is_dir() else _PACKAGE_DIR.parent / "viewer"
+
+
+class _Recorder:
+    """Stands in for meshcat's ZMQ window: keeps the lowered commands instead of sending them."""
+
+    def __init__(self) -> None:
+        self.commands: list[dict[str, Any]] = []
+
+    def send(self, command: Any) -> None:
+        self.commands.append(command.lower())
+
+
+def _line(points: np.ndarray, colour: int, width: float = 2.0) -> mg.Line:
+    geometry = mg.PointsGeometry(np.asarray(points, dtype=np.float32).T)
+    return mg.Line(geometry, mg.LineBasicMaterial(color=colour, linewidth=width))
+
+
+@dataclass(frozen=True)
+class TcpPath:
+    """The executed TCP path at a bounded set of kept samples.
+
+    Attributes:
+        index: kept sample indices (M,), ascending, with every segment's first and last sample
+            and every crossing's midpoint.
+        xyz: TCP positions [m] (M, 3) at those samples.
+    """
+
+    index: np.ndarray
+    xyz: np.ndarray
+
+    def between(self, k0: int, k1: int) -> np.ndarray:
+        """Positions (m, 3) [m] of the kept samples k0..k1 (both included)."""
+        return self.xyz[np.searchsorted(self.index, k0):np.searchsorted(self.index, k1, side="right")]
+
+    def at(self, k: int) -> np.ndarray:
+        """Position (3,) [m] at a kept sample ``k``."""
+        i = int(np.searchsorted(self.index, k))
+        assert i < len(self.index) and self.index[i] == k, f"sample {k} is not kept"
+        return self.xyz[i]
+
+
+def tcp_path(traj: Trajectory, robot: Robot) -> TcpPath:
+    """The TCP path at the samples the page shows (:func:`kept_samples` at the path's density)."""
+    index = kept_samples(traj, 1, _PATH_POINTS, _PATH_TURN_RAD)
+    return TcpPath(index, robot.tcp_positions(traj.q[index]))
+
+
+def kept_samples(traj: Trajectory, min_stride: int, grid_points: int, turn_rad: float) -> np.ndarray:
+    """Sample indices (ascending) that stand for the trajectory, about 2 x ``grid_points`` at most
+    plus three a segment: a time grid (every ``min_stride`` samples or coarser, at most
+    ``grid_points``), a sample each time some joint has turned ``turn_rad`` more (coarser too if
+    that would be more than ``grid_points``), the last sample, each segment's first and last and
+    each crossing's midpoint."""
+    last = len(traj.t) - 1
+    stride = max(min_stride, math.ceil(last / grid_points))
+    travel = _joint_travel(traj.q)  # (K,) [rad], non-decreasing
+    turn = max(turn_rad, float(travel[-1]) / grid_points)
+    marks = np.searchsorted(travel, np.arange(turn, travel[-1], turn))  # first sample past each mark
+    bounds = [k for seg in traj.segments for k in (*_sample_range(traj, seg), _midpoint(traj, seg))]
+    keep = np.concatenate([np.arange(0, last + 1, stride), marks, np.clip(bounds, 0, last), [last]])
+    return np.unique(keep.astype(np.int64))
+
+
+def _joint_travel(q: np.ndarray) -> np.ndarray:
+    """Cumulative sum over samples of the largest joint step [rad] (K,), formed in chunks."""
+    travel = np.zeros(len(q))
+    total = 0.0
+    for c in range(0, len(q) - 1, _CHUNK):
+        steps = np.abs(np.diff(q[c:c + _CHUNK + 1], axis=0)).max(axis=1)
+        travel[c + 1:c + 1 + len(steps)] = total + np.cumsum(steps)
+        total = float(travel[c + len(steps)])
+    return travel
+
+
+_CHUNK = 65_536  # samples differenced at once (a few MB of temporaries)
+
+
+def _midpoint(traj: Trajectory, seg: Segment) -> int:
+    k0, k1 = _sample_range(traj, seg)
+    return (k0 + k1) // 2
+
+
+def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath, programmed: np.ndarray,
+           speed: float = 1.0, loop: bool = False, play: bool = False) -> None:
+    """Send the replay scene to ``vis``: robot, paths, crossing markers and the animation."""
+    viz, full = _robot_visuals(vis, robot)
+    viz.display(full(traj.q[0]))
+    vis["/Grid"].set_property("visible", False)  # the robot's base axes show the ground frame
+    vis["paths/programmed"].set_object(_line(programmed, 0x9E9E9E, 1.0))
+    _draw_segments(vis, traj, tcp)
+    # a frame is a sample: keyframes at any kept sample, the exact joint values there
+    animation = meshcat.animation.Animation(default_framerate=speed / traj.period)
+    step = max(1, round(ANIMATION_STEP_S / traj.period))
+    for k in kept_samples(traj, step, _KEYFRAMES, _KEYFRAME_TURN_RAD).tolist():
+        with animation.at_frame(vis, k) as frame:
+            viz.viewer = frame
+            viz.display(full(traj.q[k]))
+    viz.viewer = vis
+    _drop_still_clips(animation)
+    vis.set_animation(animation, play=play, repetitions=_LOOP_REPETITIONS if loop else 1)
+
+
+def _drop_still_clips(animation: meshcat.animation.Animation) -> None:
+    """Remove the clips of nodes that never move (the base): the scene already shows them there."""
+    for path, clip in list(animation.clips.items()):
+        if all(all(v == track.values[0] for v in track.values) for track in clip.tracks.values()):
+            del animation.clips[path]
+
+
+def _robot_visuals(vis: meshcat.Visualizer, robot: Robot) -> tuple[MeshcatVisualizer, Any]:
+    """Pinocchio's meshcat visualiser of the robot's URDF visuals, and the chain -> model q map."""
+    # package:// meshes resolve against every folder above the URDF (example-robot-data's layout)
+    package_dirs = [str(p) for p in robot.urdf_path.parents]
+    try:
+        model, collision, visual = pin.buildModelsFromUrdf(str(robot.urdf_path), package_dirs=package_dirs)
+    except ValueError as exc:
+        raise RobotModelError(str(robot.urdf_path), f"cannot load its visual geometry for the replay ({exc})") from None
+    viz = MeshcatVisualizer(model, collision, visual)
+    viz.initViewer(viewer=vis)
+    viz.loadViewerModel(rootNodeName="robot")
+    return viz, _full_configuration(model, robot)
+
+
+def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath) -> None:
+    """The executed TCP path by segment kind (a line plus dots), and a marker at each crossing."""
+    for n, seg in enumerate(traj.segments):
+        k0, k1 = _sample_range(traj, seg)
+        colour = SEGMENT_COLOURS.get(seg.kind, 0)
+        path = tcp.between(k0, k1)
+        vis[f"paths/executed/{n:03d}_{seg.kind}"].set_object(_line(path, colour, 3.0))
+        # browsers draw lines one pixel wide: dots make the executed path readable at a glance
+        points = np.asarray(path[::_DOT_EVERY], dtype=np.float32).T  # (3, M)
+        rgb = np.array([(colour >> 16) & 255, (colour >> 8) & 255, colour & 255], dtype=np.float32)[:, None] / 255
+        dots = mg.PointsGeometry(points, color=np.repeat(rgb, points.shape[1], axis=1))
+        vis[f"paths/dots/{n:03d}_{seg.kind}"].set_object(mg.Points(dots, mg.PointsMaterial(size=0.006)))
+        if seg.kind == "crossing":
+            marker = vis[f"crossings/{n:03d}_{seg.singularity}_{seg.method}"]
+            marker.set_object(mg.Sphere(0.012), mg.MeshLambertMaterial(color=0xF4B400, opacity=0.8))
+            marker.set_transform(mtf.translation_matrix(tcp.at(_midpoint(traj, seg))))
+
+
+_LOOP_REPETITIONS = 1_000_000  # meshcat's "loop": repeat the clip this many times
+
+
+def _sample_range(traj: Trajectory, seg: Segment) -> tuple[int, int]:
+    return round(seg.t0 / traj.period), round(seg.t1 / traj.period)
+
+
+def _full_configuration(model: pin.Model, robot: Robot) -> Any:
+    """Map the chain's joint values into the full URDF model (extra joints at neutral)."""
+    neutral = pin.neutral(model)
+    index = [model.joints[model.getJointId(name)].idx_q for name in robot.joint_names]
+
+    def full(q: np.ndarray) -> np.ndarray:
+        out = neutral.copy()
+        out[index] = q
+        return out
+
+    return full
+
+
+def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
+    """Points (M, 3) [m] of the programmed path: LIN/CIRC geometry from the task; PTP as executed."""
+    task = parse_task(traj.task)
+    points = []
+    T = robot.fk(traj.q[0])
+    for i, move in enumerate(task.moves):
+        segs = [s for s in traj.segments if s.move == i]
+        k0, k1 = round(segs[0].t0 / traj.period), round(segs[-1].t1 / traj.period)
+        if move.kind == "ptp":
+            points.append(tcp.between(k0, k1))
+            T = robot.fk(traj.q[k1])
+            continue
+        piece = move_piece(i, move, T)
+        points.append(piece.positions(np.linspace(0.0, 1.0, 64)))
+        T = piece.T_end
+    return np.concatenate(points)
+
+
+def replay_html(traj: Trajectory, robot: Robot) -> str:
+    """The replay page, a self-contained HTML document (the template and assets of :func:`viewer_dir`)."""
+    tcp = tcp_path(traj, robot)
+    recorder = _Recorder()
+    _scene(meshcat.Visualizer(window=recorder), traj, robot, tcp, programmed_path(traj, robot, tcp))
+    assets = viewer_dir()
+    data = _page_data(traj, robot, tcp)
+    data["commands"] = [base64.b64encode(_packed(c)).decode("ascii") for c in recorder.commands]
+    title = escape(f"singplan replay: {traj.robot}, {traj.duration_s:.3f} s")
+    fills = {"__TITLE__": title, "__CSS__": (assets / "replay.css").read_text(),
+             "__MESHCAT__": _meshcat_bundle(), "__DATA__": json.dumps(data).replace("</", "<\\/"),
+             "__JS__": (assets / "replay.js").read_text()}
+    template = (assets / "replay.html").read_text()
+    return re.sub(r"__(TITLE|CSS|MESHCAT|DATA|JS)__", lambda m: fills[m.group(0)], template)  # values not rescanned
+
+
+def _packed(command: dict[str, Any]) -> bytes:
+    """A command as meshcat's viewer reads it; the animation's keyframes in single precision
+    (0.1 um at 1 m, 1e-7 of a quaternion) take a third less of the page than doubles."""
+    precision = "single" if command["type"] == "set_animation" else "double"
+    return bytes(umsgpack.packb(command, force_float_precision=precision))
+
+
+def _meshcat_bundle() -> str:
+    return (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text()
+
+
+def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath) -> dict[str, Any]:
+    """What replay.js shows besides the scene: segments, crossing labels, speed strip, camera."""
+    segments, labels = [], []
+    for seg in traj.segments:
+        title, detail = _describe(seg)
+        crossing = seg.kind == "crossing"
+        t_jump = traj.t[_midpoint(traj, seg)] if crossing else seg.t0
+        segments.append({"kind": seg.kind, "move": seg.move, "t0": seg.t0, "t1": seg.t1, "t_jump": float(t_jump),
+                         "colour": SEGMENT_COLOURS.get(seg.kind, 0), "title": title, "detail": detail})
+        if crossing:
+            d = seg.details
+            text = (f"{title.split(': ', 1)[1]}; {d.get('max_position_error_mm', 0.0):.3f} mm / "
+                    f"{d.get('max_orientation_error_deg', 0.0):.2f} deg")
+            labels.append({"text": text, "xyz": tcp.at(_midpoint(traj, seg)).tolist()})
+    vmax = robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", 1.0))
+    ratio = np.concatenate([np.max(np.abs(traj.qd[c:c + _CHUNK]) / vmax, axis=1)
+                            for c in range(0, len(traj.t), _CHUNK)])  # (K,)
+    keep = _extremes(ratio, _STRIP_POINTS)
+    points = np.vstack([tcp.xyz, np.zeros((1, 3))])  # the path and the robot's base
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    radius = max(0.3, 0.5 * float(np.linalg.norm(hi - lo)))
+    return {"duration": traj.duration_s, "colours": SEGMENT_COLOURS, "segments": segments, "labels": labels,
+            "speed": {"t": np.round(traj.t[keep], 4).tolist(), "ratio": np.round(ratio[keep], 4).tolist()},
+            "frame": {"center": (0.5 * (lo + hi)).tolist(), "distance": 2.2 * radius,
+                      "direction": _VIEW_DIRECTION.tolist()}}
+
+
+def _extremes(values: np.ndarray, count: int) -> np.ndarray:
+    """Indices (ascending) of at most ``count`` values that draw the same peaks: all of them when
+    few, else the lowest and the highest of each of count / 2 buckets."""
+    if len(values) <= count:
+        return np.arange(len(values))
+    bounds = np.linspace(0, len(values), count // 2 + 1).astype(np.int64).tolist()
+    return np.unique([a + int(pick(values[a:b])) for a, b in itertools.pairwise(bounds)
+                      for pick in (np.argmin, np.argmax)])
+
+
+def _describe(seg: Segment) -> tuple[str, str]:
+    """A segment's list entry: a title and a line of figures."""
+    span = f"t {seg.t0:.3f}-{seg.t1:.3f} s, {seg.config_before}"
+    if seg.kind != "crossing":
+        return f"move {seg.move}: {seg.kind}", span + ("" if seg.config_after == seg.config_before
+                                                       else f" -> {seg.config_after}")
+    d = seg.details
+    title = f"move {seg.move}: {seg.singularity} crossing, {seg.method}, {seg.config_before} -> {seg.config_after}"
+    detail = (f"t {seg.t0:.3f}-{seg.t1:.3f} s; deviation {d.get('max_position_error_mm', 0.0):.4f} mm / "
+              f"{d.get('max_orientation_error_deg', 0.0):.3f} deg; time lost {d.get('time_lost_s', 0.0):.3f} s")
+    return title, detail
+
+
+def robot_of(traj: Trajectory) -> Robot:
+    """The robot a trajectory was planned for, with its tool: its URDF, or the bundled arm of that
+    name when it was planned from the bundled URDF (or that file is gone, e.g. another install).
+
+    A user's URDF whose file name matches a bundled arm is drawn as itself, not as the bundled arm.
+    """
+    rpy = np.asarray(traj.tool.get("rpy_deg", [0, 0, 0]), dtype=float)
+    tool = pin.SE3(rpy_deg_to_rotation(rpy), np.asarray(traj.tool.get("xyz", [0, 0, 0]), dtype=float))
+    entry = bundled_robots().get(traj.robot)
+    bundled = entry is not None and (str(entry.urdf_path()) == traj.urdf or not Path(traj.urdf).is_file())
+    source = traj.robot if bundled else traj.urdf
+    return load_robot(source, tip=traj.tip, tool=tool)
+
+
+@dataclass
+class LiveReplay:
+    """A meshcat server playing a trajectory; :meth:`close` stops it.
+
+    Attributes:
+        url: the page to open (meshcat's viewer, with play / pause / time / speed controls).
+        host: the address the server listens on.
+    """
+
+    url: str
+    host: str
+    visualizer: meshcat.Visualizer
+    server: subprocess.Popen[str]
+
+    def close(self) -> None:
+        """Stop the meshcat server process."""
+        _stop(self.server)
+
+    def __enter__(self) -> LiveReplay:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _stop(server: subprocess.Popen[str]) -> None:
+    if server.poll() is None:
+        server.kill()
+    server.wait()
+    if server.stdout is not None:
+        server.stdout.close()
+
+
+def _start_server(host: str) -> tuple[subprocess.Popen[str], str]:
+    """Start :mod:`singplan.meshcat_server` listening on ``host``; return it and its command address."""
+    try:
+        socket.getaddrinfo(host, None)
+    except (OSError, UnicodeError, ValueError) as exc:
+        raise InputError(f"replay --host {host!r}: not an address of this machine ({exc})") from None
+    script = Path(__file__).with_name("meshcat_server.py")
+    server = subprocess.Popen([sys.executable, "-u", str(script), host], stdout=subprocess.PIPE,
+                              stderr=subprocess.DEVNULL, text=True, start_new_session=True)
+    atexit.register(_stop, server)
+    try:
+        assert server.stdout is not None
+        line = server.stdout.readline().strip()
+        if not line.startswith("zmq_url="):
+            reason = line.removeprefix("error=") or f"the server exited with code {server.wait(_SERVER_START_S)}"
+            raise InputError(f"replay --host {host!r}: cannot serve there ({reason})")
+        server.stdout.readline()  # web_url=...: the visualiser asks the server for it
+    except BaseException:
+        _stop(server)
+        raise
+    return server, line.removeprefix("zmq_url=")
+
+
+def serve_replay(traj: Trajectory, robot: Robot, speed: float = 1.0, loop: bool = True,
+                 host: str = DEFAULT_HOST) -> LiveReplay:
+    """Start a meshcat server (on ``host``, a free port from 7000 up) and play the trajectory there."""
+    server, command_url = _start_server(host)
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its URL; the caller decides
+            vis = meshcat.Visualizer(zmq_url=command_url)
+        live = LiveReplay(vis.url(), host, vis, server)
+        tcp = tcp_path(traj, robot)
+        _scene(vis, traj, robot, tcp, programmed_path(traj, robot, tcp), speed=speed, loop=loop, play=True)
+    except BaseException:
+        _stop(server)
+        raise
+    return live
+
+
+def replay(traj: Trajectory | str | Path, html: str | Path | None = None, serve: bool = False,
+           speed: float = 1.0, loop: bool = True, host: str = DEFAULT_HOST) -> Path | LiveReplay:
+    """Replay a trajectory (object, or a trajectory.json / output folder) in the browser.
+
+    ``html=path`` writes the self-contained page and returns its path (written under a
+    temporary name and renamed when complete; an unusable path is an OutputPathError before
+    anything is built). ``serve=True`` starts a live meshcat server listening on ``host``
+    (loopback by default) playing it (``speed`` x real time, looping unless ``loop=False``)
+    and returns the running :class:`LiveReplay`, whose ``url`` to open and ``close()`` to stop it.
+    """
+    if (html is None) == (not serve):
+        raise InputError("replay: give exactly one of html=PATH or serve=True")
+    if not (math.isfinite(speed) and 0.01 <= speed <= 100.0):
+        raise InputError(f"replay: speed must be a number in [0.01, 100], got {speed}")
+    target = None if html is None else check_output_file(html)
+    trajectory = traj if isinstance(traj, Trajectory) else load(traj)
+    robot = robot_of(trajectory)
+    if target is None:
+        return serve_replay(trajectory, robot, speed=speed, loop=loop, host=host)
+    return write_file(target, text_writer(replay_html(trajectory, robot)))

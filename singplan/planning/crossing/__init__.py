@@ -1,0 +1,1 @@
+"""Crossing methods: the protocol (base), the methods, and the registry of names users can extend."""

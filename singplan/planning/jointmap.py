@@ -1,0 +1,249 @@
+"""A move's map from path parameter ``u`` in [0, 1] to joint values.
+
+The map is what the planner hands to the timing: dense reference samples for TOPP-RA, and
+:meth:`JointMap.evaluate` to compute the joint values of any ``u`` exactly, so that every
+output sample lies on the path. It is stitched from parts:
+
+* ``track``: exact IK; the branch and the 2*pi turn are those nearest the tracked reference
+  samples, interpolated at ``u``.
+* ``blend``: a crossing's joint interpolation (cubic Hermite between the entry and exit
+  joint values and slopes), with joints 1-3 re-solved so that the TCP *position* is exact.
+* ``axis``: one joint follows the blend; the others keep one pose component exact and
+  minimise the error of the other (SEEDS 000, :func:`axis_solve`).
+* ``ptp``: piecewise-linear in joint space (PTP moves, and the baselines' samples).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from singplan.kinematics.angles import nearest_shifted
+from singplan.kinematics.compiled import jit
+from singplan.kinematics.ik.solve import closed_form_branches, opw_arm_for_point, solve_newton
+from singplan.kinematics.ik.ur import ur_arm_for_point
+from singplan.kinematics.robot import Robot
+from singplan.planning.tracking import PoseFunction
+
+_DAMPING = 1e-6  # Levenberg-Marquardt lambda^2 of the position re-solve [m^2]
+_CHUNK = 65_536  # samples evaluated at once: the IK's temporaries take ~0.8 kB a sample
+
+
+@dataclass(frozen=True)
+class JointPart:
+    """One part of a joint map over [u0, u1].
+
+    Attributes:
+        kind: "track" | "blend" | "axis" | "ptp".
+        u: reference parameters inside [u0, u1], increasing, shape (K,).
+        q: reference joint values [rad], shape (K, n).
+        dq_du: joint slopes at u0 and u1 (blend only), shape (2, n).
+    """
+
+    kind: str
+    u: np.ndarray  # (K,)
+    q: np.ndarray  # (K, n)
+    dq_du: np.ndarray | None = None  # (2, n)
+    axis: int = -1  # "axis" parts: the interpolated joint
+    exact: str = "position"  # "axis" parts: the pose component kept exact
+
+    @property
+    def u0(self) -> float:
+        return float(self.u[0])
+
+    @property
+    def u1(self) -> float:
+        return float(self.u[-1])
+
+
+def hermite(part: JointPart, u: np.ndarray) -> np.ndarray:
+    """Cubic Hermite interpolation of a blend part's end values and slopes, (N, n)."""
+    assert part.dq_du is not None
+    return _hermite(part.u0, part.u1, np.ascontiguousarray(part.q[0]), np.ascontiguousarray(part.q[-1]),
+                    np.ascontiguousarray(part.dq_du), np.ascontiguousarray(u, dtype=float))
+
+
+@jit
+def _hermite(u0: float, u1: float, q0: np.ndarray, q1: np.ndarray, dq_du: np.ndarray, u: np.ndarray) -> np.ndarray:
+    h = u1 - u0
+    out = np.empty((u.shape[0], q0.shape[0]))
+    for i in range(u.shape[0]):
+        t = (u[i] - u0) / h
+        h00, h10 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t
+        h01, h11 = -2 * t**3 + 3 * t**2, t**3 - t**2
+        for j in range(q0.shape[0]):
+            out[i, j] = h00 * q0[j] + h10 * h * dq_du[0, j] + h01 * q1[j] + h11 * h * dq_du[1, j]
+    return out
+
+
+def interpolate(part: JointPart, u: np.ndarray) -> np.ndarray:
+    """Piecewise-linear interpolation of the part's reference samples, (N, n); constant outside."""
+    return _interpolate_rows(part.u, np.ascontiguousarray(part.q), np.ascontiguousarray(u, dtype=float))
+
+
+@jit
+def _interpolate_rows(u_ref: np.ndarray, q_ref: np.ndarray, u: np.ndarray) -> np.ndarray:
+    out = np.empty((u.shape[0], q_ref.shape[1]))
+    last = u_ref.shape[0] - 1
+    for i in range(u.shape[0]):
+        k = min(max(np.searchsorted(u_ref, u[i], side="right") - 1, 0), max(last - 1, 0))
+        t = 0.0 if last == 0 else min(1.0, max(0.0, (u[i] - u_ref[k]) / (u_ref[k + 1] - u_ref[k])))
+        for j in range(q_ref.shape[1]):
+            out[i, j] = (1.0 - t) * q_ref[k, j] + t * q_ref[min(k + 1, last), j]
+    return out
+
+
+class JointMap:
+    """Map u -> q of one move, built from consecutive parts that share their end samples."""
+
+    def __init__(self, robot: Robot, poses: PoseFunction | None, parts: list[JointPart]) -> None:
+        self.robot = robot
+        self.poses = poses
+        self.parts = parts
+
+    def reference(self) -> tuple[np.ndarray, np.ndarray]:
+        """All reference samples (u (K,), q (K, n)), without repeated part ends."""
+        us, qs = [self.parts[0].u[:1]], [self.parts[0].q[:1]]
+        for part in self.parts:
+            us.append(part.u[1:])
+            qs.append(part.q[1:])
+        return np.concatenate(us), np.concatenate(qs)
+
+    def evaluate(self, u: np.ndarray) -> np.ndarray:
+        """Joint values (N, n) at parameters u (N,), each exactly on the map's definition."""
+        u = np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0)  # np.clip costs several times more
+        if len(u) > _CHUNK:
+            out = np.empty((len(u), self.robot.n_joints))
+            for k in range(0, len(u), _CHUNK):
+                out[k:k + _CHUNK] = self.evaluate(u[k:k + _CHUNK])
+            return out
+        if len(self.parts) == 1:
+            return self._evaluate_part(self.parts[0], u)
+        q = np.empty((len(u), self.robot.n_joints))
+        done = np.zeros(len(u), dtype=bool)
+        for part in self.parts:
+            mask = ~done & (u <= part.u1 + 1e-15)
+            if not mask.any():
+                continue
+            q[mask] = self._evaluate_part(part, u[mask])
+            done |= mask
+        return q
+
+    def _evaluate_part(self, part: JointPart, u: np.ndarray) -> np.ndarray:
+        if part.kind == "ptp":
+            return interpolate(part, u)
+        if part.kind == "blend":
+            return self.fix_position(hermite(part, u), u)
+        if part.kind == "axis":
+            return self.solve_axis(part, u)
+        return self._exact_near(interpolate(part, u), u)
+
+    def solve_axis(self, part: JointPart, u: np.ndarray) -> np.ndarray:
+        """The axis method's joints at u: part.axis on the blend, the rest by :func:`axis_solve`."""
+        assert self.poses is not None
+        q_ref = hermite(part, u)
+        T = self.poses(u)
+        return np.array([axis_solve(self.robot, q_ref[k], T[k], part.axis, part.exact) for k in range(len(u))])
+
+    def _exact_near(self, q_ref: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Exact IK at each u: the branch and turn nearest the reference joint values."""
+        assert self.poses is not None
+        T_tcp = self.poses(u)
+        cands = closed_form_branches(self.robot, T_tcp, q_ref)
+        if cands.shape[1] == 0:
+            return np.array([self._newton(T, s) for T, s in zip(T_tcp, q_ref, strict=True)])
+        return nearest_shifted(cands, q_ref)[0]
+
+    def _newton(self, T: np.ndarray, seed: np.ndarray) -> np.ndarray:
+        q = solve_newton(self.robot, pin.SE3(T[:3, :3], T[:3, 3]), seed)
+        return seed if q is None else q
+
+    def fix_position(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Re-solve joints 1-3 so the TCP position is exact.
+
+        OPW and UR arms: the closed forms of :func:`singplan.ik.opw_arm_for_point` and
+        :func:`singplan.ik_ur.ur_arm_for_point` (the solution nearest ``q``); other chains, or
+        where the point is out of the arm's reach: damped Newton from ``q``.
+        """
+        assert self.poses is not None
+        targets = self.poses(u)[:, :3, 3]
+        rec = self.robot.recognition  # the closed forms work in their own base and flange frames
+        if self.robot.opw is not None:
+            out = opw_arm_for_point(self.robot.opw, q, rec.flange_point(self.robot.T_tip_tcp.translation),
+                                    rec.closed_points(targets))
+            lost = np.isnan(out[:, 0])  # the point is out of the arm's reach: the nearest Newton can do
+        elif self.robot.family == "ur":
+            out = ur_arm_for_point(self.robot, q, rec.closed_points(targets))
+            lost = np.isnan(out[:, 0])
+        else:
+            out, lost = q.copy(), np.ones(len(u), dtype=bool)
+        for k in np.nonzero(lost)[0]:
+            out[k] = position_solve(self.robot, q[k], targets[k])
+        return out
+
+
+def position_solve(robot: Robot, q: np.ndarray, target_m: np.ndarray, joints: int = 3,
+                   tol_m: float = 1e-12, iterations: int = 30) -> np.ndarray:
+    """Move the first ``joints`` joints so the TCP reaches ``target_m`` [m]; the others stay.
+
+    Damped Newton on the TCP position with Pinocchio's Jacobian; returns the best found.
+    """
+    q = np.array(q, dtype=float)
+    for _ in range(iterations):
+        err = target_m - robot.fk(q).translation
+        norm = float(np.linalg.norm(err))
+        if norm < tol_m:
+            break
+        J = robot.jacobian(q)[:3, :joints]
+        # constant damping: directions the joints barely move (a shoulder singularity) stay put
+        q[:joints] += J.T @ np.linalg.solve(J @ J.T + _DAMPING * np.eye(3), err)
+    return q
+
+
+_EXACT_WEIGHT = 1e4  # weight of the kept component against the minimised one (per m / per rad)
+
+
+def axis_solve(robot: Robot, q: np.ndarray, T_target: np.ndarray, fixed: int, exact: str,
+               iterations: int = 25) -> np.ndarray:
+    """Joints with ``q[fixed]`` held: one pose component exact, the other's error minimised.
+
+    Gauss-Newton on the weighted residual ``[w_p (p - p*), w_o log3(R*^T R)]`` over the free
+    joints, with Pinocchio's Jacobian and ``Jlog3``; then the kept component is made exact by
+    the three joints that control it (arm joints for the position, wrist joints for the
+    orientation). SEEDS 000: wrist zone -> A4 held, position exact; shoulder -> A1 held,
+    orientation exact; elbow -> A2 held, orientation exact.
+    """
+    q = np.array(q, dtype=float)
+    free = [j for j in range(robot.n_joints) if j != fixed]
+    w = np.array([_EXACT_WEIGHT] * 3 + [1.0] * 3) if exact == "position" else np.array([1.0] * 3 + [_EXACT_WEIGHT] * 3)
+    p_star, R_star = T_target[:3, 3], T_target[:3, :3]
+    for _ in range(iterations):
+        T = robot.fk(q)
+        M = R_star.T @ T.rotation
+        r = w * np.concatenate([T.translation - p_star, pin.log3(M)])
+        J = robot.jacobian(q)
+        Jr = np.vstack([J[:3], pin.Jlog3(M) @ T.rotation.T @ J[3:]])[:, free] * w[:, None]
+        step = np.linalg.lstsq(Jr, -r, rcond=None)[0]
+        q[free] += step
+        if float(np.max(np.abs(step))) < 1e-13:
+            break
+    if exact == "position":
+        return position_solve(robot, q, p_star)
+    return orientation_solve(robot, q, R_star)
+
+
+def orientation_solve(robot: Robot, q: np.ndarray, R_target: np.ndarray, tol_rad: float = 1e-13,
+                      iterations: int = 30) -> np.ndarray:
+    """Move the wrist joints (the last three) so the TCP orientation is ``R_target``."""
+    q = np.array(q, dtype=float)
+    wrist = slice(robot.n_joints - 3, robot.n_joints)
+    for _ in range(iterations):
+        T = robot.fk(q)
+        err = pin.log3(T.rotation.T @ R_target)  # body frame
+        if float(np.linalg.norm(err)) < tol_rad:
+            break
+        Jw = T.rotation.T @ robot.jacobian(q)[3:, wrist]
+        q[wrist] += Jw.T @ np.linalg.solve(Jw @ Jw.T + _DAMPING * np.eye(3), err)
+    return q

@@ -1,0 +1,465 @@
+"""plan(task) -> Trajectory: the whole flow of DESIGN.md for one task.
+
+For each move: the Cartesian path (LIN / CIRC) is sampled and tracked by continuous IK,
+singular zones are detected on the tracked joints, the crossing method decides what happens
+in each zone, and the resulting joint map is timed by TOPP-RA and resampled at the
+controller period. PTP moves are straight lines in joint space. The moves are stitched back
+to back, segments and events are labelled, and the metrics are computed from the samples.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from singplan.errors import JointLimitError, PlanningError, SingularityError, UnreachableError
+from singplan.kinematics.configuration import classify, distances_batch, labels_from_distances, parse_configuration
+from singplan.kinematics.dynamics import TorqueLimit, effort_limits_nm, require_dynamics
+from singplan.kinematics.geometry import rpy_deg_to_rotation
+from singplan.kinematics.ik.solve import solve_all
+from singplan.kinematics.robot import Robot, load_robot
+from singplan.planning.budget import BudgetError, check_task
+from singplan.planning.crossing.methods import (
+    METHODS_AVAILABLE,
+    Axis,
+    Crossing,
+    CrossingMethod,
+    Exact,
+    MoveContext,
+    WristJoint,
+)
+from singplan.planning.jointmap import JointMap, JointPart
+from singplan.planning.path import CartesianPiece, move_piece, move_target, sample_deviations
+from singplan.planning.records import PlannedMove
+from singplan.planning.redundancy import HeldJoint, hold_for_task
+from singplan.planning.timing import MoveLimits, TimedMove, TimingError, time_move
+from singplan.planning.tracking import BranchCandidates, TrackedPath, track
+from singplan.planning.zones import DistanceFunction, Zone, distances_along, find_zones, thresholds_si
+from singplan.task.schema import Move, Task, check_against_robot, load_task
+
+STEP_M = 0.002  # initial path sampling: at most 2 mm ...
+STEP_RAD = math.radians(0.5)  # ... and 0.5 deg of tool rotation between samples
+Progress = Callable[[int, int], None]
+
+
+WRIST_JOINT_WINDOWS = (1.0, 1.5, 2.5)  # blend spans, as multiples of the detected zone
+
+
+def candidate_methods(name: str, move: Move) -> list[CrossingMethod]:
+    """The methods to try on a move: one, or for ``auto`` every pose-keeping candidate.
+
+    ``wrist-joint`` is tried with a few blend windows: a wider one spreads the wrist's change
+    of branch over more path (less acceleration) at the price of more orientation deviation;
+    the fastest within the tolerances wins.
+    """
+    target = move.config if move.config not in ("auto", "keep") else None
+    wrist_joint: list[CrossingMethod] = [WristJoint(target, w) for w in WRIST_JOINT_WINDOWS]
+    if name == "auto":
+        return [Exact(), *wrist_joint, Axis(target)]
+    if name == "wrist-joint":
+        return wrist_joint
+    if name == "axis":
+        return [Axis(target)]
+    return [METHODS_AVAILABLE[name]]
+
+
+def load_task_robot(task: Task) -> Robot:
+    tool = pin.SE3(rpy_deg_to_rotation(task.tool_rpy_deg), np.asarray(task.tool_xyz, dtype=float))
+    robot = load_robot(task.robot, tip=task.tip, tool=tool)
+    check_against_robot(task, robot)
+    if task.limits.torque_scale is not None:
+        require_dynamics(robot)
+    acc = np.asarray(task.limits.acceleration_rad_s2, dtype=float)
+    robot.acceleration_rad_s2 = np.broadcast_to(acc, (robot.n_joints,)).copy()
+    return robot
+
+
+@dataclass(frozen=True)
+class PlannedTask:
+    """A task planned and timed move by move, before the trajectory record is built (results)."""
+
+    task: Task  # as given (with the method override applied)
+    full: Robot  # the robot of the task
+    robot: Robot  # the chain planned: ``full``, or with ``redundancy`` the 6R chain with one joint held
+    held: HeldJoint | None
+    moves: tuple[PlannedMove, ...]
+    timed: tuple[TimedMove, ...]
+    planning_s: float  # wall time from the call to the last move timed
+
+
+def plan_moves(task: Task | str | Path, method: str | None = None, progress: Progress | None = None) -> PlannedTask:
+    """Plan and time every move of a task (a :class:`Task`, or the path of a YAML file).
+
+    Raises:
+        InputError: the task is malformed or contradicts the robot (exit code 2).
+        PlanningError: the task cannot be executed within the limits and tolerances (exit code 3).
+    """
+    started = time.perf_counter()
+    if not isinstance(task, Task):
+        task = load_task(task)
+    if method is not None:
+        task = task.with_method(method)
+    full = load_task_robot(task)
+    held = hold_for_task(task, full)  # with `redundancy`, the 6R chain is planned like any 6-joint arm
+    robot, arm_task = (held.reduced, held.reduce_task(task)) if held is not None else (full, task)
+    q = _start_joints(arm_task, robot)
+    allowance = check_task(arm_task, robot, q, STEP_M, STEP_RAD).output_allowance  # before anything large
+    T = robot.fk(q)
+    planned: list[PlannedMove] = []
+    timed: list[TimedMove] = []
+    left = allowance - 1  # output samples the remaining moves may add (they share their boundary samples)
+    for i, move in enumerate(task.moves):
+        pm, tm = _best_of(robot, arm_task, i, arm_task.moves[i], T, q,
+                          candidate_methods(task.singularity.method, move), left)
+        left -= len(tm.q) - 1
+        planned.append(pm)
+        timed.append(tm)
+        q = tm.q[-1]
+        T = pm.piece.T_end if pm.piece is not None else robot.fk(q)
+        if progress is not None:
+            progress(i + 1, len(task.moves))
+    return PlannedTask(task, full, robot, held, tuple(planned), tuple(timed), time.perf_counter() - started)
+
+
+def _timed(robot: Robot, pm: PlannedMove, period_s: float, max_samples: int) -> TimedMove:
+    """time_move, with a failure's path parameter turned into the point on the move."""
+    try:
+        return time_move(pm.jmap, pm.limits, period_s, pm.index, max_samples)
+    except TimingError as exc:
+        raise TimingError(pm.index, exc.u, exc.reason, kind=pm.kind, where=pm.describe(exc.u)) from exc
+
+
+def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
+             methods: list[CrossingMethod], max_samples: int) -> tuple[PlannedMove, TimedMove]:
+    """Plan and time the move with each method; keep the fastest within the tolerances.
+
+    A method this arm's family cannot use is never run in disguise: it is listed as infeasible
+    with the reason, and asked for alone it is refused where the move meets a zone.
+    """
+    results: list[tuple[PlannedMove, TimedMove]] = []
+    failures: list[tuple[str, PlanningError | BudgetError]] = []
+    serving, refused = _serving(robot, methods)
+    for method in serving or [Exact()]:  # with nothing to cross, any method gives exact's motion
+        if results and not results[0][0].zones:
+            break  # nothing to cross: every method gives this same motion
+        try:
+            pm = _plan_move(robot, task, i, move, T, q, method)
+            tm = _timed(robot, pm, task.period_s, max_samples)
+            _check_config(robot, move, pm, tm)
+            _check_tolerances(robot, task, pm, tm)
+        except (PlanningError, BudgetError) as exc:  # a slow method over the allowance: another may fit
+            failures.append((method.name, exc))
+            continue
+        results.append((replace(pm, method=method.name, variant=_variant(method)), tm))
+    if not serving and results and results[0][0].zones:
+        raise _refusal(robot, results[0][0], refused)
+    failures += [(name, PlanningError(f"{name} {why} (this arm is {robot.family})")) for name, why in refused.items()]
+    if not results:
+        decisive: list[PlanningError | BudgetError] = [
+            exc for _, exc in failures if isinstance(exc, (UnreachableError, BudgetError))]
+        if len(failures) == 1 or decisive or len({str(exc) for _, exc in failures}) == 1:
+            # the path itself fails, or the task is too large, or every method met the same wall: no method can help
+            raise (decisive or [failures[0][1]])[0]
+        raise PlanningError(f"move {i} ({move.kind}): no method could plan it: "
+                            + "; ".join(f"{name}: {exc}" for name, exc in failures))
+    results.sort(key=lambda r: r[1].duration_s)
+    alternatives = tuple([{"method": r[0].method, "variant": r[0].variant, "duration_s": r[1].duration_s,
+                           "feasible": True} for r in results]
+                         + [{"method": name, "feasible": False, "reason": str(exc)} for name, exc in failures])
+    best_pm, best_tm = results[0]
+    return replace(best_pm, alternatives=alternatives if len(methods) > 1 else ()), best_tm
+
+
+def _serving(robot: Robot, methods: list[CrossingMethod]) -> tuple[list[CrossingMethod], dict[str, str]]:
+    """The methods that can serve this arm's family, and why each other one cannot (by name)."""
+    notes = robot.recognition.crossing_methods()
+    return ([m for m in methods if not notes.get(m.name)],
+            {m.name: notes[m.name] for m in methods if notes.get(m.name)})
+
+
+def _refusal(robot: Robot, pm: PlannedMove, refused: dict[str, str]) -> SingularityError:
+    """The error for a move that meets a zone with only methods this arm cannot use."""
+    zone = pm.zones[0]
+    name, why = next(iter(refused.items()))
+    where = pm.piece.describe(zone.u_closest) if pm.piece is not None else "its start"
+    return SingularityError(f"move {pm.index} ({pm.kind}): {name} cannot cross the {zone.kind} zone at {where}: "
+                            f"it {why} (this arm is {robot.family}); use exact or auto",
+                            move=pm.index, kind=zone.kind, s_m=zone.u_closest * pm.limits.length_m)
+
+
+def _variant(method: CrossingMethod) -> str:
+    widen = getattr(method, "widen", None)
+    return f"window x{widen:g}" if widen is not None else ""
+
+
+def _check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove) -> None:
+    """A crossing may deviate up to the task's tolerances; more is no plan (exit 3)."""
+    pos, ori = sample_deviations(robot, pm.piece, tm.u, tm.q)
+    pos_tol = task.singularity.position_tolerance_mm / 1e3
+    ori_tol = math.radians(task.singularity.orientation_tolerance_deg)
+    if pos.max(initial=0.0) <= pos_tol and ori.max(initial=0.0) <= ori_tol:
+        return
+    k = int(np.argmax(np.maximum(pos / pos_tol, ori / ori_tol)))
+    zone = min(pm.zones, key=lambda z: abs(z.u_closest - tm.u[k])) if pm.zones else None
+    where = f"in the {zone.kind} zone " if zone else ""
+    assert pm.piece is not None
+    raise SingularityError(
+        f"move {pm.index} ({pm.kind}): the crossing {where}deviates {pos[k] * 1e3:.4f} mm / "
+        f"{math.degrees(ori[k]):.4f} deg at {pm.piece.describe(float(tm.u[k]))}, over the tolerance "
+        f"{task.singularity.position_tolerance_mm:g} mm / {task.singularity.orientation_tolerance_deg:g} deg",
+        move=pm.index, kind=zone.kind if zone else "path", s_m=float(tm.u[k]) * pm.piece.length_m)
+
+
+def _start_joints(task: Task, robot: Robot) -> np.ndarray:
+    if task.start_joints_deg is not None:
+        return np.radians(np.asarray(task.start_joints_deg, dtype=float))
+    assert task.start_pose is not None
+    pose = task.start_pose
+    T = pin.SE3(rpy_deg_to_rotation(pose.rpy_deg or (0.0, 0.0, 0.0)), np.asarray(pose.xyz, dtype=float))
+    sols = solve_all(robot, T, seed=np.zeros(robot.n_joints))
+    keep = [k for k, label in enumerate(sols.labels) if task.start_config in (None, label)]
+    if not keep:
+        wanted = f" in configuration {task.start_config}" if task.start_config else ""
+        raise UnreachableError(f"start.pose: no IK solution{wanted} inside the joint limits "
+                               f"(xyz {list(pose.xyz)}); available: {sorted(set(sols.labels)) or 'none'}")
+    best = min(keep, key=lambda k: float(np.max(np.abs(sols.q[k]))))  # the solution nearest zero
+    return np.array(sols.q[best])
+
+
+def _limits(robot: Robot, task: Task, move: Move, length_m: float) -> MoveLimits:
+    scale = task.limits.velocity_scale * (move.velocity_scale if move.kind == "ptp" else 1.0)
+    torque = (TorqueLimit(robot, effort_limits_nm(robot) * task.limits.torque_scale)
+              if task.limits.torque_scale is not None else None)
+    return MoveLimits(robot.velocity_rad_s * scale, robot.acceleration_rad_s2, length_m,
+                      move.speed_m_s if move.kind != "ptp" else None, torque)
+
+
+def _plan_move(robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3, q_start: np.ndarray,
+               method: CrossingMethod) -> PlannedMove:
+    if move.kind == "ptp":
+        q_target = _ptp_target(robot, i, move, q_start)
+        part = JointPart("ptp", np.array([0.0, 1.0]), np.array([q_start, q_target]))
+        return PlannedMove(i, "ptp", JointMap(robot, None, [part]), _limits(robot, task, move, 0.0))
+    return _plan_cartesian(robot, task, i, move, move_piece(i, move, T_start), q_start, method)
+
+
+def _ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.ndarray:
+    if move.to_joints_deg is not None:
+        return np.radians(np.asarray(move.to_joints_deg, dtype=float))
+    target = move_target(move, robot.fk(q_start))
+    sols = solve_all(robot, target, seed=q_start)
+    keep = [k for k, label in enumerate(sols.labels) if move.config in ("auto", "keep", label)]
+    if move.config == "keep":
+        keep = [k for k in keep if sols.labels[k] == classify(robot, q_start).label]
+    if not keep:
+        raise UnreachableError(f"move {i} (ptp): no IK solution for xyz {target.translation.tolist()} inside the joint "
+                               f"limits in the requested configuration ({move.config}); available: "
+                               f"{sorted(set(sols.labels)) or 'none'}", move=i)
+    best = min(keep, key=lambda k: float(np.max(np.abs(sols.q[k] - q_start))))
+    return np.array(sols.q[best])
+
+
+def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: CartesianPiece, q_start: np.ndarray,
+                    method: CrossingMethod) -> PlannedMove:
+    """Track the path, let the method handle each zone, and stitch the joint map."""
+    grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
+    thresholds = thresholds_si(task.singularity.zone)
+    parts: list[JointPart] = []
+    zones: list[Zone] = []
+    crossings: list[Crossing] = []
+    u_from, q_from = 0.0, q_start
+    cands = BranchCandidates(robot, piece.poses)
+    in_zone = _ZoneTest(robot, thresholds)
+    full = False  # track singular zones in full (a method kept one that was left coarse)
+    while True:
+        # inside singular zones the in-branch swing is resolved only if the method keeps it
+        tracked = track(robot, piece.poses, np.concatenate([[u_from], grid[grid > u_from + 1e-12]]), q_from,
+                        cands=cands, hold=None if full else in_zone)
+        # the grid as refined: a re-track after a crossing starts from it (tracked.u starts at u_from)
+        grid = np.concatenate([grid[grid < u_from], tracked.u])
+        _check_tracked(robot, i, move, piece, tracked)
+        dist = in_zone.distances(tracked.q)
+        ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
+        found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref),
+                           continued=crossings[-1].zone.kind if crossings else None)
+        ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, task.singularity)
+        zones_before = list(zones)
+        result = _first_crossing(method, ctx, found, zones, u_from)
+        if tracked.coarse_from_u < (result.blend.u0 if result is not None else math.inf):
+            zones[:], full = zones_before, True  # a kept zone was left coarse: track it in full
+            continue
+        full = False
+        if result is None:
+            parts.append(JointPart("track", tracked.u, tracked.q))
+            _check_limits(robot, i, move, piece, tracked.u, tracked.q, zones)
+            break
+        k_a = int(np.searchsorted(tracked.u, result.blend.u0))
+        parts.append(JointPart("track", tracked.u[:k_a + 1], tracked.q[:k_a + 1]))
+        _check_limits(robot, i, move, piece, tracked.u[:k_a + 1], tracked.q[:k_a + 1], zones)
+        parts.append(result.blend)
+        _check_limits(robot, i, move, piece, result.blend.u, result.blend.q, zones)  # every method's crossing
+        crossings.append(result)
+        u_from, q_from = result.blend.u1, result.q_exit
+    return PlannedMove(i, move.kind, JointMap(robot, piece.poses, parts), _limits(robot, task, move, piece.length_m),
+                       piece, tuple(zones), tuple(crossings))
+
+
+def _first_crossing(method: CrossingMethod, ctx: MoveContext, found: list[Zone], zones: list[Zone],
+                    u_from: float) -> Crossing | None:
+    """Ask the method about each new zone; record zones; return the first crossing it makes."""
+    for zone in found:
+        if zones and zone.u_entry <= u_from + 1e-12 and zones[-1].kind == zone.kind and u_from > 0:
+            zones[-1] = Zone(zone.kind, zones[-1].u_entry, zone.u_exit, zones[-1].u_closest,
+                             zones[-1].min_distance, zones[-1].threshold)  # the rest of a crossed zone
+            continue
+        zones.append(zone)
+        crossing = method.cross(ctx, zone)
+        if crossing is not None:
+            zones[-1] = _spanning(crossing)
+            return crossing
+    return None
+
+
+def _spanning(crossing: Crossing) -> Zone:
+    """The crossing's zone widened to the joint-map part it replaced.
+
+    A method may start its part before the detected entry (at the tracked sample below it) or end
+    it after the exit; every sample of that part is the crossing's, so its segment must cover it.
+    """
+    z, part = crossing.zone, crossing.blend
+    return Zone(z.kind, min(z.u_entry, part.u0), max(z.u_exit, part.u1), z.u_closest, z.min_distance, z.threshold)
+
+
+class _ZoneTest:
+    """Which joint samples lie in a singular zone of any kind (the tracker's ``hold``).
+
+    Keeps the signed distances of the last samples it was asked about, so the planner reads
+    the distances of the tracked path without computing them again (per sample on arms
+    without a closed form).
+    """
+
+    def __init__(self, robot: Robot, thresholds: np.ndarray) -> None:
+        self.robot = robot
+        self.thresholds = thresholds
+        self._q: np.ndarray | None = None
+        self._d = np.empty((0, 3))
+
+    def distances(self, q: np.ndarray) -> np.ndarray:
+        """Signed (wrist, shoulder, elbow) distances (N, 3) of joint samples q (N, n)."""
+        if q is not self._q:
+            self._q, self._d = q, distances_batch(self.robot, q)
+        return self._d
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        return np.any(np.abs(self.distances(q)) < self.thresholds, axis=1)  # NaN rows compare False
+
+
+def _refiner(robot: Robot, ref: JointMap) -> DistanceFunction:
+    def abs_distance(u: np.ndarray, index: int) -> np.ndarray:
+        return np.abs(distances_batch(robot, ref.evaluate(u))[:, index])
+
+    return abs_distance
+
+
+def _check_tracked(robot: Robot, i: int, move: Move, piece: CartesianPiece, tracked: TrackedPath) -> None:
+    if tracked.gap_index < 0:
+        return
+    k = tracked.gap_index + 1
+    u = float(tracked.u[k])
+    if not np.all(np.isfinite(tracked.q[k])):
+        what = ("no joint values give that position with the path's tool z axis (five joints keep both only "
+                "where the axis is within the arm's reach)" if robot.n_joints == 5 else
+                "no inverse kinematics solution there")
+        raise UnreachableError(f"move {i} ({move.kind}): the path leaves the workspace at {piece.describe(u)}: "
+                               f"{what}", move=i)
+    raise PlanningError(f"move {i} ({move.kind}): no continuous joint motion follows the path at "
+                        f"{piece.describe(u)} (the inverse kinematics jumps by "
+                        f"{math.degrees(tracked.max_step_rad):.1f} deg)")
+
+
+def _check_limits(robot: Robot, i: int, move: Move, piece: CartesianPiece, u: np.ndarray, q: np.ndarray,
+                  zones: list[Zone]) -> None:
+    low = q < robot.lower_rad - 1e-9
+    high = q > robot.upper_rad + 1e-9
+    if not (low.any() or high.any()):
+        return
+    k, j = np.argwhere(low | high)[0]
+    lo, hi = robot.lower_rad[j], robot.upper_rad[j]
+    near = [z for z in zones if z.u_entry - 0.05 <= u[k] <= z.u_exit + 0.05]
+    why = (f"; the path passes {near[0].describe_distance()} from a {near[0].kind} singularity and keeping the "
+           f"pose swings the joints" if near else "")
+    raise JointLimitError(
+        f"move {i} ({move.kind}): following the path with the full pose drives {robot.joint_names[j]} to "
+        f"{math.degrees(q[k, j]):.2f} deg at {piece.describe(float(u[k]))}, outside its limits "
+        f"[{math.degrees(lo):.1f}, {math.degrees(hi):.1f}] deg{why}",
+        joint=robot.joint_names[j], value_rad=float(q[k, j]), lower_rad=float(lo), upper_rad=float(hi), move=i)
+
+
+def _check_config(robot: Robot, move: Move, pm: PlannedMove, tm: TimedMove) -> None:
+    if move.config == "auto":
+        return
+    i = pm.index
+    labels = labels_from_distances(distances_batch(robot, tm.q))  # closed form for OPW and UR arms
+    first, last = labels[0], labels[-1]
+    if move.config == "keep":
+        changed = [k for k, label in enumerate(labels) if label != first]
+        if changed:
+            k = changed[0]
+            s_m = float(tm.u[k]) * (pm.piece.length_m if pm.piece is not None else 0.0)
+            raise SingularityError(f"move {i} ({move.kind}): config 'keep', but the motion changes the "
+                                   f"configuration from {first} to {labels[k]} at {pm.describe(float(tm.u[k]))}",
+                                   move=i, kind="config", s_m=s_m)
+        return
+    wanted = parse_configuration(move.config).label
+    if last != wanted:
+        raise PlanningError(f"move {i} ({move.kind}): ends in configuration {last} at {pm.describe(1.0)}, "
+                            f"but the move asks for {wanted}; the chosen method cannot change the configuration here")
+
+
+@dataclass(frozen=True)
+class MoveZones:
+    """Singular zones of one move along the programmed path (``singplan check``)."""
+
+    index: int
+    kind: str
+    length_m: float
+    zones: tuple[Zone, ...]
+
+
+def detect(task: Task | str | Path) -> list[MoveZones]:
+    """Zones along every LIN/CIRC move, in the branch the start configuration leads to.
+
+    Geometry only: no crossing method, no timing, no limit checks.
+    """
+    if not isinstance(task, Task):
+        task = load_task(task)
+    full = load_task_robot(task)
+    held = hold_for_task(task, full)
+    robot, task = (held.reduced, held.reduce_task(task)) if held is not None else (full, task)
+    thresholds = thresholds_si(task.singularity.zone)
+    q = _start_joints(task, robot)
+    check_task(task, robot, q, STEP_M, STEP_RAD, timed=False)  # before any path is sampled
+    T = robot.fk(q)
+    out = []
+    for i, move in enumerate(task.moves):
+        if move.kind == "ptp":
+            q = _ptp_target(robot, i, move, q)
+            T = robot.fk(q)
+            out.append(MoveZones(i, "ptp", 0.0, ()))
+            continue
+        piece = move_piece(i, move, T)
+        grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
+        tracked = track(robot, piece.poses, grid, q)
+        _check_tracked(robot, i, move, piece, tracked)
+        dist, _ = distances_along(robot, tracked.q)
+        ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
+        zones = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref))
+        out.append(MoveZones(i, move.kind, piece.length_m, tuple(zones)))
+        q, T = tracked.q[-1], piece.T_end
+    return out

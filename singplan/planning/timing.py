@@ -1,0 +1,324 @@
+"""Time-parameterisation of one move with TOPP-RA, and resampling at the controller period.
+
+TOPP-RA (Pham and Pham, "A new approach to time-optimal path parameterization based on
+reachability analysis", IEEE T-RO 2018) finds the fastest path speed profile under joint
+velocity and acceleration limits. The path handed to it is the move's joint map sampled at
+its reference points, extended by one coordinate ``s = u * L`` (arc length [m]) whose
+velocity limit is the programmed TCP speed: that caps the TCP speed and, where joints would
+exceed their limits, slows the path instead of leaving it (SEEDS 002's speed scaleback).
+
+The output samples are uniform at the period from t = 0. The duration is rounded up to whole
+periods by slowing the profile uniformly. Each sample's joints come from the joint map's own
+``evaluate(u)`` (exact IK, or the crossing's definition), never from the spline, so every
+sample is on the path. Limits are then checked on the samples with the same finite
+differences a checker uses, and the profile is tightened where TOPP-RA's grid let them slip.
+Both end steps are held within amax * period^2 / 2 (a start from rest, an arrival at rest), so
+a seam between two moves stays within the acceleration limit whatever its neighbours do.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import toppra as ta
+import toppra.algorithm as ta_algo
+import toppra.constraint as ta_constraint
+
+from singplan.errors import PlanningError
+from singplan.kinematics.dynamics import PathDynamics, TorqueLimit, move_torque_ratio
+from singplan.planning.budget import check_move_samples
+from singplan.planning.jointmap import JointMap
+from singplan.task.schema import MAX_OUTPUT_SAMPLES
+
+logger = logging.getLogger(__name__)
+logging.getLogger("toppra").setLevel(logging.ERROR)  # its retries are not our warnings
+
+_UNLIMITED = 1e9
+_TIGHTEN_PASSES = 8
+_SPEED_MARGIN = 0.999  # ratios the samples must stay under
+_ACCEL_MARGIN = 0.995
+_TCP_MARGIN = 0.999
+_TORQUE_MARGIN = 0.995
+_DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
+
+
+class TimingError(PlanningError):
+    """A move cannot be timed within the limits; ``u`` is the path parameter where.
+
+    The planner names the move's kind and turns ``u`` into a point on the path.
+    """
+
+    def __init__(self, move: int, u: float, reason: str, kind: str = "", where: str = "") -> None:
+        self.move = move
+        self.u = u
+        self.reason = reason
+        where = where or f"u = {u:.6f} along the move"
+        super().__init__(f"move {move}{f' ({kind})' if kind else ''}: {reason} at {where}")
+
+
+@dataclass(frozen=True)
+class TimedMove:
+    """A move sampled at the controller period.
+
+    Attributes:
+        u: path parameter of each sample, shape (K + 1,), from 0 to 1.
+        q: joint values [rad], shape (K + 1, n); first and last samples at rest.
+        duration_s: K * period.
+        speed_ratio, accel_ratio: largest |qd| / limit and |qdd| / limit on the samples.
+        torque_ratio: largest |tau| / limit on the samples (0 when the move has no torque limit).
+    """
+
+    u: np.ndarray  # (K+1,)
+    q: np.ndarray  # (K+1, n)
+    duration_s: float
+    speed_ratio: float
+    accel_ratio: float
+    torque_ratio: float = 0.0
+
+
+@dataclass(frozen=True)
+class MoveLimits:
+    """Limits one move is timed under."""
+
+    velocity_rad_s: np.ndarray  # (n,) already scaled
+    acceleration_rad_s2: np.ndarray  # (n,)
+    length_m: float  # 0 for PTP or a pure reorientation: no TCP speed cap
+    tcp_speed_m_s: float | None
+    torque: TorqueLimit | None = None  # limits.torque_scale: TOPP-RA's torque constraint, checked on the samples
+
+
+def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
+    u, q = jmap.reference()
+    # Where a move starts or ends on a reach boundary (a stretched elbow) a joint goes as the
+    # square root of the distance to the end: its path derivative grows without bound there. Points
+    # graded toward both ends let the spline and TOPP-RA's grid see it, so the move still stops
+    # with every joint at rest instead of the elbow arriving at speed.
+    ends = 10.0 ** -np.arange(3.0, 10.0)
+    extra = np.setdiff1d(np.concatenate([ends, 1.0 - ends]), u)  # only these need solving
+    order = np.argsort(np.concatenate([u, extra]), kind="stable")
+    u, q = np.concatenate([u, extra])[order], np.concatenate([q, jmap.evaluate(extra)])[order]
+    keep = np.concatenate([[True], np.diff(u) > 1e-12])
+    u, q = u[keep], q[keep]
+    if len(u) < 4:  # a spline needs a few points; add interior ones (straight PTP lines)
+        dense = np.linspace(0.0, 1.0, 9)
+        return dense, jmap.evaluate(dense)
+    return u, q
+
+
+@dataclass(frozen=True)
+class _Profile:
+    """TOPP-RA's result: path speed ``sd`` at the grid points, constant path acceleration between."""
+
+    grid: np.ndarray  # (G,) path parameter u
+    sd: np.ndarray  # (G,) du/dt
+
+    @property
+    def t_nodes(self) -> np.ndarray:
+        dt = 2.0 * np.diff(self.grid) / (self.sd[:-1] + self.sd[1:])
+        return np.concatenate([[0.0], np.cumsum(dt)])
+
+    def u_at(self, t: np.ndarray) -> np.ndarray:
+        """Path parameter at times t (exact for the constant-acceleration profile)."""
+        nodes = self.t_nodes
+        i = np.clip(np.searchsorted(nodes, t, side="right") - 1, 0, len(self.grid) - 2)
+        ds = np.diff(self.grid)
+        sdd = (self.sd[1:] ** 2 - self.sd[:-1] ** 2) / (2.0 * ds)
+        tau = t - nodes[i]
+        return np.minimum(self.grid[i] + self.sd[i] * tau + 0.5 * sdd[i] * tau**2, self.grid[i + 1])
+
+
+def path_scale(q: np.ndarray, limits: MoveLimits) -> float:
+    """The move's size: the largest travel of any joint [rad] or of the TCP [m] along it."""
+    travel = float(np.max(np.sum(np.abs(np.diff(q, axis=0)), axis=0), initial=0.0))
+    return max(travel, limits.length_m)
+
+
+def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tuple[float, float, float],
+                    move_index: int) -> _Profile:
+    """TOPP-RA on the move made dimensionless.
+
+    TOPP-RA works in the squared path speed with absolute tolerances. Along u in [0, 1] a 10 um
+    LIN has path derivatives of 1e-6 and path speeds of 1e4 / s, whose squares defeat those
+    tolerances ("not controllable"). So the joints (and the TCP's arc length) are divided by
+    the move's size L and time by ``tau = sqrt(L / a)``, the time the slowest-accelerating joint
+    needs to cover L: derivatives, path speeds and the duration are then all of order one
+    whatever the size of the move, and the result is exact in the original units. ``scale``
+    multiplies the velocity, acceleration and torque limits (the tightening passes).
+    """
+    scale_v, scale_a, scale_t = scale
+    length = path_scale(q, limits)
+    amax = limits.acceleration_rad_s2 * scale_a
+    tau = math.sqrt(length / float(np.min(amax)))
+    arc = u * (limits.length_m if limits.length_m > 0 else length)  # the TCP's arc length, capped at its speed
+    path = ta.SplineInterpolator(u, np.hstack([q - q[0], arc[:, None]]) / length)  # from 0: no digits lost
+    vmax = np.append(limits.velocity_rad_s * scale_v,
+                     limits.tcp_speed_m_s * scale_v if limits.tcp_speed_m_s and limits.length_m > 0 else _UNLIMITED)
+    vmax_1 = np.minimum(vmax * tau / length, _UNLIMITED)
+    amax_1 = np.append(amax * tau**2 / length, _UNLIMITED)
+    constraints = [ta_constraint.JointVelocityConstraint(np.stack([-vmax_1, vmax_1], axis=1)),
+                   ta_constraint.JointAccelerationConstraint(np.stack([-amax_1, amax_1], axis=1))]
+    if limits.torque is not None:
+        constraints.append(_torque_constraint(limits.torque, q[0], length, tau, scale_t))
+    instance = ta_algo.TOPPRA(constraints, path, gridpoints=_grid(u))
+    instance.compute_parameterization(0.0, 0.0)
+    data = instance.problem_data
+    if data.return_code != ta_algo.ParameterizationReturnCode.Ok or data.sd_vec is None:
+        if limits.torque is not None:
+            _check_holding_torque(limits.torque, u, q, move_index)
+        at = _infeasible_at(data)
+        where = "" if at is not None else "; TOPP-RA did not say where: the path's steepest point"
+        raise TimingError(move_index, at if at is not None else _steepest_at(u, q, vmax[:-1]),
+                          f"TOPP-RA found no feasible time-parameterisation ({data.return_code.value}; the "
+                          f"joint velocity{', acceleration and torque' if limits.torque else ' and acceleration'} "
+                          f"limits cannot hold the path there{where})")
+    sd = np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0) / tau  # du/dt in real time
+    return _Profile(np.asarray(data.gridpoints, dtype=float), sd)
+
+
+def _torque_constraint(limit: TorqueLimit, q0: np.ndarray, length: float, tau_s: float,
+                       scale_t: float) -> ta_constraint.JointTorqueConstraint:
+    """TOPP-RA's torque constraint on the dimensionless path: |tau| <= limit x scale_t, none on the arc length."""
+    bound = np.append(limit.limit_nm * scale_t, _UNLIMITED)
+    return ta_constraint.JointTorqueConstraint(PathDynamics(limit, q0, length, tau_s),
+                                               np.stack([-bound, bound], axis=1), np.zeros(len(bound)))
+
+
+def _check_holding_torque(limit: TorqueLimit, u: np.ndarray, q: np.ndarray, move_index: int) -> None:
+    """Raise TimingError where merely holding the arm still (gravity) takes more than the torque limit."""
+    zero = np.zeros(q.shape[1])
+    for k in range(len(q)):
+        ratio = np.abs(limit.rnea(q[k], zero, zero)) / limit.limit_nm
+        j = int(np.argmax(ratio))
+        if ratio[j] > 1.0:
+            name = limit.robot.joint_names[j]
+            raise TimingError(move_index, float(u[k]), f"holding the arm against gravity takes "
+                                                       f"{ratio[j] * limit.limit_nm[j]:.1f} N m at {name}, over its "
+                                                       f"limit of {limit.limit_nm[j]:.1f} N m (effort x torque_scale)")
+
+
+def _infeasible_at(data: ta_algo.ParameterizationData) -> float | None:
+    """The path parameter u where TOPP-RA's controllable set first empties (backward pass), if known."""
+    if data.K is None or data.gridpoints is None:
+        return None
+    sets = np.asarray(data.K, dtype=float)
+    empty = np.flatnonzero(~(sets[:, 1] >= sets[:, 0]))  # also NaN
+    return float(np.asarray(data.gridpoints)[empty[-1]]) if len(empty) else None
+
+
+def _steepest_at(u: np.ndarray, q: np.ndarray, vmax: np.ndarray) -> float:
+    """The path parameter u of the reference step (K,) (K, n) whose joint slope |dq/du| / vmax is largest."""
+    slope = np.max(np.abs(np.diff(q, axis=0)) / vmax, axis=1) / np.diff(u)
+    return float(u[int(np.argmax(slope))])
+
+
+def _grid(u: np.ndarray) -> np.ndarray:
+    """Grid points: the reference samples, with long intervals split (at least 100 points)."""
+    target = max(100, len(u))
+    step = 1.0 / target
+    extra = [np.linspace(a, b, math.ceil((b - a) / step) + 1)[1:-1] for a, b in itertools.pairwise(u)
+             if b - a > step]
+    return np.unique(np.concatenate([u, *extra])) if extra else u
+
+
+def _sample(profile: _Profile, period_s: float, move_index: int, max_samples: int) -> tuple[np.ndarray, float]:
+    duration = float(profile.t_nodes[-1])
+    count = max(1, math.ceil(duration / period_s - 1e-9))
+    check_move_samples(move_index, count, max_samples, duration, period_s)  # before the samples are allocated
+    stretch = count * period_s / duration if duration > 0 else 1.0
+    t = np.arange(count + 1) * period_s / stretch
+    u = np.maximum.accumulate(np.clip(profile.u_at(t), 0.0, 1.0))
+    u[0], u[-1] = 0.0, 1.0
+    return u, count * period_s
+
+
+def sample_ratios(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.ndarray) -> tuple[float, float]:
+    """Largest |qd|/vmax and |qdd|/amax by finite differences of samples q (K+1, n)."""
+    if len(q) < 2:
+        return 0.0, 0.0
+    qd = np.diff(q, axis=0) / period_s
+    speed = float(np.max(np.abs(qd) / vmax))
+    accel = float(np.max(np.abs(np.diff(qd, axis=0)) / period_s / amax)) if len(qd) > 1 else 0.0
+    return speed, accel
+
+
+def end_step_ratio(q: np.ndarray, period_s: float, amax: np.ndarray) -> float:
+    """Largest first or last step of samples q (K+1, n) over amax * period^2 / 2.
+
+    A move starts and ends at rest; from rest, an acceleration within amax covers at most
+    amax * period^2 / 2 in one period. Keeping both end steps under that bound keeps the second
+    difference across any seam (the end of one move, the start of the next, both at rest on the
+    shared sample) within amax whatever the neighbouring move does, and each end "at rest" as
+    the checker defines it (a step no longer than amax * period^2).
+    """
+    if len(q) < 2:
+        return 0.0
+    steps = np.maximum(np.abs(q[1] - q[0]), np.abs(q[-1] - q[-2]))
+    return float(np.max(2.0 * steps / (amax * period_s**2)))
+
+
+def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int,
+              max_samples: int = MAX_OUTPUT_SAMPLES) -> TimedMove:
+    """Fastest uniform sampling of the move within the limits, every sample on the path.
+
+    ``max_samples``: what is left of the task's allowance of output samples (bad input if over).
+    """
+    u_ref, q_ref = _reference(jmap)
+    missing = np.flatnonzero(~np.all(np.isfinite(q_ref), axis=1))
+    if len(missing):  # a joint map without IK somewhere: never hand NaN to TOPP-RA
+        raise TimingError(move_index, float(u_ref[missing[0]]), "no joint values (no inverse kinematics solution)")
+    if path_scale(q_ref, limits) == 0.0:
+        logger.info("move %d changes nothing: one period at rest", move_index)
+        return TimedMove(np.array([0.0, 1.0]), q_ref[[0, -1]], period_s, 0.0, 0.0)
+    scale_v = scale_a = scale_t = 1.0
+    for _ in range(_TIGHTEN_PASSES):
+        profile = _toppra_profile(u_ref, q_ref, limits, (scale_v, scale_a, scale_t), move_index)
+        u, duration = _sample(profile, period_s, move_index, max_samples)
+        q = jmap.evaluate(u)
+        speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
+        torque, torque_at = move_torque_ratio(limits.torque, q, period_s) if limits.torque else (0.0, 0)
+        tcp = _tcp_ratio(u, limits, period_s)
+        worst_v = max(speed, tcp) / _SPEED_MARGIN
+        worst_a = max(accel / _ACCEL_MARGIN,
+                      end_step_ratio(q, period_s, limits.acceleration_rad_s2))  # may reach its bound exactly
+        worst_t = torque / _TORQUE_MARGIN
+        if worst_v <= 1.0 and worst_a <= 1.0 and worst_t <= 1.0:
+            return TimedMove(u, q, duration, speed, accel, torque)
+        if worst_v > _DISCONTINUOUS or worst_a > _DISCONTINUOUS:
+            break  # not a grid effect: the joint map jumps somewhere; tightening cannot help
+        logger.debug("move %d: samples at x%.4f speed, x%.4f accel, x%.4f torque; tightening", move_index, speed,
+                     accel, torque)
+        scale_v *= min(1.0, 1.0 / worst_v) * (0.998 if worst_v > 1.0 else 1.0)
+        scale_a *= min(1.0, 1.0 / worst_a) * (0.995 if worst_a > 1.0 else 1.0)
+        if worst_t > 1.0:
+            scale_t *= 0.995 / worst_t
+    ends = end_step_ratio(q, period_s, limits.acceleration_rad_s2)
+    worst_k = (torque_at if worst_t > max(worst_v, worst_a)
+               else worst_sample(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2))
+    raise TimingError(move_index, float(u[worst_k]),
+                      f"could not keep the joint limits on the output samples (speed x{speed:.3f}, "
+                      f"acceleration x{accel:.3f}, end steps x{ends:.3f}"
+                      f"{f', torque x{torque:.3f}' if limits.torque else ''} after tightening)")
+
+
+def worst_sample(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.ndarray) -> int:
+    """The sample of q (K, n), at rest before and after, whose speed or acceleration is furthest over its limit
+    (end steps included)."""
+    padded = np.concatenate([q[:1], q, q[-1:]])
+    qd = np.diff(padded, axis=0) / period_s
+    speed = np.max(np.abs(qd) / vmax, axis=1)  # step k -> k+1 of padded
+    accel = np.max(np.abs(np.diff(qd, axis=0)) / period_s / amax, axis=1)  # at q[k]
+    accel[[0, -1]] *= 2.0  # an end step's bound is amax * period^2 / 2 (end_step_ratio)
+    over = np.maximum(accel, np.maximum(speed[:-1], speed[1:]))
+    return int(np.argmax(over))
+
+
+def _tcp_ratio(u: np.ndarray, limits: MoveLimits, period_s: float) -> float:
+    """Largest TCP speed over its cap, from the arc-length parameter (exact for LIN / CIRC)."""
+    if not limits.tcp_speed_m_s or limits.length_m <= 0:
+        return 0.0
+    v = np.diff(u) * limits.length_m / period_s
+    return float(np.max(v) / limits.tcp_speed_m_s) * _SPEED_MARGIN / _TCP_MARGIN if len(v) else 0.0

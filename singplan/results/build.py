@@ -1,0 +1,222 @@
+"""Stitch timed moves into a :class:`~singplan.trajectory.Trajectory`: samples, segments,
+events and metrics (DESIGN.md's contract).
+
+Moves share their boundary sample (one ends at rest where the next starts). A LIN/CIRC with
+no zone is one ``path`` segment; with zones it is ``pre``, ``crossing`` (one per zone, merged
+where zones overlap), ``post``. Deviations are measured per sample against the programmed
+pose at the sample's own path parameter, an upper bound of the distance to the path.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from singplan.kinematics.configuration import distances_batch, labels_from_distances
+from singplan.kinematics.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
+from singplan.kinematics.robot import Robot
+from singplan.kinematics.vendor_config import vendor_configs
+from singplan.planning.path import sample_deviations
+from singplan.planning.records import PlannedMove
+from singplan.planning.redundancy import HeldJoint
+from singplan.planning.timing import TimedMove, sample_ratios
+from singplan.planning.zones import Zone
+from singplan.results.trajectory import Event, MoveRecord, Segment, Trajectory, finite_differences
+from singplan.task.schema import Task
+
+
+def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed: list[TimedMove],
+                     planning_time_s: float, held: HeldJoint | None = None) -> Trajectory:
+    """The trajectory of the planned moves of ``robot``; with ``held`` (``robot`` is then its 6R chain)
+    the held joint comes back as a constant column, so samples, limits and torques are the 7-joint arm's."""
+    period = task.period_s
+    q_planned = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
+    t = np.arange(len(q_planned)) * period
+    distances = distances_batch(robot, q_planned)  # (K, 3): the labels of the chain that was planned
+    labels = _Labels(distances)
+    segments: list[Segment] = []
+    events: list[Event] = []
+    crossings: list[dict[str, Any]] = []
+    worst_pos, worst_ori = 0.0, 0.0
+    k0 = 0
+    pos_all, ori_all = [np.zeros(1)], [np.zeros(1)]
+    for pm, tm in zip(planned, timed, strict=True):
+        k1 = k0 + len(tm.q) - 1
+        pos_err, ori_err = sample_deviations(robot, pm.piece, tm.u, tm.q)
+        pos_all.append(pos_err[1:])
+        ori_all.append(ori_err[1:])
+        worst_pos = max(worst_pos, float(pos_err.max(initial=0.0)))
+        worst_ori = max(worst_ori, float(ori_err.max(initial=0.0)))
+        segs = _move_segments(pm, tm, k0, k1, period, labels, pos_err, ori_err)
+        segments.extend(segs)
+        events.extend(_move_events(pm, segs, k0, k1, period, labels))
+        crossings.extend({"move": s.move, "t0": s.t0, "t1": s.t1, "singularity": s.singularity, "method": s.method,
+                          "config_before": s.config_before, "config_after": s.config_after, **s.details}
+                         for s in segs if s.kind == "crossing")
+        k0 = k1
+    arm, q = (held.full, held.expand(q_planned)) if held is not None else (robot, q_planned)
+    speed, accel = _chunked_ratios(q, period, arm.velocity_rad_s * task.limits.velocity_scale,
+                                   arm.acceleration_rad_s2)
+    qd, qdd = _chunked_differences(q, period)
+    metrics = {"max_position_error_mm": worst_pos * 1e3, "max_orientation_error_deg": math.degrees(worst_ori),
+               "max_joint_speed_ratio": speed, "max_joint_accel_ratio": accel, "duration_s": float(t[-1]),
+               "planning_time_s": planning_time_s, "samples": len(t), "method": task.singularity.method,
+               "crossings": crossings, **_torque_metrics(arm, task, q)}
+    tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
+    samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all)}
+    if not np.isnan(distances).all():  # an arm without labels (7 joints) has no singular distances to store
+        samples["distances"] = distances
+    return Trajectory(arm.name, str(arm.urdf_path), arm.tip, tool, task.to_mapping(), arm.joint_names,
+                      period, t, q, qd, qdd, tuple(segments), tuple(events), metrics, samples,
+                      _move_records(arm, task, segments, q, period))
+
+
+def _move_records(robot: Robot, task: Task, segments: list[Segment], q: np.ndarray,
+                  period: float) -> tuple[MoveRecord, ...]:
+    """Per task move: span, end configuration and vendor configuration data at its last sample."""
+    spans: dict[int, list[Segment]] = {}
+    for s in segments:
+        spans.setdefault(s.move, []).append(s)
+    ends = [min(len(q) - 1, round(segs[-1].t1 / period)) for segs in spans.values()]
+    vendor = vendor_configs(robot, q[ends])
+    return tuple(MoveRecord(i, task.moves[i].kind, segs[0].t0, segs[-1].t1, segs[-1].config_after, v)
+                 for (i, segs), v in zip(spans.items(), vendor, strict=True))
+
+
+_CHUNK = 65_536  # programmed poses formed at once (128 bytes a sample)
+
+
+def _torque_metrics(robot: Robot, task: Task, q: np.ndarray) -> dict[str, Any]:
+    """Inverse-dynamics torques of the samples against the efforts x ``limits.torque_scale`` (1 if unset).
+
+    A robot without dynamics gets the reason instead (no torque is invented for it).
+    """
+    reason = no_dynamics_reason(robot)
+    if reason is not None:
+        return {"torques": f"not computed: {reason}"}
+    limit_nm = effort_limits_nm(robot) * (task.limits.torque_scale or 1.0)
+    peaks, _ = trajectory_torques(robot, q, task.period_s, limit_nm)
+    return {"max_torque_ratio": peaks.ratio, "max_torque_at_s": peaks.sample * task.period_s,
+            "max_torque_joint": robot.joint_names[peaks.joint],
+            "peak_torque_Nm": dict(zip(robot.joint_names, peaks.peak_nm.tolist(), strict=True)),
+            "torque_limit_Nm": dict(zip(robot.joint_names, limit_nm.tolist(), strict=True))}
+
+
+class _Labels:
+    """Configuration labels of the samples, kept as one sign code per sample.
+
+    A list of a million label strings takes ~60 MB; the codes take 1 MB and give the same
+    labels (those of :func:`labels_from_distances`) where they are asked for.
+    """
+
+    def __init__(self, distances: np.ndarray) -> None:
+        signs = distances >= 0  # NaN counts as negative, as in labels_from_distances ...
+        self.codes = (signs[:, 0] * 1 + signs[:, 1] * 2 + signs[:, 2] * 4).astype(np.int8)
+        self.codes[np.isnan(distances).all(axis=1)] = 8  # ... but a row with no distance has no label
+        rows = np.array([[bit & 1, bit & 2, bit & 4] for bit in range(8)] + [[np.nan] * 3], dtype=float) - 0.5
+        self.table = labels_from_distances(rows)
+
+    def __getitem__(self, k: int) -> str:
+        return self.table[self.codes[k]]
+
+    def changes(self, k0: int, k1: int) -> np.ndarray:
+        """Samples k in (k0, k1] whose label differs from sample k - 1's."""
+        return k0 + 1 + np.nonzero(self.codes[k0 + 1:k1 + 1] != self.codes[k0:k1])[0]
+
+
+def _chunked_ratios(q: np.ndarray, period: float, vmax: np.ndarray, amax: np.ndarray) -> tuple[float, float]:
+    """:func:`sample_ratios` of all samples, a chunk at a time (its temporaries take ~150 bytes a
+    sample); chunks overlap by the two samples a second difference spans, so the maxima are exact."""
+    ratios = [sample_ratios(q[c:c + _CHUNK + 2], period, vmax, amax) for c in range(0, max(len(q) - 2, 1), _CHUNK)]
+    return max(r[0] for r in ratios), max(r[1] for r in ratios)
+
+
+def _chunked_differences(q: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`finite_differences` written into whole arrays a chunk at a time (same values: the
+    central differences of a chunk overlapping its neighbours by one sample)."""
+    qd, qdd = np.zeros_like(q), np.zeros_like(q)
+    for c in range(1, len(q) - 1, _CHUNK):
+        end = min(c + _CHUNK, len(q) - 1)  # interior samples c .. end - 1
+        part_qd, part_qdd = finite_differences(q[c - 1:end + 1], period)
+        qd[c:end], qdd[c:end] = part_qd[1:-1], part_qdd[1:-1]
+    return qd, qdd
+
+
+def _sample_at(u: np.ndarray, value: float) -> int:
+    return min(len(u) - 1, int(np.searchsorted(u, value - 1e-12)))
+
+
+def _merged_spans(pm: PlannedMove, tm: TimedMove) -> list[tuple[int, int, list[Zone]]]:
+    """Sample spans of the zones, overlapping ones merged; at least one step long."""
+    spans: list[tuple[int, int, list[Zone]]] = []
+    last = len(tm.u) - 1
+    for zone in sorted(pm.zones, key=lambda z: z.u_entry):
+        a = _sample_at(tm.u, zone.u_entry)
+        b = max(_sample_at(tm.u, zone.u_exit), a + 1)
+        a, b = min(a, last - 1), min(b, last)
+        if spans and a <= spans[-1][1]:
+            pa, pb, zs = spans[-1]
+            spans[-1] = (pa, max(pb, b), [*zs, zone])
+        else:
+            spans.append((a, b, [zone]))
+    return spans
+
+
+def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float, labels: _Labels,
+                   pos_err: np.ndarray, ori_err: np.ndarray) -> list[Segment]:
+    def seg(kind: str, a: int, b: int, **extra: Any) -> Segment:
+        return Segment(pm.index, kind, (k0 + a) * period, (k0 + b) * period, labels[k0 + a], labels[k0 + b], **extra)
+
+    if pm.kind == "ptp":
+        return [seg("ptp", 0, k1 - k0)]
+    spans = _merged_spans(pm, tm)
+    if not spans:
+        return [seg("path", 0, k1 - k0)]
+    out: list[Segment] = []
+    cursor = 0
+    for n, (a, b, zones) in enumerate(spans):
+        if a > cursor:
+            out.append(seg("pre" if n == 0 else "post", cursor, a))
+        closest = min(zones, key=lambda z: z.min_distance / z.threshold)
+        out.append(seg("crossing", a, b, singularity=closest.kind, method=_zone_method(pm, closest),
+                       details=_crossing_figures(pm, tm, a, b, closest, pos_err, ori_err, period)))
+        cursor = b
+    if cursor < k1 - k0:
+        out.append(seg("post", cursor, k1 - k0))
+    return out
+
+
+def _zone_method(pm: PlannedMove, zone: Zone) -> str:
+    """The method that crossed the zone (exact kept the branch where no crossing was made)."""
+    for c in pm.crossings:
+        if c.zone.u_closest == zone.u_closest:
+            return c.method
+    return "exact" if pm.method != "stop" else pm.method
+
+
+def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone, pos_err: np.ndarray,
+                      ori_err: np.ndarray, period: float) -> dict[str, Any]:
+    k = a + int(np.argmax(ori_err[a:b + 1]))
+    speed = pm.limits.tcp_speed_m_s or 0.0
+    nominal = (tm.u[b] - tm.u[a]) * pm.limits.length_m / speed if speed > 0 else 0.0
+    through = any(c.zone.u_closest == zone.u_closest for c in pm.crossings)
+    return {"min_distance": zone.min_distance, "min_distance_unit": zone.unit,
+            "max_position_error_mm": float(pos_err[a:b + 1].max()) * 1e3,
+            "max_orientation_error_deg": math.degrees(float(ori_err[a:b + 1].max())),
+            "max_orientation_error_at_s": float(tm.u[k] * pm.limits.length_m),
+            "time_lost_s": max(0.0, (b - a) * period - nominal),
+            "changes_branch": through, "alternatives": list(pm.alternatives)}
+
+
+def _move_events(pm: PlannedMove, segs: list[Segment], k0: int, k1: int, period: float,
+                 labels: _Labels) -> list[Event]:
+    events = []
+    for s in segs:
+        if s.kind == "crossing":
+            events.append(Event(s.t0, pm.index, "zone_entry", {"singularity": s.singularity}))
+            events.append(Event(s.t1, pm.index, "zone_exit", {"singularity": s.singularity}))
+    for k in labels.changes(k0, k1).tolist():
+        events.append(Event(k * period, pm.index, "config_change", {"from": labels[k - 1], "to": labels[k]}))
+    return sorted(events, key=lambda e: e.t)

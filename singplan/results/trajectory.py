@@ -1,0 +1,274 @@
+"""The planned trajectory, its segments, events and metrics, and its files.
+
+``trajectory.json`` (format ``singplan.trajectory/1``) and ``trajectory.csv`` follow the
+contract of DESIGN.md. :func:`save` writes them into an output folder by the rules of
+:mod:`singplan.outputs` (only its own files, all or nothing). Both files are streamed a chunk
+of samples at a time, so writing needs little memory beyond the trajectory's own arrays.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from singplan.errors import InputError
+from singplan.results.files import Writer, text_writer, write_files
+
+FORMAT = "singplan.trajectory/1"
+_CHUNK_ROWS = 4096  # samples formatted at once when writing (bounds the text held in memory)
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A stretch of one move: "path", "pre", "crossing", "post" or "ptp".
+
+    Crossing segments also carry their figures: ``min_distance`` (rad or m), the largest
+    position and orientation deviation from the programmed path, and ``time_lost_s`` versus
+    the same move timed with no singular zone.
+    """
+
+    move: int
+    kind: str
+    t0: float
+    t1: float
+    config_before: str
+    config_after: str
+    singularity: str | None = None
+    method: str | None = None
+    details: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        out = {k: v for k, v in asdict(self).items() if k != "details"}
+        out.update(self.details)
+        return out
+
+
+@dataclass(frozen=True)
+class Event:
+    t: float
+    move: int
+    type: str  # "zone_entry" | "zone_exit" | "config_change"
+    details: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"t": self.t, "move": self.move, "type": self.type, **self.details}
+
+
+@dataclass(frozen=True)
+class MoveRecord:
+    """One task move: its time span, the configuration it ends in and that in the vendor's form.
+
+    ``vendor_config`` is ``{"abb": {...}}``, ``{"kuka": {...}}``, ``{"fanuc": "..."}`` or None
+    (see :mod:`singplan.vendor_config`).
+    """
+
+    move: int
+    kind: str  # "lin" | "circ" | "ptp"
+    t0: float
+    t1: float
+    config_end: str
+    vendor_config: dict[str, Any] | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A timed joint trajectory at a uniform controller period.
+
+    Attributes:
+        t: sample times [s], shape (K,), from 0 at ``period`` steps.
+        q, qd, qdd: joint positions [rad], velocities [rad/s], accelerations [rad/s^2], (K, n).
+        segments: tile [0, t[-1]] in time, in move order.
+        events: zone entries/exits and configuration changes.
+        metrics: the figures of DESIGN.md ("Metrics every trajectory carries").
+        task: the validated task as a mapping.
+    """
+
+    robot: str
+    urdf: str
+    tip: str
+    tool: dict[str, list[float]]
+    task: dict[str, Any]
+    joint_names: tuple[str, ...]
+    period: float
+    t: np.ndarray  # (K,)
+    q: np.ndarray  # (K, n)
+    qd: np.ndarray  # (K, n)
+    qdd: np.ndarray  # (K, n)
+    segments: tuple[Segment, ...]
+    events: tuple[Event, ...]
+    metrics: dict[str, Any]
+    # per-sample series, each (K,) or (K, 3): position_error_m, orientation_error_rad, distances
+    samples: dict[str, np.ndarray] = field(default_factory=dict)
+    moves: tuple[MoveRecord, ...] = ()
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t[-1])
+
+    def to_json(self) -> dict[str, Any]:
+        """The trajectory.json document as plain Python values."""
+        return _listed(self.document())
+
+    def document(self) -> dict[str, Any]:
+        """The trajectory.json document with its per-sample series left as numpy arrays."""
+        return {
+            "format": FORMAT, "robot": self.robot, "urdf": self.urdf, "tip": self.tip, "tool": self.tool,
+            "task": self.task, "joint_names": list(self.joint_names), "period": self.period,
+            "t": self.t, "q": self.q, "qd": self.qd, "qdd": self.qdd,
+            "segments": [s.to_json() for s in self.segments], "events": [e.to_json() for e in self.events],
+            "moves": [m.to_json() for m in self.moves], "metrics": _jsonable(self.metrics),
+            "samples": _sample_series(self.samples),
+        }
+
+
+def _sample_series(samples: dict[str, np.ndarray]) -> dict[str, Any]:
+    """Per-sample series in the file's units: mm, deg (shoulder distance in mm)."""
+    out: dict[str, Any] = {}
+    if "position_error_m" in samples:
+        out["position_error_mm"] = samples["position_error_m"] * 1e3
+    if "orientation_error_rad" in samples:
+        out["orientation_error_deg"] = np.degrees(samples["orientation_error_rad"])
+    if "distances" in samples:
+        d = samples["distances"]
+        out["singular_distances"] = {"wrist_deg": np.degrees(d[:, 0]), "shoulder_mm": d[:, 1] * 1e3,
+                                     "elbow_deg": np.degrees(d[:, 2])}
+    return out
+
+
+def _samples_from_file(series: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """The inverse of :func:`_sample_series`: back to m and rad."""
+    out: dict[str, np.ndarray] = {}
+    if "position_error_mm" in series:
+        out["position_error_m"] = np.asarray(series["position_error_mm"], dtype=float) * 1e-3
+    if "orientation_error_deg" in series:
+        out["orientation_error_rad"] = np.radians(np.asarray(series["orientation_error_deg"], dtype=float))
+    if "singular_distances" in series:
+        d = series["singular_distances"]
+        out["distances"] = np.column_stack([np.radians(np.asarray(d["wrist_deg"], dtype=float)),
+                                            np.asarray(d["shoulder_mm"], dtype=float) * 1e-3,
+                                            np.radians(np.asarray(d["elbow_deg"], dtype=float))])
+    return out
+
+
+def _listed(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _listed(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(float(value)) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+def finite_differences(q: np.ndarray, period_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Velocities and accelerations (K, n) of samples q (K, n): central differences, 0 at the ends."""
+    qd = np.zeros_like(q)
+    qdd = np.zeros_like(q)
+    if len(q) > 2:
+        qd[1:-1] = (q[2:] - q[:-2]) / (2 * period_s)
+        qdd[1:-1] = (q[2:] - 2 * q[1:-1] + q[:-2]) / period_s**2
+    return qd, qdd
+
+
+def write_csv(stream: TextIO, traj: Trajectory) -> None:
+    """trajectory.csv: header ``t,<joint names>``, then one row per sample (as ``%.17g``)."""
+    stream.write("t," + ",".join(traj.joint_names) + "\n")
+    row = ",".join(["%.17g"] * (1 + len(traj.joint_names))) + "\n"
+    for start in range(0, len(traj.t), _CHUNK_ROWS):
+        stop = start + _CHUNK_ROWS
+        block = np.hstack([traj.t[start:stop, None], traj.q[start:stop]])
+        stream.write("".join(row % tuple(values) for values in block.tolist()))
+
+
+def write_json(stream: TextIO, traj: Trajectory) -> None:
+    """trajectory.json, the same text as ``json.dumps(traj.to_json())``, streamed chunk by chunk."""
+    _dump(stream, traj.document())
+
+
+def _dump(stream: TextIO, value: Any) -> None:
+    if isinstance(value, np.ndarray):
+        stream.write("[")
+        for start in range(0, len(value), _CHUNK_ROWS):
+            if start:
+                stream.write(", ")
+            stream.write(json.dumps(value[start:start + _CHUNK_ROWS].tolist())[1:-1])
+        stream.write("]")
+    elif isinstance(value, dict) and _holds_array(value):
+        stream.write("{")
+        for n, (key, item) in enumerate(value.items()):
+            stream.write(("" if n == 0 else ", ") + json.dumps(key) + ": ")
+            _dump(stream, item)
+        stream.write("}")
+    else:
+        stream.write(json.dumps(value))
+
+
+def _holds_array(value: dict[str, Any]) -> bool:
+    return any(isinstance(v, np.ndarray) or (isinstance(v, dict) and _holds_array(v)) for v in value.values())
+
+
+def save(traj: Trajectory, out_dir: str | Path, extra_files: Mapping[str, str] | None = None) -> Path:
+    """Write trajectory.csv, trajectory.json (and extra text files) into ``out_dir``.
+
+    Only these files are written; the rest of the folder is left alone. All are renamed into
+    place together once written; on any failure the folder is as it was (see
+    :mod:`singplan.outputs`). An unusable ``out_dir`` raises OutputPathError.
+    """
+    writers: dict[str, Writer] = {"trajectory.csv": lambda stream: write_csv(stream, traj),
+                                  "trajectory.json": lambda stream: write_json(stream, traj)}
+    writers.update({name: text_writer(text) for name, text in (extra_files or {}).items()})
+    write_files(out_dir, writers)
+    return Path(os.path.abspath(out_dir))  # absolute, but a symbolic link stays as named
+
+
+_SEGMENT_FIELDS = ("move", "kind", "t0", "t1", "config_before", "config_after", "singularity", "method")
+
+
+def load(path: str | Path) -> Trajectory:
+    """Read a trajectory.json (or the folder holding it)."""
+    p = Path(path)
+    if p.is_dir():
+        p = p / "trajectory.json"
+    try:
+        doc = json.loads(p.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{p}: cannot read a trajectory ({exc})") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise InputError(f"{p}: not a {FORMAT} file")
+    try:
+        return _from_document(doc)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise InputError(f"{p}: not a valid {FORMAT} file ({type(exc).__name__}: {exc})") from None
+
+
+def _from_document(doc: dict[str, Any]) -> Trajectory:
+    segments = tuple(Segment(**{k: s.get(k) for k in _SEGMENT_FIELDS},
+                             details={k: v for k, v in s.items() if k not in _SEGMENT_FIELDS})
+                     for s in doc["segments"])
+    events = tuple(Event(e["t"], e["move"], e["type"], {k: v for k, v in e.items() if k not in ("t", "move", "type")})
+                   for e in doc["events"])
+    arrays = {k: np.asarray(doc[k], dtype=float) for k in ("t", "q", "qd", "qdd")}
+    return Trajectory(doc["robot"], doc["urdf"], doc["tip"], doc["tool"], doc["task"], tuple(doc["joint_names"]),
+                      float(doc["period"]), arrays["t"], arrays["q"], arrays["qd"], arrays["qdd"], segments, events,
+                      doc["metrics"], _samples_from_file(doc.get("samples", {})),
+                      tuple(MoveRecord(**m) for m in doc.get("moves", ())))

@@ -1,0 +1,1 @@
+"""The input contract: the task records (schema) and their loading from YAML (load)."""

@@ -4,6 +4,10 @@
 130 interrupted) so tests can call it directly; :func:`run` is the console-script entry point.
 Whatever goes wrong, the user gets one line on stderr, never a traceback (unless
 SINGPLAN_DEBUG=1 asks for it).
+
+Each command imports the modules it needs when it runs, not at the top of this file: that is
+for start-up time (``singplan --help`` or ``singplan robots`` need no TOPP-RA, meshcat or
+matplotlib), not to dodge an import cycle; the layers contract (pyproject.toml) holds either way.
 """
 
 from __future__ import annotations
@@ -19,31 +23,22 @@ import time
 import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TextIO
-
-import numpy as np
-import pinocchio as pin
+from typing import TYPE_CHECKING, TextIO
 
 from singplan.errors import InputError, SingplanError
-from singplan.kinematics.configuration import singularity_distances
-from singplan.kinematics.families import VERIFY_SAMPLES
-from singplan.kinematics.ik.opw import kernels_cached
-from singplan.kinematics.ik.solve import solve_all
-from singplan.kinematics.robot import Robot, RobotEntry, bundled_robots, load_robot
-from singplan.outputs import exports
-from singplan.outputs.pages import build_pages
-from singplan.outputs.summary import summary
-from singplan.outputs.viewer import DEFAULT_HOST, LiveReplay, replay
-from singplan.planning.planner import detect, load_task_robot
-from singplan.planning.redundancy import HeldJoint, hold_joint
-from singplan.results.files import check_output_dir
-from singplan.results.plan import plan
-from singplan.results.trajectory import load, save
-from singplan.task.schema import load_task
+from singplan.outputs.choices import DEFAULT_FILE_NAMES, DEFAULT_HOST, FORMATS, UR_STEP_S
+
+if TYPE_CHECKING:
+    import pinocchio as pin
+
+    from singplan.kinematics.robot import Robot, RobotEntry
+    from singplan.planning.redundancy import HeldJoint
 
 
 def _reach_m(robot: Robot) -> float:
     """Largest distance of the flange from axis 1 [m] (OPW: exact; else a link-length bound)."""
+    import numpy as np
+
     p = robot.opw
     if p is not None:
         return p.a1 + p.c2 + math.hypot(p.a2, p.c3) + p.c4
@@ -53,6 +48,8 @@ def _reach_m(robot: Robot) -> float:
 
 
 def _robot_rows() -> list[dict[str, object]]:
+    from singplan.kinematics.robot import bundled_robots, load_robot
+
     rows = []
     for name, entry in bundled_robots().items():
         robot = load_robot(name)
@@ -82,6 +79,8 @@ def cmd_robots(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 def _info(robot: Robot) -> dict[str, object]:
     """What `singplan info` shows: family and its verified parameters, tip, joints, crossing methods."""
+    from singplan.kinematics.families import VERIFY_SAMPLES
+
     rec = robot.recognition
     params: dict[str, object] | None = None
     if rec.opw is not None:
@@ -105,6 +104,8 @@ def _info(robot: Robot) -> dict[str, object]:
 
 
 def cmd_info(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from singplan.kinematics.robot import load_robot
+
     info = _info(load_robot(args.robot, tip=args.tip))
     if args.json:
         out.write(json.dumps(info, indent=2) + "\n")
@@ -129,12 +130,17 @@ def cmd_info(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def _pose(xyz: Sequence[float], rpy_deg: Sequence[float]) -> pin.SE3:
+    import numpy as np
+    import pinocchio as pin
+
     rpy = np.radians(np.asarray(rpy_deg, dtype=float))
     return pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.asarray(xyz, dtype=float))
 
 
 def _hold(robot: Robot, text: str | None) -> HeldJoint | None:
     """``--hold JOINT=DEG`` on a 7-joint arm: the joint locked at the value."""
+    from singplan.planning.redundancy import hold_joint
+
     if text is None:
         return None
     joint, sep, value = text.partition("=")
@@ -153,6 +159,12 @@ def _column(value: float, width: int, decimals: int) -> str:
 
 
 def cmd_ik(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    import numpy as np
+
+    from singplan.kinematics.configuration import singularity_distances
+    from singplan.kinematics.ik.solve import solve_all
+    from singplan.kinematics.robot import load_robot
+
     full = load_robot(args.robot, tip=args.tip, tool=_pose(args.tool_xyz, args.tool_rpy_deg))
     if args.seed_deg is not None and len(args.seed_deg) != full.n_joints:
         raise InputError(f"--seed-deg: expected {full.n_joints} numbers, got {len(args.seed_deg)}")
@@ -196,6 +208,15 @@ def _progress_printer(err: TextIO, quiet: bool) -> Callable[[int, int], None] | 
 
 
 def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from singplan.kinematics.ik.opw import kernels_cached
+    from singplan.outputs.pages import build_pages
+    from singplan.outputs.summary import summary
+    from singplan.planning.planner import load_task_robot
+    from singplan.results.files import check_output_dir
+    from singplan.results.plan import plan
+    from singplan.results.trajectory import save
+    from singplan.task.schema import load_task
+
     task = load_task(args.task)
     names = ["trajectory.csv", "trajectory.json", *(() if args.no_report else ("report.html",)),
              *(() if args.no_replay else ("replay.html",))]
@@ -220,6 +241,9 @@ def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from singplan.planning.planner import detect
+    from singplan.task.schema import load_task
+
     task = load_task(args.task)
     found = detect(task)
     out.write(f"{args.task}: {sum(len(m.zones) for m in found)} singular zone(s) along the programmed path\n")
@@ -241,6 +265,8 @@ def cmd_demo(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from singplan.outputs.viewer import replay
+
     if args.serve:
         return _serve(args, out)
     if args.host is not None:
@@ -254,6 +280,8 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 def _serve(args: argparse.Namespace, out: TextIO) -> int:
     """Play the trajectory on a live meshcat server until Ctrl-C (or SIGTERM)."""
+    from singplan.outputs.viewer import LiveReplay, replay
+
     host = DEFAULT_HOST if args.host is None else args.host
     live = replay(args.trajectory, serve=True, speed=args.speed, loop=not args.no_loop, host=host)
     assert isinstance(live, LiveReplay)
@@ -273,7 +301,7 @@ def _serve(args: argparse.Namespace, out: TextIO) -> int:
 
 def cmd_batch(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     """Plan many tasks (singplan.batch): a line per finished task on stderr, the totals on stdout."""
-    from singplan import batch  # imported here: the other commands need none of it
+    from singplan import batch
 
     if args.scheduler is None and not args.quiet:
         warning = batch.memory_warning(batch.local_workers(args.workers, len(args.tasks)))
@@ -304,10 +332,13 @@ def _interrupt(signum: int, frame: object) -> None:
 
 
 def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    """Write a planned output folder's trajectory in a controller format (singplan.exports)."""
+    """Write a planned output folder's trajectory in a controller format (singplan.outputs.exports)."""
+    from singplan.outputs import exports
+    from singplan.results.trajectory import load
+
     fmt = args.format
-    if fmt not in exports.FORMATS:
-        raise InputError(f"--format: unknown format {fmt!r}; valid formats: {', '.join(exports.FORMATS)}")
+    if fmt not in FORMATS:
+        raise InputError(f"--format: unknown format {fmt!r}; valid formats: {', '.join(FORMATS)}")
     folder = Path(args.out).parent if Path(args.out).is_file() else Path(args.out)  # a trajectory.json: its folder
     target = args.file if args.file is not None else exports.default_path(folder, fmt)
     traj = load(args.out)
@@ -372,13 +403,13 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=cmd_demo)
     exp = sub.add_parser("export", help="write a planned trajectory as ROS 2, URScript or degree CSV")
     exp.add_argument("out", help="output folder of `singplan plan` (or its trajectory.json)")
-    exp.add_argument("--format", required=True, help=f"one of {', '.join(exports.FORMATS)}")
+    exp.add_argument("--format", required=True, help=f"one of {', '.join(FORMATS)}")
     exp.add_argument("-o", "--output", dest="file", default=None,
                      help="file to write (default: " + ", ".join(f"{k}: {v}" for k, v in
-                                                               exports.DEFAULT_FILE_NAMES.items()) + " in OUT)")
+                                                               DEFAULT_FILE_NAMES.items()) + " in OUT)")
     exp.add_argument("--vendor-config", action="store_true",
                      help="csv-deg: add the vendor configuration data (ABB/KUKA/FANUC) of every sample")
-    exp.add_argument("--ur-controller", default="e-series", choices=sorted(exports.UR_STEP_S),
+    exp.add_argument("--ur-controller", default="e-series", choices=sorted(UR_STEP_S),
                      help="urscript: controller generation, its servo step (e-series 0.002 s, cb3 0.008 s)")
     exp.add_argument("--lookahead-time", type=float, default=0.1, help="urscript: servoj lookahead_time, 0.03-0.2 s")
     exp.add_argument("--gain", type=float, default=300.0, help="urscript: servoj gain, 100-2000")

@@ -18,7 +18,6 @@ import numpy as np
 import pytest
 import yaml
 
-from singplan import cli
 from singplan.cli import main
 from singplan.errors import OutputPathError
 from singplan.results import files as outputs
@@ -104,7 +103,7 @@ def test_unusable_output_paths_exit_2_naming_the_path_before_planning(tmp_path: 
     def no_planning(*args: object, **kwargs: object) -> None:
         raise AssertionError("planned although the output path is unusable")
 
-    monkeypatch.setattr(cli, "plan", no_planning)
+    monkeypatch.setattr("singplan.results.plan.plan", no_planning)
     for out in (tmp_path / "a_file", tmp_path / "a_file" / "sub", "/proc/singplan-x", "", task):
         code, _, err = _plan(task, out)
         assert code == 2, (out, err)
@@ -257,7 +256,7 @@ def test_an_unexpected_exception_is_one_line_and_exit_1(tmp_path: Path, monkeypa
     def explode(*args: object) -> None:
         raise error
 
-    monkeypatch.setattr(cli, "load_task", explode)
+    monkeypatch.setattr("singplan.task.schema.load_task", explode)
     monkeypatch.delenv("SINGPLAN_DEBUG", raising=False)
     stderr = io.StringIO()
     assert main(["plan", str(_task(tmp_path)), "-o", str(tmp_path / "o")], out=io.StringIO(), err=stderr) == 1
@@ -275,7 +274,7 @@ def test_an_interrupt_is_one_line_and_exit_130(tmp_path: Path, monkeypatch) -> N
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "plan", interrupted)
+    monkeypatch.setattr("singplan.results.plan.plan", interrupted)
     stderr = io.StringIO()
     assert main(["plan", str(_task(tmp_path)), "-o", str(tmp_path / "o")], out=io.StringIO(), err=stderr) == 130
     assert stderr.getvalue() == "singplan: interrupted\n"

@@ -33,17 +33,13 @@ import numpy as np
 from singplan.errors import InputError
 from singplan.kinematics.robot import load_robot
 from singplan.kinematics.vendor_config import format_vendor_config, vendor_configs
+from singplan.outputs.choices import DEFAULT_FILE_NAMES, FORMATS, UR_STEP_S
 from singplan.results.files import Writer, check_output_file, write_file
 from singplan.results.trajectory import Trajectory
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
 
-ExportFormat = Literal["ros2", "ros2-json", "urscript", "csv-deg"]
-FORMATS: tuple[ExportFormat, ...] = ("ros2", "ros2-json", "urscript", "csv-deg")
-DEFAULT_FILE_NAMES: dict[str, str] = {"ros2": "trajectory.ros2.yaml", "ros2-json": "trajectory.ros2.json",
-                                      "urscript": "trajectory.script", "csv-deg": "trajectory_deg.csv"}
-UR_STEP_S = {"e-series": 0.002, "cb3": 0.008}  # servo loop of the controller generations
 LOOKAHEAD_RANGE_S = (0.03, 0.2)  # servoj lookahead_time, as the URScript manual allows
 GAIN_RANGE = (100.0, 2000.0)  # servoj gain, as the URScript manual allows
 _UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",

@@ -40,12 +40,12 @@ from pinocchio.visualize import MeshcatVisualizer
 from singplan.errors import InputError, RobotModelError
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot, bundled_robots, load_robot
+from singplan.outputs.choices import DEFAULT_HOST
 from singplan.planning.path import move_piece
 from singplan.results.files import check_output_file, text_writer, write_file
 from singplan.results.trajectory import Segment, Trajectory, load
 from singplan.task.schema import parse_task
 
-DEFAULT_HOST = "127.0.0.1"  # the live server is for this machine unless asked otherwise
 _SERVER_START_S = 60.0  # longest wait for the live server to report its address
 ANIMATION_STEP_S = 0.02  # animation keyframes at most this often; the browser interpolates between them
 SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575}

@@ -1,0 +1,15 @@
+"""Names and defaults the command line offers, in a module that imports nothing heavy.
+
+``singplan --help`` reads them before any output module (meshcat, matplotlib) is loaded.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+ExportFormat = Literal["ros2", "ros2-json", "urscript", "csv-deg"]
+FORMATS: tuple[ExportFormat, ...] = ("ros2", "ros2-json", "urscript", "csv-deg")
+DEFAULT_FILE_NAMES: dict[str, str] = {"ros2": "trajectory.ros2.yaml", "ros2-json": "trajectory.ros2.json",
+                                      "urscript": "trajectory.script", "csv-deg": "trajectory_deg.csv"}
+UR_STEP_S = {"e-series": 0.002, "cb3": 0.008}  # servo loop of the controller generations
+DEFAULT_HOST = "127.0.0.1"  # the live server is for this machine unless asked otherwise

@@ -24,6 +24,7 @@ import yaml
 
 from singplan.errors import SingplanError
 from singplan.planning import planner
+from singplan.planning.crossing import registry
 from singplan.planning.records import PlannedMove
 from singplan.results.plan import plan
 from singplan.task.schema import Task, load_task, parse_task
@@ -98,7 +99,7 @@ class _GeometryMove:
         self.task = task
         self.robot = planner.load_task_robot(task)
         self.q0 = np.radians(task.start_joints_deg)
-        self.crossing = planner.candidate_methods(method, task.moves[0])[0]
+        self.crossing = registry.candidates(method, task.moves[0])[0]
         try:
             self.samples = len(self._plan().jmap.reference()[0])  # also warms caches
         except SingplanError:

@@ -12,7 +12,8 @@ import pytest
 from singplan.errors import PlanningError
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import load_robot
-from singplan.planning.planner import candidate_methods, load_task_robot
+from singplan.planning.crossing.registry import candidates
+from singplan.planning.planner import load_task_robot
 from singplan.results.plan import plan
 from singplan.task.schema import load_task, parse_task
 
@@ -56,7 +57,7 @@ def test_crossing_seams_are_c1(method: str) -> None:
     task = load_task(NEAR_MISS).with_method(method)
     robot = load_task_robot(task)
     q0 = np.radians(task.start_joints_deg)
-    pm = _plan_move(robot, task, 0, task.moves[0], robot.fk(q0), q0, candidate_methods(method, task.moves[0])[0])
+    pm = _plan_move(robot, task, 0, task.moves[0], robot.fk(q0), q0, candidates(method, task.moves[0])[0])
     _assert_c1(pm.jmap, next(p for p in pm.jmap.parts if p.kind in ("blend", "axis")))
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -24,20 +24,14 @@ from singplan.kinematics.dynamics import TorqueLimit, effort_limits_nm, require_
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import Robot, load_robot
-from singplan.planning.budget import BudgetError, check_task
-from singplan.planning.crossing.methods import (
-    METHODS_AVAILABLE,
-    Axis,
-    Crossing,
-    CrossingMethod,
-    Exact,
-    MoveContext,
-    WristJoint,
-)
+from singplan.planning.budget import check_task
+from singplan.planning.crossing import registry
+from singplan.planning.crossing.base import Crossing, CrossingMethod, MoveContext
 from singplan.planning.jointmap import JointMap, JointPart
 from singplan.planning.path import CartesianPiece, move_piece, move_target, sample_deviations
 from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint, hold_for_task
+from singplan.planning.select import best_of
 from singplan.planning.timing import MoveLimits, TimedMove, TimingError, time_move
 from singplan.planning.tracking import BranchCandidates, TrackedPath, track
 from singplan.planning.zones import DistanceFunction, Zone, distances_along, find_zones, thresholds_si
@@ -46,27 +40,6 @@ from singplan.task.schema import Move, Task, check_against_robot, load_task
 STEP_M = 0.002  # initial path sampling: at most 2 mm ...
 STEP_RAD = math.radians(0.5)  # ... and 0.5 deg of tool rotation between samples
 Progress = Callable[[int, int], None]
-
-
-WRIST_JOINT_WINDOWS = (1.0, 1.5, 2.5)  # blend spans, as multiples of the detected zone
-
-
-def candidate_methods(name: str, move: Move) -> list[CrossingMethod]:
-    """The methods to try on a move: one, or for ``auto`` every pose-keeping candidate.
-
-    ``wrist-joint`` is tried with a few blend windows: a wider one spreads the wrist's change
-    of branch over more path (less acceleration) at the price of more orientation deviation;
-    the fastest within the tolerances wins.
-    """
-    target = move.config if move.config not in ("auto", "keep") else None
-    wrist_joint: list[CrossingMethod] = [WristJoint(target, w) for w in WRIST_JOINT_WINDOWS]
-    if name == "auto":
-        return [Exact(), *wrist_joint, Axis(target)]
-    if name == "wrist-joint":
-        return wrist_joint
-    if name == "axis":
-        return [Axis(target)]
-    return [METHODS_AVAILABLE[name]]
 
 
 def load_task_robot(task: Task) -> Robot:
@@ -84,7 +57,8 @@ def load_task_robot(task: Task) -> Robot:
 class PlannedTask:
     """A task planned and timed move by move, before the trajectory record is built (results)."""
 
-    task: Task  # as given (with the method override applied)
+    task: Task  # as given (with a method name override applied)
+    method: str  # the crossing method asked for: the task's, or the name of the object passed
     full: Robot  # the robot of the task
     robot: Robot  # the chain planned: ``full``, or with ``redundancy`` the 6R chain with one joint held
     held: HeldJoint | None
@@ -93,8 +67,12 @@ class PlannedTask:
     planning_s: float  # wall time from the call to the last move timed
 
 
-def plan_moves(task: Task | str | Path, method: str | None = None, progress: Progress | None = None) -> PlannedTask:
+def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = None,
+               progress: Progress | None = None) -> PlannedTask:
     """Plan and time every move of a task (a :class:`Task`, or the path of a YAML file).
+
+    ``method`` overrides the task's crossing method: a registered name, or a method object
+    (:class:`~singplan.planning.crossing.base.CrossingMethod`) used on every move.
 
     Raises:
         InputError: the task is malformed or contradicts the robot (exit code 2).
@@ -103,7 +81,8 @@ def plan_moves(task: Task | str | Path, method: str | None = None, progress: Pro
     started = time.perf_counter()
     if not isinstance(task, Task):
         task = load_task(task)
-    if method is not None:
+    chosen = None if method is None or isinstance(method, str) else method  # a method object: on every move
+    if isinstance(method, str):
         task = task.with_method(method)
     full = load_task_robot(task)
     held = hold_for_task(task, full)  # with `redundancy`, the 6R chain is planned like any 6-joint arm
@@ -115,8 +94,8 @@ def plan_moves(task: Task | str | Path, method: str | None = None, progress: Pro
     timed: list[TimedMove] = []
     left = allowance - 1  # output samples the remaining moves may add (they share their boundary samples)
     for i, move in enumerate(task.moves):
-        pm, tm = _best_of(robot, arm_task, i, arm_task.moves[i], T, q,
-                          candidate_methods(task.singularity.method, move), left)
+        methods = registry.candidates(task.singularity.method, move) if chosen is None else [chosen]
+        pm, tm = _best_of(robot, arm_task, i, arm_task.moves[i], T, q, methods, left)
         left -= len(tm.q) - 1
         planned.append(pm)
         timed.append(tm)
@@ -124,7 +103,8 @@ def plan_moves(task: Task | str | Path, method: str | None = None, progress: Pro
         T = pm.piece.T_end if pm.piece is not None else robot.fk(q)
         if progress is not None:
             progress(i + 1, len(task.moves))
-    return PlannedTask(task, full, robot, held, tuple(planned), tuple(timed), time.perf_counter() - started)
+    return PlannedTask(task, task.singularity.method if chosen is None else chosen.name,
+                       full, robot, held, tuple(planned), tuple(timed), time.perf_counter() - started)
 
 
 def _timed(robot: Robot, pm: PlannedMove, period_s: float, max_samples: int) -> TimedMove:
@@ -137,65 +117,16 @@ def _timed(robot: Robot, pm: PlannedMove, period_s: float, max_samples: int) -> 
 
 def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
              methods: list[CrossingMethod], max_samples: int) -> tuple[PlannedMove, TimedMove]:
-    """Plan and time the move with each method; keep the fastest within the tolerances.
+    """Plan, time and check the move with each method; :func:`select.best_of` keeps the fastest."""
 
-    A method this arm's family cannot use is never run in disguise: it is listed as infeasible
-    with the reason, and asked for alone it is refused where the move meets a zone.
-    """
-    results: list[tuple[PlannedMove, TimedMove]] = []
-    failures: list[tuple[str, PlanningError | BudgetError]] = []
-    serving, refused = _serving(robot, methods)
-    for method in serving or [Exact()]:  # with nothing to cross, any method gives exact's motion
-        if results and not results[0][0].zones:
-            break  # nothing to cross: every method gives this same motion
-        try:
-            pm = _plan_move(robot, task, i, move, T, q, method)
-            tm = _timed(robot, pm, task.period_s, max_samples)
-            _check_config(robot, move, pm, tm)
-            _check_tolerances(robot, task, pm, tm)
-        except (PlanningError, BudgetError) as exc:  # a slow method over the allowance: another may fit
-            failures.append((method.name, exc))
-            continue
-        results.append((replace(pm, method=method.name, variant=_variant(method)), tm))
-    if not serving and results and results[0][0].zones:
-        raise _refusal(robot, results[0][0], refused)
-    failures += [(name, PlanningError(f"{name} {why} (this arm is {robot.family})")) for name, why in refused.items()]
-    if not results:
-        decisive: list[PlanningError | BudgetError] = [
-            exc for _, exc in failures if isinstance(exc, (UnreachableError, BudgetError))]
-        if len(failures) == 1 or decisive or len({str(exc) for _, exc in failures}) == 1:
-            # the path itself fails, or the task is too large, or every method met the same wall: no method can help
-            raise (decisive or [failures[0][1]])[0]
-        raise PlanningError(f"move {i} ({move.kind}): no method could plan it: "
-                            + "; ".join(f"{name}: {exc}" for name, exc in failures))
-    results.sort(key=lambda r: r[1].duration_s)
-    alternatives = tuple([{"method": r[0].method, "variant": r[0].variant, "duration_s": r[1].duration_s,
-                           "feasible": True} for r in results]
-                         + [{"method": name, "feasible": False, "reason": str(exc)} for name, exc in failures])
-    best_pm, best_tm = results[0]
-    return replace(best_pm, alternatives=alternatives if len(methods) > 1 else ()), best_tm
+    def attempt(method: CrossingMethod) -> tuple[PlannedMove, TimedMove]:
+        pm = _plan_move(robot, task, i, move, T, q, method)
+        tm = _timed(robot, pm, task.period_s, max_samples)
+        _check_config(robot, move, pm, tm)
+        _check_tolerances(robot, task, pm, tm)
+        return pm, tm
 
-
-def _serving(robot: Robot, methods: list[CrossingMethod]) -> tuple[list[CrossingMethod], dict[str, str]]:
-    """The methods that can serve this arm's family, and why each other one cannot (by name)."""
-    notes = robot.recognition.crossing_methods()
-    return ([m for m in methods if not notes.get(m.name)],
-            {m.name: notes[m.name] for m in methods if notes.get(m.name)})
-
-
-def _refusal(robot: Robot, pm: PlannedMove, refused: dict[str, str]) -> SingularityError:
-    """The error for a move that meets a zone with only methods this arm cannot use."""
-    zone = pm.zones[0]
-    name, why = next(iter(refused.items()))
-    where = pm.piece.describe(zone.u_closest) if pm.piece is not None else "its start"
-    return SingularityError(f"move {pm.index} ({pm.kind}): {name} cannot cross the {zone.kind} zone at {where}: "
-                            f"it {why} (this arm is {robot.family}); use exact or auto",
-                            move=pm.index, kind=zone.kind, s_m=zone.u_closest * pm.limits.length_m)
-
-
-def _variant(method: CrossingMethod) -> str:
-    widen = getattr(method, "widen", None)
-    return f"window x{widen:g}" if widen is not None else ""
+    return best_of(robot, i, move.kind, methods, attempt)
 
 
 def _check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove) -> None:

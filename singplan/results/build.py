@@ -27,10 +27,13 @@ from singplan.results.trajectory import Event, MoveRecord, Segment, Trajectory, 
 from singplan.task.schema import Task
 
 
-def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed: list[TimedMove],
+def build_trajectory(robot: Robot, task: Task, method: str, planned: list[PlannedMove], timed: list[TimedMove],
                      planning_time_s: float, held: HeldJoint | None = None) -> Trajectory:
-    """The trajectory of the planned moves of ``robot``; with ``held`` (``robot`` is then its 6R chain)
-    the held joint comes back as a constant column, so samples, limits and torques are the 7-joint arm's."""
+    """The trajectory of the planned moves of ``robot`` (``method``: the crossing method asked for).
+
+    With ``held`` (``robot`` is then its 6R chain) the held joint comes back as a constant column,
+    so samples, limits and torques are the 7-joint arm's.
+    """
     period = task.period_s
     q_planned = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
     t = np.arange(len(q_planned)) * period
@@ -62,7 +65,7 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
     qd, qdd = _chunked_differences(q, period)
     metrics = {"max_position_error_mm": worst_pos * 1e3, "max_orientation_error_deg": math.degrees(worst_ori),
                "max_joint_speed_ratio": speed, "max_joint_accel_ratio": accel, "duration_s": float(t[-1]),
-               "planning_time_s": planning_time_s, "samples": len(t), "method": task.singularity.method,
+               "planning_time_s": planning_time_s, "samples": len(t), "method": method,
                "crossings": crossings, **_torque_metrics(arm, task, q)}
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
     samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all)}

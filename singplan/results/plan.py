@@ -14,6 +14,7 @@ import numpy as np
 
 from singplan.errors import JointLimitError, PlanningError
 from singplan.kinematics.robot import Robot
+from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.planner import PlannedTask, Progress, plan_moves
 from singplan.planning.records import PlannedMove
 from singplan.planning.timing import TimedMove, worst_sample
@@ -22,8 +23,12 @@ from singplan.results.trajectory import Trajectory
 from singplan.task.schema import Task
 
 
-def plan(task: Task | str | Path, method: str | None = None, progress: Progress | None = None) -> Trajectory:
+def plan(task: Task | str | Path, method: str | CrossingMethod | None = None,
+         progress: Progress | None = None) -> Trajectory:
     """Plan a task (a :class:`Task`, or the path of a YAML file) into a timed trajectory.
+
+    ``method`` overrides the task's crossing method: a name (built in or registered with
+    :func:`singplan.planning.crossing.registry.register`), or a method object used on every move.
 
     Raises:
         InputError: the task is malformed or contradicts the robot (exit code 2).
@@ -35,7 +40,8 @@ def plan(task: Task | str | Path, method: str | None = None, progress: Progress 
 def trajectory_of(planned: PlannedTask) -> Trajectory:
     """The trajectory record of planned moves, checked against the limits sample by sample."""
     moves, timed = list(planned.moves), list(planned.timed)
-    traj = build_trajectory(planned.robot, planned.task, moves, timed, planned.planning_s, planned.held)
+    traj = build_trajectory(planned.robot, planned.task, planned.method, moves, timed, planned.planning_s,
+                            planned.held)
     _check_metrics(planned.full, planned.task, moves, timed, traj)
     return traj
 

@@ -55,7 +55,8 @@ MAX_SCALAR_CHARS = 10_000
 MAX_NAME_CHARS = 256
 MAX_PATH_CHARS = 4096
 MAX_JOINTS = 64
-METHODS = ("auto", "wrist-joint", "axis", "exact", "dls", "average", "ptp", "stop")
+METHODS = ("auto", "wrist-joint", "axis", "exact", "dls", "average", "ptp", "stop")  # built in
+_ADDED_METHODS: list[str] = []  # names registered by users (singplan.planning.crossing.registry.register)
 DEFAULT_SPEED_M_S = 0.25
 # more digits than any float can hold: decimal (and YAML 1.1 octal), hexadecimal, binary
 _LONG_INTEGER = re.compile(r"[-+]?(?:[0-9][0-9_:]{399,}|0[xX][0-9a-fA-F_]{256,}|0[bB][01_]{1024,})")
@@ -159,7 +160,7 @@ class Task:
 
     def with_method(self, method: str) -> Task:
         """The same task planned with another crossing method."""
-        _check_choice("singularity.method", method, METHODS)
+        _check_choice("singularity.method", method, method_names())
         settings = SingularitySettings(method, self.singularity.orientation_tolerance_deg,
                                        self.singularity.position_tolerance_mm, self.singularity.zone)
         return Task(**{**self.__dict__, "singularity": settings})
@@ -483,6 +484,17 @@ def _string(where: str, value: Any, max_chars: int = MAX_NAME_CHARS) -> str:
     return value.strip()
 
 
+
+def method_names() -> tuple[str, ...]:
+    """The crossing method names a task may ask for: the built-in ones, then those users registered."""
+    return (*METHODS, *_ADDED_METHODS)
+
+
+def accept_method_name(name: str) -> None:
+    """Let tasks name a crossing method registered by a user (the planning registry calls this)."""
+    if name not in method_names():
+        _ADDED_METHODS.append(name)
+
 def _check_choice(where: str, value: Any, choices: Sequence[str]) -> str:
     text = _string(where, value)
     if text not in choices:
@@ -610,7 +622,7 @@ def _singularity(value: Any) -> SingularitySettings:
     _check_keys("singularity.zone", zone, optional=("wrist_deg", "shoulder_mm", "elbow_deg"))
     defaults = ZoneThresholds()
     return SingularitySettings(
-        method=_check_choice("singularity.method", value.get("method", "auto"), METHODS),
+        method=_check_choice("singularity.method", value.get("method", "auto"), method_names()),
         orientation_tolerance_deg=_number("singularity.orientation_tolerance_deg",
                                           value.get("orientation_tolerance_deg", 5.0), ORIENTATION_TOLERANCE_DEG),
         position_tolerance_mm=_number("singularity.position_tolerance_mm", value.get("position_tolerance_mm", 0.01),

@@ -1,4 +1,7 @@
-"""Crossing methods: what a move does inside a singular zone.
+"""The built-in crossing methods: what a move does inside a singular zone.
+
+The protocol and the records are in :mod:`singplan.planning.crossing.base`; the names users
+plan with are mapped to these objects in :mod:`singplan.planning.crossing.registry`.
 
 A method looks at one zone of a tracked move and either keeps the tracked (in-branch)
 solution, returns a :class:`Crossing` that replaces the zone's joint values and continues
@@ -19,8 +22,8 @@ Available now:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
-from typing import ClassVar, Protocol
+from dataclasses import replace
+from typing import ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -30,11 +33,11 @@ from singplan.kinematics.configuration import distances_batch, labels_from_dista
 from singplan.kinematics.ik import numeric as ik_numeric
 from singplan.kinematics.ik.solve import closed_form_branches
 from singplan.kinematics.robot import Robot
+from singplan.planning.crossing.base import Crossing, MoveContext
 from singplan.planning.jointmap import JointMap, JointPart, hermite
 from singplan.planning.path import CartesianPiece
-from singplan.planning.tracking import TrackedPath, nearest_candidate
+from singplan.planning.tracking import nearest_candidate
 from singplan.planning.zones import KIND_INDEX, Zone
-from singplan.task.schema import SingularitySettings
 
 EXACT_ORIENTATION_TOL_RAD = math.radians(0.01)
 # a through-crossing blends where the in-branch swing has not started: |distance| above
@@ -45,44 +48,11 @@ _THROUGH_MAX_JUMP_RAD = math.radians(5.0)
 _BLEND_STEP_M = 0.001  # reference samples of a blend: every millimetre of path
 
 
-@dataclass(frozen=True)
-class MoveContext:
-    """What a method may look at: one LIN/CIRC move tracked in its current branch."""
-
-    robot: Robot
-    move_index: int
-    move_kind: str
-    piece: CartesianPiece
-    tracked: TrackedPath
-    distances: np.ndarray  # (N, 3) signed (wrist, shoulder, elbow) at tracked.u
-    settings: SingularitySettings
-
-
-@dataclass(frozen=True)
-class Crossing:
-    """A crossing that replaces the tracked joints on [u_a, u_b] and changes branch.
-
-    ``blend`` covers the zone; the move continues from ``q_exit`` at ``u_b`` in the new branch.
-    """
-
-    zone: Zone
-    method: str
-    blend: JointPart
-    q_exit: np.ndarray  # (n,)
-
-
-class CrossingMethod(Protocol):
-    name: str
-
-    def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
-        """A crossing for ``zone``, or None to keep the tracked solution."""
-        ...
-
-
 class Stop:
     """Refuse at every singular zone."""
 
     name = "stop"
+    variant = ""
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
         where, closest = ctx.piece.describe(zone.u_entry), ctx.piece.describe(zone.u_closest)
@@ -96,6 +66,7 @@ class Exact:
     """Keep the full pose; go through the singularity only where the path (almost) meets it."""
 
     name = "exact"
+    variant = ""
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
         limit = ctx.settings.position_tolerance_mm / 1e3 if zone.kind == "shoulder" else EXACT_ORIENTATION_TOL_RAD
@@ -195,6 +166,7 @@ class WristJoint:
     def __init__(self, target: str | None = None, widen: float = 1.0) -> None:
         self.target = target  # a configuration label the zone must end in, or None for the nearest
         self.widen = widen  # the blend spans the zone stretched by this factor about its closest point
+        self.variant = f"window x{widen:g}"
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
         if zone.kind != "wrist":
@@ -264,6 +236,7 @@ class Axis:
     """
 
     name = "axis"
+    variant = ""
     _SETUP: ClassVar[dict[str, tuple[int, str]]] = {
         "wrist": (3, "position"), "shoulder": (0, "orientation"), "elbow": (1, "orientation")}
 
@@ -289,6 +262,7 @@ class Ptp:
     """Baseline (SEEDS 004): jump over the zone with a joint-space straight line."""
 
     name = "ptp"
+    variant = ""
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
         a, b = _zone_span(ctx, zone)
@@ -307,6 +281,7 @@ class Average:
     average of its neighbours; the branch (and its swing) is otherwise kept."""
 
     name = "average"
+    variant = ""
     _CORE = 0.2  # the "singular samples": |distance| under this fraction of the threshold
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
@@ -333,6 +308,7 @@ class Dls:
     """
 
     name = "dls"
+    variant = ""
     damping = 1e-2
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
@@ -358,8 +334,3 @@ class Dls:
         err = np.concatenate([T_target[:3, 3] - T.translation, T.rotation @ pin.log3(T.rotation.T @ T_target[:3, :3])])
         J = robot.jacobian(q)
         return q + J.T @ np.linalg.solve(J @ J.T + self.damping**2 * np.eye(6), err)
-
-
-METHODS_AVAILABLE: dict[str, CrossingMethod] = {
-    "exact": Exact(), "stop": Stop(), "wrist-joint": WristJoint(), "axis": Axis(), "dls": Dls(), "average": Average(),
-    "ptp": Ptp()}

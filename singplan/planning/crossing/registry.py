@@ -1,0 +1,58 @@
+"""Crossing method names -> method objects: the one list the planner, auto and the CLI read.
+
+``auto`` is not a method but a choice among the pose-keeping ones (:mod:`singplan.planning.select`).
+A user adds a method with :func:`register`; tasks may then name it (``singularity.method``), or
+the object is passed to :func:`singplan.plan` directly (see docs/architecture.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from singplan.errors import InputError
+from singplan.planning.crossing.base import CrossingMethod
+from singplan.planning.crossing.methods import Average, Axis, Dls, Exact, Ptp, Stop, WristJoint
+from singplan.task.schema import Move, accept_method_name
+
+AUTO = "auto"
+WRIST_JOINT_WINDOWS = (1.0, 1.5, 2.5)  # blend spans, as multiples of the detected zone
+Target = str | None  # the configuration a move asks for, None for auto / keep
+_Factory = Callable[[Target], list[CrossingMethod]]
+
+_BUILT_IN: dict[str, _Factory] = {
+    # wrist-joint is tried with a few blend windows: a wider one spreads the wrist's change of branch
+    # over more path (less acceleration) at the price of more orientation deviation; the fastest wins
+    "wrist-joint": lambda target: [WristJoint(target, w) for w in WRIST_JOINT_WINDOWS],
+    "axis": lambda target: [Axis(target)],
+    "exact": lambda target: [Exact()],
+    "dls": lambda target: [Dls()],
+    "average": lambda target: [Average()],
+    "ptp": lambda target: [Ptp()],
+    "stop": lambda target: [Stop()],
+}
+AUTO_CANDIDATES = ("exact", "wrist-joint", "axis")  # the pose-keeping methods auto compares, in this order
+_registered: dict[str, CrossingMethod] = {}
+
+
+def names() -> tuple[str, ...]:
+    """Every name a task or ``--method`` may give: auto, the built-in methods, the registered ones."""
+    return (AUTO, *_BUILT_IN, *_registered)
+
+
+def register(method: CrossingMethod) -> None:
+    """Make ``method`` available by its name (``method.name``) to tasks and to ``plan(task, method=name)``."""
+    if method.name in names():
+        raise InputError(f"crossing method {method.name!r} is already registered; taken: {', '.join(names())}")
+    _registered[method.name] = method
+    accept_method_name(method.name)
+
+
+def candidates(name: str, move: Move) -> list[CrossingMethod]:
+    """The method objects to try on a move: one method's (several wrist-joint windows), or auto's set."""
+    target = move.config if move.config not in ("auto", "keep") else None
+    if name == AUTO:
+        return [m for candidate in AUTO_CANDIDATES for m in _BUILT_IN[candidate](target)]
+    if name in _registered:
+        return [_registered[name]]
+    return _BUILT_IN[name](target)
+

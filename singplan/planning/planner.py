@@ -34,7 +34,7 @@ from singplan.planning.redundancy import HeldJoint, hold_for_task
 from singplan.planning.select import best_of
 from singplan.planning.timing import MoveLimits, TimedMove, TimingError, time_move
 from singplan.planning.tracking import BranchCandidates, TrackedPath, track
-from singplan.planning.zones import DistanceFunction, Zone, distances_along, find_zones, thresholds_si
+from singplan.planning.zones import DistanceFunction, Zone, distances_along, find_zones
 from singplan.task.schema import Move, Task, check_against_robot, load_task
 
 STEP_M = 0.002  # initial path sampling: at most 2 mm ...
@@ -200,7 +200,7 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
                     method: CrossingMethod) -> PlannedMove:
     """Track the path, let the method handle each zone, and stitch the joint map."""
     grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
-    thresholds = thresholds_si(task.singularity.zone)
+    thresholds = task.singularity.zone.si()
     parts: list[JointPart] = []
     zones: list[Zone] = []
     crossings: list[Crossing] = []
@@ -219,7 +219,8 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref),
                            continued=crossings[-1].zone.kind if crossings else None)
-        ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, task.singularity)
+        ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, task.singularity.position_tolerance_mm / 1e3,
+                          math.radians(task.singularity.orientation_tolerance_deg))
         zones_before = list(zones)
         result = _first_crossing(method, ctx, found, zones, u_from)
         if tracked.coarse_from_u < (result.blend.u0 if result is not None else math.inf):
@@ -373,7 +374,7 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     full = load_task_robot(task)
     held = hold_for_task(task, full)
     robot, task = (held.reduced, held.reduce_task(task)) if held is not None else (full, task)
-    thresholds = thresholds_si(task.singularity.zone)
+    thresholds = task.singularity.zone.si()
     q = _start_joints(task, robot)
     check_task(task, robot, q, STEP_M, STEP_RAD, timed=False)  # before any path is sampled
     T = robot.fk(q)

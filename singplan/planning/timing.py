@@ -32,7 +32,6 @@ from singplan.errors import PlanningError
 from singplan.kinematics.dynamics import PathDynamics, TorqueLimit, move_torque_ratio
 from singplan.planning.budget import check_move_samples
 from singplan.planning.jointmap import JointMap
-from singplan.task.schema import MAX_OUTPUT_SAMPLES
 
 logger = logging.getLogger(__name__)
 logging.getLogger("toppra").setLevel(logging.ERROR)  # its retries are not our warnings
@@ -261,7 +260,7 @@ def end_step_ratio(q: np.ndarray, period_s: float, amax: np.ndarray) -> float:
 
 
 def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int,
-              max_samples: int = MAX_OUTPUT_SAMPLES) -> TimedMove:
+              max_samples: int) -> TimedMove:
     """Fastest uniform sampling of the move within the limits, every sample on the path.
 
     ``max_samples``: what is left of the task's allowance of output samples (bad input if over).

@@ -17,7 +17,6 @@ import numpy as np
 
 from singplan.kinematics.configuration import distances_batch, labels_from_distances
 from singplan.kinematics.robot import Robot
-from singplan.task.schema import ZoneThresholds
 
 KINDS = ("wrist", "shoulder", "elbow")
 KIND_INDEX = {kind: i for i, kind in enumerate(KINDS)}  # columns of the signed distances
@@ -52,11 +51,6 @@ class Zone:
     def describe_distance(self, value: float | None = None) -> str:
         v = self.min_distance if value is None else value
         return f"{v * 1e3:.3f} mm" if self.kind == "shoulder" else f"{math.degrees(v):.4f} deg"
-
-
-def thresholds_si(zone: ZoneThresholds) -> np.ndarray:
-    """(wrist [rad], shoulder [m], elbow [rad]) thresholds."""
-    return np.array([math.radians(zone.wrist_deg), zone.shoulder_mm / 1000.0, math.radians(zone.elbow_deg)])
 
 
 def distances_along(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, list[str]]:

@@ -40,6 +40,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
 
+import numpy as np
 import yaml
 
 from singplan.errors import TaskError
@@ -116,6 +117,10 @@ class ZoneThresholds:
     wrist_deg: float = 5.0
     shoulder_mm: float = 20.0
     elbow_deg: float = 5.0
+
+    def si(self) -> np.ndarray:
+        """(wrist [rad], shoulder [m], elbow [rad]) thresholds, the order of the signed distances."""
+        return np.array([math.radians(self.wrist_deg), self.shoulder_mm / 1000.0, math.radians(self.elbow_deg)])
 
 
 @dataclass(frozen=True)

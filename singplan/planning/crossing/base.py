@@ -12,7 +12,6 @@ from singplan.planning.jointmap import JointPart
 from singplan.planning.path import CartesianPiece
 from singplan.planning.tracking import TrackedPath
 from singplan.planning.zones import Zone
-from singplan.task.schema import SingularitySettings
 
 
 @dataclass(frozen=True)
@@ -25,7 +24,8 @@ class MoveContext:
     piece: CartesianPiece
     tracked: TrackedPath
     distances: np.ndarray  # (N, 3) signed (wrist, shoulder, elbow) at tracked.u
-    settings: SingularitySettings
+    position_tolerance_m: float  # the task's tolerances, the most a crossing may deviate
+    orientation_tolerance_rad: float
 
 
 @dataclass(frozen=True)

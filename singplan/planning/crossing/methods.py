@@ -69,7 +69,7 @@ class Exact:
     variant = ""
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
-        limit = ctx.settings.position_tolerance_mm / 1e3 if zone.kind == "shoulder" else EXACT_ORIENTATION_TOL_RAD
+        limit = ctx.position_tolerance_m if zone.kind == "shoulder" else EXACT_ORIENTATION_TOL_RAD
         if zone.min_distance >= limit:
             return None  # a near miss: stay in the branch, the timing slows the swing
         return through(ctx, zone, self.name)

@@ -225,7 +225,11 @@ def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         err.write("singplan: first run after an install: compiling the planner's kernels "
                   "(about 10 s on two cores; cached on disk afterwards)\n")
     traj = plan(task, method=args.method, progress=_progress_printer(err, args.quiet))
-    pages, skipped = build_pages(traj, load_task_robot(task), report=not args.no_report, replay=not args.no_replay)
+    pages: dict[str, str] = {}
+    skipped: dict[str, str] = {}
+    if not (args.no_report and args.no_replay):
+        pages, skipped = build_pages(traj, load_task_robot(task), report=not args.no_report,
+                                     replay=not args.no_replay)
     for name, reason in skipped.items():
         err.write(f"singplan: warning: {name} not written (the plan succeeded): {reason}\n")
     folder = save(traj, folder, extra_files=pages)

@@ -172,7 +172,7 @@ def test_a_report_that_fails_unexpectedly_is_a_warning(tmp_path: Path, monkeypat
     def broken(*args: object) -> str:
         raise ZeroDivisionError("in a plot")
 
-    monkeypatch.setattr("singplan.outputs.pages.report_html", broken)  # the page builder of plan and batch
+    monkeypatch.setattr("singplan.outputs.report.report_html", broken)
     code, _, err = _plan(_task(tmp_path), tmp_path / "out", "--no-replay", "--quiet")
     assert code == 0
     assert "report.html not written" in err and "ZeroDivisionError: in a plot" in err

@@ -11,7 +11,7 @@ Times are the best of ``--repeat`` runs, in microseconds per pose.
 
     python bench/bench_ik.py --numeric [--poses 30] [--write docs/kinematics.md]
 
-The numeric all-branch solver (singplan.ik_numeric) on arms without and with a closed form:
+The numeric all-branch solver (singplan.kinematics.ik.numeric) on arms without and with a closed form:
 milliseconds per call and the branches it finds against a reference (the closed form inside
 the limits, or for the offset-wrist arm the brute force of tests/test_ik_numeric.py).
 """
@@ -161,7 +161,7 @@ def measure_numeric(robot: Robot, n_poses: int, seed: int = 11) -> dict[str, flo
 
 def numeric_table(rows: dict[str, dict[str, float]]) -> str:
     lines = [
-        "### Numeric all-branch IK (`singplan.ik_numeric.all_branches`)",
+        "### Numeric all-branch IK (`singplan.kinematics.ik.numeric.all_branches`)",
         "",
         f"Machine: {machine()}; Python {platform.python_version()}, pin {version('pin')}. "
         "Random poses = FK of uniform random joints inside the limits (seed 11).",

@@ -19,7 +19,7 @@ Arms:
 Tasks are generated for each arm, not written by hand: for a 6-axis arm, one LIN through a
 wrist near miss and one through a shoulder near miss. A configuration at the singular surface
 is found from seeded random joints (the singularity distances singplan itself reports,
-:func:`singplan.configuration.distances_batch`), moved off it by a small miss, and a LIN at
+:func:`singplan.kinematics.configuration.distances_batch`), moved off it by a small miss, and a LIN at
 constant orientation is laid through its TCP along the direction in which that distance does
 not change to first order, so that the path passes the singularity at the miss distance. Its
 reachability is checked by following the path with damped Newton IK from the midpoint both

@@ -36,7 +36,7 @@ COLOURS = [
     (0.85, 0.30, 0.30),
 ]
 EFFORT_DEFAULT_NM = 1000.0  # placeholder where the data sheet gives none (marked in the header)
-# read by singplan/dynamics.py (same text there): estimated inertias are no basis for torques
+# read by singplan/kinematics/dynamics.py (same text there): estimated inertias are no basis for torques
 NO_DYNAMICS_MARK = "singplan: no published dynamics"
 
 

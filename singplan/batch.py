@@ -1,14 +1,14 @@
 """Plan many tasks: one output folder per task and a summary table (DESIGN.md, "Outputs": Batch).
 
 Each task is planned by :func:`plan_task` in a worker and written into ``DIR/<folder>`` under
-the output folder rules of :mod:`singplan.outputs`; ``DIR/summary.csv`` and
+the output folder rules of :mod:`singplan.results.files`; ``DIR/summary.csv`` and
 ``DIR/summary.json`` are written the same way once every task has finished (or the batch was
 interrupted). Two ways to run the workers:
 
 - local (default): ``workers`` long-lived worker processes, each planning one task at a time.
   A worker that dies (a segfault, the kernel's OOM killer) loses only its current task, which
   is recorded with exit code 1, and is replaced. Each worker is a whole process, so each task
-  has the memory budget of :mod:`singplan.budget`; N workers may take N x 1.5 GB in all.
+  has the memory budget of :mod:`singplan.planning.budget`; N workers may take N x 1.5 GB in all.
   A worker that dies before taking any task (WorkerStartError) means none can start: the
   tasks not yet run are recorded as not run, with exit code 1.
 - Dask (``scheduler``): the tasks are submitted to a ``dask.distributed`` cluster. The workers

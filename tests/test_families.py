@@ -1,4 +1,4 @@
-"""Kinematic families recognised from the URDF chain (singplan.families), whatever its conventions."""
+"""Kinematic families recognised from the URDF chain (singplan.kinematics.families), whatever its conventions."""
 
 from __future__ import annotations
 

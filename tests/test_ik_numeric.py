@@ -1,4 +1,4 @@
-"""Numeric all-branch IK (singplan.ik_numeric) against a brute-force reference.
+"""Numeric all-branch IK (singplan.kinematics.ik.numeric) against a brute-force reference.
 
 The reference knows nothing of the solver's seeds: it runs damped Gauss-Newton from 1000
 uniformly random starts over the whole joint torus at once, with its own forward kinematics

@@ -1,6 +1,6 @@
 // singplan replay page: meshcat's scene plus a legend, a segment list that jumps the timeline,
 // labels at the crossings and a joint-speed strip synced to the time cursor.
-// Reads the global SINGPLAN (written by singplan/viewer.py); needs nothing but meshcat's bundle.
+// Reads the global SINGPLAN (written by singplan/outputs/viewer.py); needs nothing but meshcat's bundle.
 "use strict";
 (function () {
   const data = SINGPLAN;

@@ -48,7 +48,7 @@ class RobotEntry:
 
     name: str
     display_name: str
-    family: str  # as written in robots.yaml: a test reference for the recognition (singplan.families)
+    family: str  # as written in robots.yaml: a test reference for the recognition (singplan.kinematics.families)
     tip: str
     sources: tuple[str, ...]
     urdf_file: str | None = None  # bundled URDF name, relative to robots_dir()
@@ -127,7 +127,7 @@ class Robot:
 
     @cached_property
     def recognition(self) -> Recognition:
-        """The kinematic family read from the chain and its tip (:mod:`singplan.families`, cached)."""
+        """The kinematic family read from the chain and its tip (:mod:`singplan.kinematics.families`, cached)."""
         return recognise(self.model, self.tip_frame_id)
 
     @property

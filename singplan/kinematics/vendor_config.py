@@ -23,7 +23,7 @@ The forms (degrees of the controller axes ``a1..a6``):
   otherwise), elbow up/down, wrist centre in front of (T) or behind (B) J1; turn numbers
   ``floor((a + 180) / 360)`` of J1, J4, J6.
 
-The wrist letter of singplan's own labels (:mod:`singplan.configuration`) is geometric: it
+The wrist letter of singplan's own labels (:mod:`singplan.kinematics.configuration`) is geometric: it
 is the vendor's flip indicator on every bundled arm, in controller terms: ``N`` is ABB axis 5
 >= 0, KUKA Status bit 2 clear (A5 > 0), FANUC ``N`` (J5 <= 0), whatever the URDF's q5 sign (tested;
 at exactly A5 = 0, the singularity itself, KUKA's bit is set while the label says ``N``).

@@ -9,10 +9,10 @@
   number of steps is resampled (cubic Hermite from positions and velocities) to the nearest
   whole number of steps, at least one.
 * ``csv-deg``: header ``t [s],<joint> [deg]...,<joint> [deg/s]...``, one row per sample;
-  optionally a ``vendor_config`` column (:mod:`singplan.vendor_config`) per sample.
+  optionally a ``vendor_config`` column (:mod:`singplan.kinematics.vendor_config`) per sample.
 
 Every writer streams a chunk of samples at a time. Files are written by the rules of
-:mod:`singplan.outputs` (temporary name, renamed when complete, nothing else touched).
+:mod:`singplan.results.files` (temporary name, renamed when complete, nothing else touched).
 """
 
 from __future__ import annotations

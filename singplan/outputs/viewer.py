@@ -7,7 +7,7 @@ a recorder stands in for meshcat's ZMQ window and keeps the commands, and the te
 :func:`viewer_dir` inlines meshcat's viewer bundle, replays them in order and adds the legend,
 the segment list, the crossing labels and the joint-speed strip, so it works offline in any
 current browser. :func:`serve_replay` sends the same commands to a meshcat server listening
-on loopback only, unless another address is asked for (:mod:`singplan.meshcat_server`).
+on loopback only, unless another address is asked for (:mod:`singplan.outputs.meshcat_server`).
 """
 
 from __future__ import annotations
@@ -372,7 +372,7 @@ def _stop(server: subprocess.Popen[str]) -> None:
 
 
 def _start_server(host: str) -> tuple[subprocess.Popen[str], str]:
-    """Start :mod:`singplan.meshcat_server` listening on ``host``; return it and its command address."""
+    """Start :mod:`singplan.outputs.meshcat_server` listening on ``host``; return it and its command address."""
     try:
         socket.getaddrinfo(host, None)
     except (OSError, UnicodeError, ValueError) as exc:

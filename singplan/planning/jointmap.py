@@ -163,8 +163,8 @@ class JointMap:
     def fix_position(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Re-solve joints 1-3 so the TCP position is exact.
 
-        OPW and UR arms: the closed forms of :func:`singplan.ik.opw_arm_for_point` and
-        :func:`singplan.ik_ur.ur_arm_for_point` (the solution nearest ``q``); other chains, or
+        OPW and UR arms: the closed forms of :func:`singplan.kinematics.ik.solve.opw_arm_for_point` and
+        :func:`singplan.kinematics.ik.ur.ur_arm_for_point` (the solution nearest ``q``); other chains, or
         where the point is out of the arm's reach: damped Newton from ``q``.
         """
         assert self.poses is not None

@@ -205,6 +205,6 @@ def sample_deviations(robot: Robot, piece: CartesianPiece | None, u: np.ndarray,
             R[k] = T.rotation
             pos[c + k] = float(np.linalg.norm(T.translation - want[k, :3, 3]))
             ori[c + k] = 0.0 if five else rotation_angle(T.rotation, want[k, :3, :3])
-        if five:  # reduced order: only the tool's z axis is kept (singplan.reduced)
+        if five:  # reduced order: only the tool's z axis is kept (singplan.kinematics.reduced)
             ori[c:c + len(R)] = reduced.z_angles(R, want[:, :3, :3])
     return pos, ori

@@ -1,6 +1,6 @@
 """Singular zones along a path.
 
-Per sample, the signed distances of :mod:`singplan.configuration` (wrist and elbow angles
+Per sample, the signed distances of :mod:`singplan.kinematics.configuration` (wrist and elbow angles
 [rad], shoulder distance [m]). A zone of one kind is a maximal run of the path where its
 |distance| is under the task's threshold; its entry and exit (SEEDS 000's points 48 and 50)
 are interpolated between samples. Each zone also records where the path comes closest to

@@ -1,4 +1,4 @@
-"""Stitch timed moves into a :class:`~singplan.trajectory.Trajectory`: samples, segments,
+"""Stitch timed moves into a :class:`~singplan.results.trajectory.Trajectory`: samples, segments,
 events and metrics (DESIGN.md's contract).
 
 Moves share their boundary sample (one ends at rest where the next starts). A LIN/CIRC with

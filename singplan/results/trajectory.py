@@ -2,7 +2,7 @@
 
 ``trajectory.json`` (format ``singplan.trajectory/1``) and ``trajectory.csv`` follow the
 contract of DESIGN.md. :func:`save` writes them into an output folder by the rules of
-:mod:`singplan.outputs` (only its own files, all or nothing). Both files are streamed a chunk
+:mod:`singplan.results.files` (only its own files, all or nothing). Both files are streamed a chunk
 of samples at a time, so writing needs little memory beyond the trajectory's own arrays.
 """
 
@@ -66,7 +66,7 @@ class MoveRecord:
     """One task move: its time span, the configuration it ends in and that in the vendor's form.
 
     ``vendor_config`` is ``{"abb": {...}}``, ``{"kuka": {...}}``, ``{"fanuc": "..."}`` or None
-    (see :mod:`singplan.vendor_config`).
+    (see :mod:`singplan.kinematics.vendor_config`).
     """
 
     move: int
@@ -232,7 +232,7 @@ def save(traj: Trajectory, out_dir: str | Path, extra_files: Mapping[str, str] |
 
     Only these files are written; the rest of the folder is left alone. All are renamed into
     place together once written; on any failure the folder is as it was (see
-    :mod:`singplan.outputs`). An unusable ``out_dir`` raises OutputPathError.
+    :mod:`singplan.results.files`). An unusable ``out_dir`` raises OutputPathError.
     """
     writers: dict[str, Writer] = {"trajectory.csv": lambda stream: write_csv(stream, traj),
                                   "trajectory.json": lambda stream: write_json(stream, traj)}

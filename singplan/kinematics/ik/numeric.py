@@ -83,7 +83,7 @@ def _tip_target(robot: Robot, T_base_tcp: pin.SE3) -> pin.SE3:
 
 def _error(robot: Robot, T_target_tip: pin.SE3, q: np.ndarray) -> tuple[np.ndarray, pin.SE3]:
     """``log6(T(q)^-1 T_target)`` (tip frame) and the tip pose T(q); for a five-joint arm the
-    reduced error of :func:`singplan.reduced.error` (position and tool z axis, 5 rows)."""
+    reduced error of :func:`singplan.kinematics.reduced.error` (position and tool z axis, 5 rows)."""
     pin.forwardKinematics(robot.model, robot.data, q)
     T = pin.updateFramePlacement(robot.model, robot.data, robot.tip_frame_id)
     if reduced.is_reduced(robot):

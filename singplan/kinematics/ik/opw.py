@@ -1,10 +1,10 @@
-"""Compiled OPW closed form: the per-pose arithmetic of :func:`singplan.ik.opw_batch`.
+"""Compiled OPW closed form: the per-pose arithmetic of :func:`singplan.kinematics.ik.solve.opw_batch`.
 
 The formulas are those of Brandstoetter, Angerer and Hofbaur (2014), written as scalar loops
-over the poses and compiled (:mod:`singplan.compiled`): as vectorised numpy the solver was
+over the poses and compiled (:mod:`singplan.kinematics.compiled`): as vectorised numpy the solver was
 ~150 array operations, about 0.3 ms per call whatever the number of poses.
 
-All angles here are in OPW coordinates; :mod:`singplan.ik` converts to robot joints.
+All angles here are in OPW coordinates; :mod:`singplan.kinematics.ik.solve` converts to robot joints.
 """
 
 from __future__ import annotations
@@ -142,7 +142,8 @@ def branches(T: np.ndarray, a1: float, a2: float, b: float, c1: float, c2: float
 def arm_for_point(q_opw: np.ndarray, point: np.ndarray, targets: np.ndarray, a1: float, a2: float, b: float,
                   c1: float, c2: float, c3: float) -> np.ndarray:
     """The four arm solutions (N, 4, 3) that put ``point`` (3,), fixed in the frame ``e`` of the
-    wrist, at ``targets`` (N, 3), wrist angles q_opw[:, 3:] held (see :func:`singplan.ik.opw_arm_for_point`).
+    wrist, at ``targets`` (N, 3), wrist angles q_opw[:, 3:] held
+    (see :func:`singplan.kinematics.ik.solve.opw_arm_for_point`).
 
     ``w = Rz(t4) Ry(t5) Rz(t6) point`` is the point in the forearm frame ``c``; the arm then
     places it as the wrist centre of an arm with a2 + w_x, b + w_y, c3 + w_z.

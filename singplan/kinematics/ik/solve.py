@@ -9,12 +9,12 @@ Three solvers share one API (:func:`solve_all`, :func:`closed_form_branches`):
   ``c = p - c4 * z_flange``; for each, the wrist rotation ``R_ce = R_0c^T R`` is a ZYZ
   rotation ``Rz(q4) Ry(q5) Rz(q6)`` whose two decompositions (q5 and -q5) give eight
   branches. :func:`opw_batch` evaluates all eight for N poses at once (a compiled loop,
-  :mod:`singplan.opw`).
-* **UR closed form** (:mod:`singplan.ik_ur`) for the ur_description layout, eight branches.
-* **Numeric** (:mod:`singplan.ik_numeric`: Levenberg-Marquardt on the SE(3) log error from
+  :mod:`singplan.kinematics.ik.opw`).
+* **UR closed form** (:mod:`singplan.kinematics.ik.ur`) for the ur_description layout, eight branches.
+* **Numeric** (:mod:`singplan.kinematics.ik.numeric`: Levenberg-Marquardt on the SE(3) log error from
   quasi-random and branch-flipped seeds, inside the joint limits) for any other chain.
 
-Which applies is :attr:`Robot.family`, recognised and verified from the chain (:mod:`singplan.families`).
+Which applies is :attr:`Robot.family`, recognised and verified from the chain (:mod:`singplan.kinematics.families`).
 
 At an exactly wrist-singular pose (q5 = 0) only q4 + q6 is determined. singplan keeps q4
 at the seed's value (0 without a seed) and gives the rest to q6, so no branch is lost and

@@ -56,7 +56,7 @@ class UrParameters:
     @classmethod
     def from_model(cls, model: pin.Model, tip_frame_id: int) -> UrParameters:
         """Read from the joint placements of a chain in the ur_description layout (not checked here:
-        :mod:`singplan.families` verifies the closed form against the chain's FK)."""
+        :mod:`singplan.kinematics.families` verifies the closed form against the chain's FK)."""
         jp = [model.jointPlacements[i].translation for i in range(1, 7)]
         tip = model.frames[tip_frame_id].placement.translation
         R2 = model.jointPlacements[2].rotation
@@ -66,7 +66,7 @@ class UrParameters:
 
 
 def ur_parameters(robot: Robot) -> UrParameters:
-    """The UR parameters :mod:`singplan.families` recognised and verified for ``robot``."""
+    """The UR parameters :mod:`singplan.kinematics.families` recognised and verified for ``robot``."""
     if robot.ur is None:
         raise ValueError(f"{robot.name} is not a UR-type arm (family {robot.family})")
     return robot.ur

@@ -102,7 +102,7 @@ def through(ctx: MoveContext, zone: Zone, method: str) -> Crossing | None:
 
 def exit_candidates(ctx: MoveContext, u: float) -> list[np.ndarray]:
     """Every IK branch of the path pose at ``u``: the closed form, or on an arm without one the
-    all-branch numeric IK (:func:`singplan.ik_numeric.all_branches`, inside the joint limits)."""
+    all-branch numeric IK (:func:`singplan.kinematics.ik.numeric.all_branches`, inside the joint limits)."""
     T = ctx.piece.poses(np.array([u]))
     sols = closed_form_branches(ctx.robot, T)[0]
     if sols.shape[0] == 0:

@@ -47,7 +47,8 @@ from singplan.kinematics.ik.solve import solve_all, solve_newton
 from singplan.kinematics.robot import Robot
 from singplan.planning.planner import load_task_robot
 from singplan.results.plan import plan
-from singplan.task.schema import Task, load_task, parse_task
+from singplan.task.load import load_task, parse_task
+from singplan.task.schema import Task
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))

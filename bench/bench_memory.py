@@ -97,7 +97,7 @@ def model_mb(task: Path) -> float:
     """The budget's estimate [MB] of a task's peak (singplan/planning/budget.py, as the planner calls it)."""
     from singplan.planning.budget import check_task, memory_mb
     from singplan.planning.planner import STEP_M, STEP_RAD, load_task_robot
-    from singplan.task.schema import load_task
+    from singplan.task.load import load_task
 
     spec = load_task(task)
     robot = load_task_robot(spec)

@@ -27,7 +27,8 @@ from singplan.planning import planner
 from singplan.planning.crossing import registry
 from singplan.planning.records import PlannedMove
 from singplan.results.plan import plan
-from singplan.task.schema import Task, load_task, parse_task
+from singplan.task.load import load_task, parse_task
+from singplan.task.schema import Task
 
 HERE = Path(__file__).resolve().parent
 MARK = "bench_plan"

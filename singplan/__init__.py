@@ -29,7 +29,8 @@ if TYPE_CHECKING:
     from singplan.planning.planner import detect
     from singplan.results.plan import plan
     from singplan.results.trajectory import Segment, Trajectory, save
-    from singplan.task.schema import Task, load_task, parse_task
+    from singplan.task.load import load_task, parse_task
+    from singplan.task.schema import Task
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
@@ -50,8 +51,8 @@ _HOMES = {  # public name -> the module that defines it
     "bundled_robots": "singplan.kinematics.robot",
     "load_robot": "singplan.kinematics.robot",
     "Task": "singplan.task.schema",
-    "load_task": "singplan.task.schema",
-    "parse_task": "singplan.task.schema",
+    "load_task": "singplan.task.load",
+    "parse_task": "singplan.task.load",
     "detect": "singplan.planning.planner",
     "plan": "singplan.results.plan",
     "Segment": "singplan.results.trajectory",

@@ -41,7 +41,7 @@ from singplan.planning.planner import load_task_robot
 from singplan.results.files import check_output_dir, write_files
 from singplan.results.plan import plan
 from singplan.results.trajectory import Trajectory, save
-from singplan.task.schema import load_task
+from singplan.task.load import load_task
 
 FORMAT = "singplan.batch/1"
 SUMMARY_FILES = ("summary.csv", "summary.json")

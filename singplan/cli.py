@@ -215,7 +215,7 @@ def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from singplan.results.files import check_output_dir
     from singplan.results.plan import plan
     from singplan.results.trajectory import save
-    from singplan.task.schema import load_task
+    from singplan.task.load import load_task
 
     task = load_task(args.task)
     names = ["trajectory.csv", "trajectory.json", *(() if args.no_report else ("report.html",)),
@@ -246,7 +246,7 @@ def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from singplan.planning.planner import detect
-    from singplan.task.schema import load_task
+    from singplan.task.load import load_task
 
     task = load_task(args.task)
     found = detect(task)

@@ -39,7 +39,7 @@ def planned_kuka(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """An output folder of a small plan (a KUKA LIN through a wrist near miss), planned once per session."""
     from singplan.results.plan import plan
     from singplan.results.trajectory import save
-    from singplan.task.schema import load_task
+    from singplan.task.load import load_task
 
     task = Path(__file__).resolve().parent.parent / "singplan" / "demo_task.yaml"
     return save(plan(load_task(task)), tmp_path_factory.mktemp("planned_kuka"))

@@ -31,7 +31,8 @@ from singplan.planning.timing import sample_ratios
 from singplan.results import build as trajectory_build
 from singplan.results.plan import plan
 from singplan.results.trajectory import finite_differences
-from singplan.task.schema import MAX_OUTPUT_SAMPLES, Task, parse_task
+from singplan.task.load import parse_task
+from singplan.task.schema import MAX_OUTPUT_SAMPLES, Task
 
 START_DEG = [0, -80, 100, 0, 40, 0]
 GUARD_BYTES = 3_000_000_000  # the subprocess's address space: a regression fails, it cannot eat the machine

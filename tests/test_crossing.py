@@ -15,7 +15,7 @@ from singplan.kinematics.robot import load_robot
 from singplan.planning.crossing.registry import candidates
 from singplan.planning.planner import load_task_robot
 from singplan.results.plan import plan
-from singplan.task.schema import load_task, parse_task
+from singplan.task.load import load_task, parse_task
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 NEAR_MISS = EXAMPLES / "abb_near_miss_auto.yaml"

@@ -19,7 +19,7 @@ from singplan.errors import TaskError
 from singplan.kinematics.dynamics import effort_limits_nm, has_inertias, no_dynamics_reason, trajectory_torques
 from singplan.kinematics.robot import bundled_robots, load_robot
 from singplan.results.plan import plan
-from singplan.task.schema import parse_task
+from singplan.task.load import parse_task
 
 VERIFY = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"
 # A UR5 PTP (shoulder pan 90 deg, arm raised) then a LIN; at 40 rad/s^2 the unconstrained timing

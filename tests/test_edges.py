@@ -14,7 +14,7 @@ from singplan.kinematics.robot import load_robot
 from singplan.planning import planner
 from singplan.planning.timing import TimedMove
 from singplan.results.plan import plan
-from singplan.task.schema import parse_task
+from singplan.task.load import parse_task
 
 DEMO_START = [34.466047735, -69.193961827, 100.109975431, 68.691762951, -14.064499937, -11.872434380]
 DEMO_TO = {"xyz": [0.703837, -0.107362, 0.658022], "rpy_deg": [-121.329770, 35.631042, -129.525465]}

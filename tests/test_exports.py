@@ -20,7 +20,7 @@ from singplan.cli import main
 from singplan.outputs import exports
 from singplan.results.plan import plan
 from singplan.results.trajectory import Trajectory, load, save
-from singplan.task.schema import load_task
+from singplan.task.load import load_task
 from tests.conftest import SCENARIOS
 
 # Written from the message definitions (ROS 2 common_interfaces / rcl_interfaces):

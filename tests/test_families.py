@@ -20,7 +20,7 @@ from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import bundled_robots, default_tip, load_robot
 from singplan.outputs.summary import summary
 from singplan.results.plan import plan
-from singplan.task.schema import parse_task
+from singplan.task.load import parse_task
 
 from .conftest import OPW_NAMES
 

@@ -256,7 +256,7 @@ def test_an_unexpected_exception_is_one_line_and_exit_1(tmp_path: Path, monkeypa
     def explode(*args: object) -> None:
         raise error
 
-    monkeypatch.setattr("singplan.task.schema.load_task", explode)
+    monkeypatch.setattr("singplan.task.load.load_task", explode)
     monkeypatch.delenv("SINGPLAN_DEBUG", raising=False)
     stderr = io.StringIO()
     assert main(["plan", str(_task(tmp_path)), "-o", str(tmp_path / "o")], out=io.StringIO(), err=stderr) == 1

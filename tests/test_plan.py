@@ -15,7 +15,7 @@ import yaml
 from singplan.cli import main
 from singplan.kinematics.robot import load_robot
 from singplan.results.plan import plan
-from singplan.task.schema import parse_task
+from singplan.task.load import parse_task
 
 DEMO = Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml"
 

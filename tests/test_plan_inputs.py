@@ -14,7 +14,7 @@ from singplan.cli import main
 from singplan.errors import TaskError, UnreachableError
 from singplan.kinematics.robot import load_robot
 from singplan.results.plan import plan
-from singplan.task.schema import parse_task
+from singplan.task.load import parse_task
 
 BASE = {"robot": "kuka_kr6_r900_2", "tool": {"xyz": [0, 0, 0.1]},
         "start": {"joints_deg": [0, -80, 100, 0, 40, 0]}}

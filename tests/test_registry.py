@@ -17,7 +17,7 @@ from singplan.planning.crossing.methods import WristJoint
 from singplan.planning.zones import Zone
 from singplan.results.plan import plan
 from singplan.task import schema
-from singplan.task.schema import load_task
+from singplan.task.load import load_task
 
 NEAR_MISS = Path(__file__).resolve().parents[1] / "examples" / "abb_near_miss_auto.yaml"
 

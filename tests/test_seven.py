@@ -24,7 +24,7 @@ from singplan.kinematics.robot import Robot, load_robot
 from singplan.planning.path import move_piece
 from singplan.planning.redundancy import HeldJoint, hold_joint
 from singplan.results.plan import plan
-from singplan.task.schema import parse_task
+from singplan.task.load import parse_task
 
 VERIFY = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"
 HELD_TOL_RAD = 1e-9

@@ -10,6 +10,7 @@ import pytest
 
 from singplan.errors import TaskError
 from singplan.kinematics.robot import VELOCITY_LIMIT_RAD_S
+from singplan.task.load import load_task, parse_task
 from singplan.task.schema import (
     ACCELERATION_RAD_S2,
     JOINT_DEG,
@@ -18,8 +19,6 @@ from singplan.task.schema import (
     PERIOD_S,
     SPEED_M_S,
     VELOCITY_SCALE,
-    load_task,
-    parse_task,
 )
 
 GOOD = (Path(__file__).parent / "data" / "good_task.yaml").read_text()  # every field set

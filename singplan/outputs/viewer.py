@@ -44,7 +44,7 @@ from singplan.outputs.choices import DEFAULT_HOST
 from singplan.planning.path import move_piece
 from singplan.results.files import check_output_file, text_writer, write_file
 from singplan.results.trajectory import Segment, Trajectory, load
-from singplan.task.schema import parse_task
+from singplan.task.load import parse_task
 
 _SERVER_START_S = 60.0  # longest wait for the live server to report its address
 ANIMATION_STEP_S = 0.02  # animation keyframes at most this often; the browser interpolates between them

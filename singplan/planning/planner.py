@@ -35,7 +35,8 @@ from singplan.planning.select import best_of
 from singplan.planning.timing import MoveLimits, TimedMove, TimingError, time_move
 from singplan.planning.tracking import BranchCandidates, TrackedPath, track
 from singplan.planning.zones import DistanceFunction, Zone, distances_along, find_zones
-from singplan.task.schema import Move, Task, check_against_robot, load_task
+from singplan.task.load import check_against_robot, load_task
+from singplan.task.schema import Move, Task
 
 STEP_M = 0.002  # initial path sampling: at most 2 mm ...
 STEP_RAD = math.radians(0.5)  # ... and 0.5 deg of tool rotation between samples

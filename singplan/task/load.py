@@ -1,0 +1,439 @@
+"""Task loading: a YAML file or a mapping -> :class:`~singplan.task.schema.Task`, with field-named errors.
+
+The file is scanned as YAML events before anything is built (size, depth, node count, key and
+scalar length), then parsed with the safe loader, then checked field by field; every error names
+the field (``moves[3].lin.speed``) and the valid values or range. The checks that need the robot
+(joint counts, labels, limits) are in :func:`check_against_robot`.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from singplan.errors import TaskError
+from singplan.kinematics.configuration import parse_configuration
+from singplan.kinematics.robot import Robot
+from singplan.task.schema import (
+    ACCELERATION_RAD_S2,
+    ANGLE_DEG,
+    COORDINATE_M,
+    DEFAULT_SPEED_M_S,
+    JOINT_DEG,
+    MAX_DEPTH,
+    MAX_FILE_BYTES,
+    MAX_JOINTS,
+    MAX_KEY_CHARS,
+    MAX_MOVES,
+    MAX_NAME_CHARS,
+    MAX_PATH_CHARS,
+    MAX_SCALAR_CHARS,
+    MAX_YAML_NODES,
+    ORIENTATION_TOLERANCE_DEG,
+    PERIOD_S,
+    POSITION_TOLERANCE_MM,
+    SPEED_M_S,
+    TOOL_OFFSET_M,
+    TORQUE_SCALE,
+    VELOCITY_SCALE,
+    ZONE_ANGLE_DEG,
+    ZONE_SHOULDER_MM,
+    Limits,
+    Move,
+    PoseSpec,
+    Redundancy,
+    SingularitySettings,
+    Task,
+    ZoneThresholds,
+    _check_choice,
+    _check_keys,
+    _check_mapping,
+    _describe,
+    _join,
+    _key_text,
+    _number,
+    _optional_mapping,
+    _path_text,
+    _short,
+    _string,
+    _vector,
+    method_names,
+)
+
+# more digits than any float can hold: decimal (and YAML 1.1 octal), hexadecimal, binary
+_LONG_INTEGER = re.compile(r"[-+]?(?:[0-9][0-9_:]{399,}|0[xX][0-9a-fA-F_]{256,}|0[bB][01_]{1024,})")
+
+# -- reading ---------------------------------------------------------------------------------
+
+
+class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+    """The safe loader (libyaml's when installed); reached only after :func:`_scan` passed.
+
+    It also reads ``1e-3`` and ``2E5`` as numbers (YAML 1.2, JSON), which YAML 1.1 leaves as
+    strings; a user writing them means numbers.
+    """
+
+
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float",
+                              re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"), list("-+0123456789"))
+
+
+@dataclass
+class _Open:
+    """A mapping or sequence the event scan is inside of."""
+
+    path: str
+    is_mapping: bool
+    key_lines: dict[str, int] = field(default_factory=dict)  # mapping: key -> line it was given on
+    count: int = 0  # sequence: items so far; mapping: keys and values so far
+    key: str = ""  # mapping: the key whose value comes next
+
+
+def load_task(path: str | Path) -> Task:
+    """Read and validate a task file (YAML v1).
+
+    The YAML event stream is scanned first (iteratively, so no input can exhaust the stack):
+    nesting deeper than :data:`MAX_DEPTH`, more than :data:`MAX_YAML_NODES` nodes, aliases,
+    merge keys, keys given twice in one mapping, huge scalars and more than one document are
+    refused with the key path and line before PyYAML builds anything.
+    """
+    p = Path(path)
+    text = _read_text(p)
+    try:
+        _scan(text, _path_text(p.name))
+        doc = yaml.load(text, Loader=_Loader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise TaskError("", f"{_path_text(p.name)}: not valid YAML{where}: {_short(str(problem))}") from None
+    except (ValueError, OverflowError) as exc:  # a scalar PyYAML itself cannot convert
+        raise TaskError("", f"{_path_text(p.name)}: a value cannot be read: {_short(str(exc))}") from None
+    if doc is None:
+        raise TaskError("", f"{_path_text(p.name)}: the task file is empty; it needs at least robot, start and moves")
+    if not isinstance(doc, Mapping):
+        raise TaskError("", f"{_path_text(p.name)}: the task must be a mapping of keys (robot, start, moves, ...), "
+                            f"got {_describe(doc)}")
+    return parse_task(doc, base_dir=p.parent)
+
+
+def _read_text(p: Path) -> str:
+    """The file's text, refusing what is not a readable UTF-8 file within the size cap."""
+    name = _path_text(str(p))
+    try:
+        if p.is_dir():
+            raise TaskError("", f"{name}: is a directory, not a task file")
+        if not p.exists():
+            raise TaskError("", f"{name}: no such task file")
+        if not p.is_file():
+            raise TaskError("", f"{name}: not a regular file")
+        with p.open("rb") as f:
+            data = f.read(MAX_FILE_BYTES + 1)  # bounded even if the file grows meanwhile
+    except PermissionError:
+        raise TaskError("", f"{name}: cannot be read (permission denied)") from None
+    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
+        raise TaskError("", f"{name}: cannot be read ({_short(getattr(exc, 'strerror', None) or str(exc))})") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise TaskError("", f"{name}: over the {MAX_FILE_BYTES}-byte cap for a task file")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise TaskError("", f"{name}: not a UTF-8 text file (byte {exc.start} is invalid)") from None
+    if not text.strip():
+        raise TaskError("", f"{name}: the task file is empty; it needs at least robot, start and moves")
+    return text
+
+
+def _scan(text: str, name: str) -> None:
+    """Refuse what the YAML event stream shows is unsafe or ambiguous (see :func:`load_task`)."""
+    stack: list[_Open] = []
+    documents = nodes = 0
+    for event in yaml.parse(text, Loader=_Loader):
+        line = event.start_mark.line + 1 if event.start_mark is not None else 0  # the parser always marks
+        if isinstance(event, yaml.DocumentStartEvent):
+            documents += 1
+            if documents > 1:
+                raise TaskError("", f"{name}: holds more than one YAML document (the second starts at "
+                                    f"line {line}); a task file holds one")
+        elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            stack.pop()
+        elif isinstance(event, yaml.NodeEvent):
+            nodes += 1
+            if nodes > MAX_YAML_NODES:
+                raise TaskError("", f"{name}: more than {MAX_YAML_NODES} YAML nodes (at line {line})")
+            where = _place(stack, event, line)
+            if where is not None:
+                _check_node(stack, event, where, line)
+
+
+def _place(stack: list[_Open], event: Any, line: int) -> str | None:
+    """The key path of a value node; None (after checking it) when the node is a mapping key."""
+    if not stack:
+        return ""
+    top = stack[-1]
+    top.count += 1
+    if not top.is_mapping:
+        return f"{top.path}[{top.count - 1}]"
+    if top.count % 2 == 0:
+        return _join(top.path, _key_text(top.key))
+    if not isinstance(event, yaml.ScalarEvent):
+        raise TaskError(top.path, f"a key must be a plain name, not a list, mapping or alias (line {line})")
+    key_path = _join(top.path, _key_text(event.value))
+    if event.value == "<<" and event.implicit[0]:
+        raise TaskError(key_path, f"YAML merge keys are not allowed in a task (line {line})")
+    if event.value in top.key_lines:
+        raise TaskError(key_path, f"given twice in one mapping (lines {top.key_lines[event.value]} and {line}); "
+                                  "a key may appear once")
+    if len(event.value) > MAX_KEY_CHARS:
+        raise TaskError(key_path, f"a key of {len(event.value)} characters is over the cap of {MAX_KEY_CHARS} "
+                                  f"(line {line})")
+    top.key_lines[event.value] = line
+    top.key = event.value
+    return None
+
+
+def _check_node(stack: list[_Open], event: Any, where: str, line: int) -> None:
+    if isinstance(event, yaml.AliasEvent):
+        raise TaskError(where, f"YAML aliases are not allowed in a task (line {line})")
+    if isinstance(event, yaml.ScalarEvent):
+        if _LONG_INTEGER.fullmatch(event.value):  # quoted too: `!!int "9...9"` would reach int() otherwise
+            raise TaskError(where, f"number too large ({len(event.value)} characters, line {line})")
+        if len(event.value) > MAX_SCALAR_CHARS:
+            raise TaskError(where, f"a value of {len(event.value)} characters is over the cap of "
+                                   f"{MAX_SCALAR_CHARS} (line {line})")
+        return
+    if len(stack) >= MAX_DEPTH:
+        raise TaskError(_short(where, 120), f"nesting deeper than {MAX_DEPTH} levels (line {line})")
+    stack.append(_Open(where, isinstance(event, yaml.MappingStartEvent)))
+
+
+def parse_task(doc: Any, base_dir: Path | None = None) -> Task:
+    """Validate a task mapping (the YAML document, or built in Python)."""
+    if doc is None:
+        raise TaskError("", "the task is empty; it needs at least robot, start and moves")
+    if not isinstance(doc, Mapping):
+        raise TaskError("", f"the task must be a mapping of keys, got {type(doc).__name__}")
+    _check_keys("", doc, required=("robot", "start", "moves"),
+                optional=("tip", "tool", "singularity", "limits", "output", "redundancy"))
+    robot = _robot_ref(doc["robot"], base_dir)
+    tip = _string("tip", doc["tip"]) if doc.get("tip") is not None else None
+    tool = _optional_mapping(doc, "tool", "")
+    _check_keys("tool", tool, optional=("xyz", "rpy_deg"))
+    start_joints, start_pose, start_config = _start(doc["start"])
+    moves = _moves(doc["moves"])
+    return Task(
+        robot=robot, moves=moves, start_joints_deg=start_joints, start_pose=start_pose, start_config=start_config,
+        tip=tip,
+        tool_xyz=_vector("tool.xyz", tool.get("xyz", (0, 0, 0)), 3, TOOL_OFFSET_M),  # type: ignore[arg-type]
+        tool_rpy_deg=_vector("tool.rpy_deg", tool.get("rpy_deg", (0, 0, 0)), 3, ANGLE_DEG),  # type: ignore[arg-type]
+        singularity=_singularity(_optional_mapping(doc, "singularity", "")),
+        limits=_limits(_optional_mapping(doc, "limits", "")),
+        period_s=_output_period(_optional_mapping(doc, "output", "")),
+        redundancy=_redundancy(doc["redundancy"]) if doc.get("redundancy") is not None else None,
+    )
+
+
+def _robot_ref(value: Any, base_dir: Path | None) -> str:
+    """A bundled robot name as given, or the absolute path of an existing ``.urdf`` file."""
+    name = _string("robot", value, max_chars=MAX_PATH_CHARS)
+    if not name.lower().endswith(".urdf"):
+        if "/" in name or "\\" in name or "." in name:
+            raise TaskError("robot", f"{_short(repr(name))} is not a bundled robot name, and a URDF path must "
+                                     "end in .urdf")
+        return _string("robot", name, max_chars=MAX_NAME_CHARS)
+    path = Path(name).expanduser()
+    if not path.is_absolute() and base_dir is not None:
+        path = base_dir / path
+    try:
+        if path.is_dir():
+            raise TaskError("robot", f"{_path_text(str(path))} is a directory, not a URDF file")
+        if not path.is_file():
+            raise TaskError("robot", f"URDF file {_path_text(str(path))} does not exist")
+        return str(path.resolve())
+    except OSError as exc:  # e.g. a name too long for the file system
+        raise TaskError("robot", f"URDF file {_path_text(str(path))} cannot be read ({exc.strerror})") from None
+
+
+def _pose(where: str, value: Any, need_rpy: bool = False) -> PoseSpec:
+    _check_mapping(where, value)
+    _check_keys(where, value, required=("xyz", *(("rpy_deg",) if need_rpy else ())), optional=("rpy_deg",))
+    xyz = _vector(f"{where}.xyz", value["xyz"], 3, COORDINATE_M)
+    rpy = value.get("rpy_deg")
+    rpy_t = _vector(f"{where}.rpy_deg", rpy, 3, ANGLE_DEG) if rpy is not None else None
+    return PoseSpec(xyz, rpy_t)  # type: ignore[arg-type]
+
+
+def _joints(where: str, value: Any) -> tuple[float, ...]:
+    if not isinstance(value, Sequence) or isinstance(value, (str, bytes)) or not value:
+        raise TaskError(where, f"expected a list of joint values [deg], got {_describe(value)}")
+    if len(value) > MAX_JOINTS:
+        raise TaskError(where, f"{len(value)} joint values is more than any arm has")
+    return tuple(_number(f"{where}[{i}]", v, JOINT_DEG) for i, v in enumerate(value))
+
+
+def _config(where: str, value: Any) -> str:
+    text = _string(where, value)
+    if text in ("auto", "keep"):
+        return text
+    return parse_configuration(text, where).label
+
+
+def _start(value: Any) -> tuple[tuple[float, ...] | None, PoseSpec | None, str | None]:
+    _check_mapping("start", value)
+    _check_keys("start", value, optional=("joints_deg", "pose", "config"))
+    has_joints, has_pose = value.get("joints_deg") is not None, value.get("pose") is not None
+    if has_joints == has_pose:
+        raise TaskError("start", "give exactly one of joints_deg or pose" + (" (both given)" if has_joints else ""))
+    config = _config("start.config", value["config"]) if value.get("config") is not None else None
+    if has_joints:
+        if config is not None:
+            raise TaskError("start.config", "only with start.pose (joints already fix the configuration)")
+        return _joints("start.joints_deg", value["joints_deg"]), None, None
+    if config in ("auto", "keep"):
+        raise TaskError("start.config", f"expected a configuration like 'F U N', got {config!r}")
+    return None, _pose("start.pose", value["pose"], need_rpy=True), config
+
+
+def _moves(value: Any) -> tuple[Move, ...]:
+    if not isinstance(value, Sequence) or isinstance(value, (str, bytes)):
+        raise TaskError("moves", f"expected a list of moves, got {_describe(value)}")
+    if not value:
+        raise TaskError("moves", "the list is empty; give at least one move")
+    if len(value) > MAX_MOVES:
+        raise TaskError("moves", f"{len(value)} moves is over the cap of {MAX_MOVES}")
+    return tuple(_move(f"moves[{i}]", m) for i, m in enumerate(value))
+
+
+def _move(where: str, value: Any) -> Move:
+    _check_mapping(where, value)
+    if len(value) != 1:
+        keys = ", ".join(_key_text(k) for k in list(value)[:5]) + (", ..." if len(value) > 5 else "")
+        raise TaskError(where, f"expected one of lin, circ, ptp as the only key, got {len(value)} keys: {keys}")
+    kind = str(next(iter(value)))
+    _check_choice(f"{where} kind", kind, ("lin", "circ", "ptp"))
+    where = f"{where}.{kind}"
+    spec = value[kind]
+    _check_mapping(where, spec)
+    if kind == "ptp":
+        _check_keys(where, spec, required=("to",), optional=("velocity_scale", "config"))
+    else:
+        _check_keys(where, spec, required=("to", *(("via",) if kind == "circ" else ())),
+                    optional=("speed", "config"))
+    config = _config(f"{where}.config", spec["config"]) if spec.get("config") is not None else "auto"
+    to = spec["to"]
+    _check_mapping(f"{where}.to", to)
+    if kind == "ptp" and "joints_deg" in to:
+        _check_keys(f"{where}.to", to, required=("joints_deg",))
+        return Move(kind, to_joints_deg=_joints(f"{where}.to.joints_deg", to["joints_deg"]),
+                    velocity_scale=_scale(f"{where}.velocity_scale", spec.get("velocity_scale", 1.0)), config=config)
+    target = _pose(f"{where}.to", to)
+    if kind == "ptp":
+        return Move(kind, to=target, velocity_scale=_scale(f"{where}.velocity_scale", spec.get("velocity_scale", 1.0)),
+                    config=config)
+    speed = _number(f"{where}.speed", spec.get("speed", DEFAULT_SPEED_M_S), SPEED_M_S)
+    via = None
+    if kind == "circ":
+        via_spec = spec["via"]
+        _check_mapping(f"{where}.via", via_spec)
+        _check_keys(f"{where}.via", via_spec, required=("xyz",))
+        via = _vector(f"{where}.via.xyz", via_spec["xyz"], 3, COORDINATE_M)
+    return Move(kind, to=target, via_xyz=via, speed_m_s=speed, config=config)  # type: ignore[arg-type]
+
+
+def _scale(where: str, value: Any) -> float:
+    return _number(where, value, VELOCITY_SCALE)
+
+
+def _singularity(value: Any) -> SingularitySettings:
+    _check_keys("singularity", value,
+                optional=("method", "orientation_tolerance_deg", "position_tolerance_mm", "zone"))
+    zone = _optional_mapping(value, "zone", "singularity")
+    _check_keys("singularity.zone", zone, optional=("wrist_deg", "shoulder_mm", "elbow_deg"))
+    defaults = ZoneThresholds()
+    return SingularitySettings(
+        method=_check_choice("singularity.method", value.get("method", "auto"), method_names()),
+        orientation_tolerance_deg=_number("singularity.orientation_tolerance_deg",
+                                          value.get("orientation_tolerance_deg", 5.0), ORIENTATION_TOLERANCE_DEG),
+        position_tolerance_mm=_number("singularity.position_tolerance_mm", value.get("position_tolerance_mm", 0.01),
+                                      POSITION_TOLERANCE_MM),
+        zone=ZoneThresholds(
+            wrist_deg=_number("singularity.zone.wrist_deg", zone.get("wrist_deg", defaults.wrist_deg),
+                              ZONE_ANGLE_DEG),
+            shoulder_mm=_number("singularity.zone.shoulder_mm", zone.get("shoulder_mm", defaults.shoulder_mm),
+                                ZONE_SHOULDER_MM),
+            elbow_deg=_number("singularity.zone.elbow_deg", zone.get("elbow_deg", defaults.elbow_deg),
+                              ZONE_ANGLE_DEG)))
+
+
+def _limits(value: Any) -> Limits:
+    _check_keys("limits", value, optional=("velocity_scale", "acceleration", "torque_scale"))
+    acc = value.get("acceleration", 10.0)
+    if isinstance(acc, Sequence) and not isinstance(acc, (str, bytes)):
+        if not acc or len(acc) > MAX_JOINTS:
+            raise TaskError("limits.acceleration", f"expected a number or one number per joint, got {len(acc)}")
+        accel = tuple(_number(f"limits.acceleration[{i}]", a, ACCELERATION_RAD_S2) for i, a in enumerate(acc))
+    else:
+        accel = (_number("limits.acceleration", acc, ACCELERATION_RAD_S2),)
+    torque = _number("limits.torque_scale", value["torque_scale"], TORQUE_SCALE) if "torque_scale" in value else None
+    return Limits(velocity_scale=_scale("limits.velocity_scale", value.get("velocity_scale", 1.0)),
+                  acceleration_rad_s2=accel, torque_scale=torque)
+
+
+def _redundancy(value: Any) -> Redundancy:
+    if not isinstance(value, Mapping):
+        raise TaskError("redundancy", f"expected a mapping {{joint: NAME, value_deg: X}}, got {_describe(value)}")
+    _check_keys("redundancy", value, required=("joint",), optional=("value_deg",))
+    return Redundancy(_string("redundancy.joint", value["joint"]),
+                      _number("redundancy.value_deg", value.get("value_deg", 0.0), ANGLE_DEG))
+
+
+def _output_period(value: Any) -> float:
+    _check_keys("output", value, optional=("period",))
+    return _number("output.period", value.get("period", 0.004), PERIOD_S)
+
+
+# -- robot-dependent checks ------------------------------------------------------------------
+
+
+def check_against_robot(task: Task, robot: Robot) -> None:
+    """Joint counts and joint limits of every joint-space value in the task."""
+    n = robot.n_joints
+    if task.start_joints_deg is not None:
+        _check_joint_values("start.joints_deg", task.start_joints_deg, robot)
+    for i, move in enumerate(task.moves):
+        if move.to_joints_deg is not None:
+            _check_joint_values(f"moves[{i}].ptp.to.joints_deg", move.to_joints_deg, robot)
+    acc = task.limits.acceleration_rad_s2
+    if len(acc) not in (1, n):
+        raise TaskError("limits.acceleration", f"expected 1 or {n} numbers for {robot.name}, got {len(acc)}")
+    if robot.family == "seven" and task.redundancy is None:
+        _check_no_labels(task, robot)
+
+
+def _check_no_labels(task: Task, robot: Robot) -> None:
+    """A 7-joint arm planned with all its joints has no configuration labels to honour."""
+    named = [("start.config", task.start_config)] if task.start_config else []
+    named += [(f"moves[{i}].{m.kind}.config", m.config) for i, m in enumerate(task.moves)
+              if m.config not in ("auto", "keep")]
+    if named:
+        where, label = named[0]
+        raise TaskError(where, f"{label!r} names a 6-axis configuration; {robot.name} has 7 joints and no "
+                               "configuration labels (hold one joint with `redundancy` to plan it as a 6-axis "
+                               "chain with labels, or leave config out)")
+
+
+def _check_joint_values(where: str, values_deg: tuple[float, ...], robot: Robot) -> None:
+    if len(values_deg) != robot.n_joints:
+        raise TaskError(where, f"expected {robot.n_joints} joint values for {robot.name}, got {len(values_deg)}")
+    for j, v in enumerate(values_deg):
+        rad = math.radians(v)
+        lo, hi = robot.lower_rad[j], robot.upper_rad[j]
+        if rad < lo - 1e-9 or rad > hi + 1e-9:
+            raise TaskError(f"{where}[{j}]", f"{robot.joint_names[j]} = {v:g} deg is outside its limits "
+                                             f"[{math.degrees(lo):g}, {math.degrees(hi):g}] deg")

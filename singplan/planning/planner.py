@@ -1,10 +1,11 @@
-"""plan(task) -> Trajectory: the whole flow of DESIGN.md for one task.
+"""plan_moves(task) -> PlannedTask: the planning stages of DESIGN.md for one task, orchestrated.
 
 For each move: the Cartesian path (LIN / CIRC) is sampled and tracked by continuous IK,
 singular zones are detected on the tracked joints, the crossing method decides what happens
-in each zone, and the resulting joint map is timed by TOPP-RA and resampled at the
-controller period. PTP moves are straight lines in joint space. The moves are stitched back
-to back, segments and events are labelled, and the metrics are computed from the samples.
+in each zone (:mod:`~singplan.planning.select` keeps the fastest of several candidates), and
+the resulting joint map is timed by TOPP-RA and resampled at the controller period. PTP moves
+are straight lines in joint space. :func:`singplan.results.plan.plan` stitches the moves into
+the trajectory record. ``detect`` is the geometry-only pass of ``singplan check``.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import yaml
 
-from singplan import cli, outputs
+from singplan import cli, outputs, pages
 from singplan import trajectory as trajectory_module
 from singplan.cli import main
 from singplan.errors import OutputPathError
@@ -172,7 +172,7 @@ def test_a_report_that_fails_unexpectedly_is_a_warning(tmp_path: Path, monkeypat
     def broken(*args: object) -> str:
         raise ZeroDivisionError("in a plot")
 
-    monkeypatch.setattr(cli, "report_html", broken)
+    monkeypatch.setattr(pages, "report_html", broken)
     code, _, err = _plan(_task(tmp_path), tmp_path / "out", "--no-replay", "--quiet")
     assert code == 0
     assert "report.html not written" in err and "ZeroDivisionError: in a plot" in err

@@ -451,8 +451,12 @@ def reduced_task(robot: Robot, rng: np.random.Generator, length_m: float, tries:
             keep = [j for j in range(7) if j != 2]
             dq = np.zeros(7)
             dq[keep] = np.linalg.lstsq(J[:, keep], np.concatenate([direction, np.zeros(3)]), rcond=None)[0]
-        else:  # 5 axes: position only, the tool axis follows (the checker holds position and z)
-            dq = np.linalg.lstsq(J[:3], direction, rcond=None)[0]
+        else:  # 5 axes: a joint motion that keeps the tool axis still to first order (its rate
+            # rows are the angular velocity across z), so the LIN's direction is one the arm can hold
+            z = robot.fk(q).rotation[:, 2]
+            across = np.linalg.svd(np.eye(3) - np.outer(z, z))[0][:, :2]  # (3, 2) unit vectors normal to z
+            free = np.linalg.svd(across.T @ J[3:])[2][2:].T  # (5, 3) null space of the tool-axis rates
+            dq = free @ rng.normal(size=free.shape[1])
         q_end = q + dq * length_m / max(1e-9, float(np.linalg.norm(J[:3] @ dq)))
         if not (np.all(q_end >= lo) and np.all(q_end <= hi)):
             continue

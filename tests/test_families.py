@@ -457,6 +457,21 @@ def test_default_tip_prefers_tool0_then_flange_then_tcp_then_the_last_link(tmp_p
     assert load_robot(_write(tree, tmp_path / "c.urdf")).tip == "camera"  # the link farthest down the chain
 
 
+def test_a_last_link_named_like_a_joint_is_passed_over_for_one_name_that_is_unique(tmp_path: Path) -> None:
+    """The Unitree Z1 style: a fixed joint and its child link both named `plate`. A tip name that
+    matches two frames cannot be looked up by other tools (the checker), so the default tip is
+    the link above it; named explicitly, the ambiguous name is still the user's choice."""
+    tree = _tree("abb_irb2400")
+    root = tree.getroot()
+    _rename_link(root, "tool0", "plate")
+    for joint in root.iter("joint"):
+        if joint.find("child").get("link") == "plate":  # type: ignore[union-attr]
+            joint.set("name", "plate")
+    robot = load_robot(_write(tree, tmp_path / "z1_like.urdf"))
+    assert robot.tip == "link_6"
+    assert [f.name for f in robot.model.frames].count(robot.tip) == 1
+
+
 def test_panda_by_path_ends_at_its_tcp_not_at_a_finger() -> None:
     panda = load_robot("panda")
     assert panda.tip == "panda_hand"  # the registry's default

@@ -319,7 +319,10 @@ def default_tip(model: pin.Model) -> str:
     name contains ``gripper``, ``finger`` or ``jaw``, e.g. the SO-100's revolute jaw); its end
     links are those fixed to that joint (Pinocchio merges fixed joints into the body they hang
     on), which leaves out fingers and other joints branching off. The last link is the one
-    most fixed joints away from that joint (the first in the file among equals).
+    most fixed joints away from that joint (the first in the file among equals). Links whose
+    name another frame carries too (a fixed joint named like its child link, e.g. the Unitree
+    Z1's ``gripperStator``) are passed over while another is left: outputs name the tip, and
+    other tools cannot look up a name that matches two frames.
     """
     revolute = [j for j in range(1, model.njoints) if model.joints[j].shortname().removeprefix("JointModel")
                 in ("RX", "RY", "RZ", "RevoluteUnaligned")
@@ -328,6 +331,8 @@ def default_tip(model: pin.Model) -> str:
         return model.frames[len(model.frames) - 1].name
     end = max(revolute, key=lambda j: len(model.supports[j]))
     links = [k for k, f in enumerate(model.frames) if f.type == pin.FrameType.BODY and f.parentJoint == end]
+    names = [f.name for f in model.frames]
+    links = [k for k in links if names.count(model.frames[k].name) == 1] or links
     for wanted in TIP_NAMES:
         named = [model.frames[k].name for k in links
                  if model.frames[k].name == wanted or model.frames[k].name.endswith("_" + wanted)]

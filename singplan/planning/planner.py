@@ -328,8 +328,9 @@ def _check_limits(robot: Robot, i: int, move: Move, piece: CartesianPiece, u: np
     near = [z for z in zones if z.u_entry - 0.05 <= u[k] <= z.u_exit + 0.05]
     why = (f"; the path passes {near[0].describe_distance()} from a {near[0].kind} singularity and keeping the "
            f"pose swings the joints" if near else "")
+    kept = "the position and tool axis" if robot.n_joints == 5 else "the full pose"
     raise JointLimitError(
-        f"move {i} ({move.kind}): following the path with the full pose drives {robot.joint_names[j]} to "
+        f"move {i} ({move.kind}): following the path with {kept} drives {robot.joint_names[j]} to "
         f"{math.degrees(q[k, j]):.2f} deg at {piece.describe(float(u[k]))}, outside its limits "
         f"[{math.degrees(lo):.1f}, {math.degrees(hi):.1f}] deg{why}",
         joint=robot.joint_names[j], value_rad=float(q[k, j]), lower_rad=float(lo), upper_rad=float(hi), move=i)

@@ -187,8 +187,11 @@ def test_a_real_sigint_to_the_process_group_stops_every_process(tmp_path: Path) 
             "r = plan_many(sys.argv[1:-1], sys.argv[-1], workers=2, report=False, replay=False, "
             "runner=slow_unless_first, progress=lambda rec, d, t: print('finished', d, flush=True)); "
             "print('exit', r.exit_code, flush=True)")
+    # as from a terminal: a shell's background job (CI runners) starts with SIGINT ignored, which a
+    # Python child inherits and then never sees Ctrl-C
     run = subprocess.Popen([sys.executable, "-c", code, *tasks, str(tmp_path / "out")], stdout=subprocess.PIPE,
-                           text=True, start_new_session=True, cwd=Path(__file__).resolve().parents[1])
+                           text=True, start_new_session=True, cwd=Path(__file__).resolve().parents[1],
+                           preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert run.stdout is not None
     assert run.stdout.readline() == "finished 1\n"  # t0 planned; t1 is sleeping in the other worker
     os.killpg(run.pid, signal.SIGINT)

@@ -14,6 +14,11 @@ sample is on the path. Limits are then checked on the samples with the same fini
 differences a checker uses, and the profile is tightened where TOPP-RA's grid let them slip.
 Both end steps are held within amax * period^2 / 2 (a start from rest, an arrival at rest), so
 a seam between two moves stays within the acceleration limit whatever its neighbours do.
+
+With a jerk limit (or the quintic PTP law) the acceleration-limited result is the reference:
+jerk.py's time laws are sampled, stretched uniformly until every limit holds on the samples
+(jerk by third differences, seams included), and the one that ends soonest is kept; the move
+records the acceleration-limited duration so the time the jerk limit costs can be reported.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ from __future__ import annotations
 import itertools
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import toppra as ta
@@ -31,6 +36,7 @@ import toppra.constraint as ta_constraint
 from singplan.budget import check_move_samples
 from singplan.dynamics import PathDynamics, TorqueLimit, move_torque_ratio
 from singplan.errors import PlanningError
+from singplan.jerk import QuinticLaw, SmoothedLaw, jerk_ratio, quintic_duration
 from singplan.jointmap import JointMap
 from singplan.task import MAX_OUTPUT_SAMPLES
 
@@ -43,6 +49,12 @@ _SPEED_MARGIN = 0.999  # ratios the samples must stay under
 _ACCEL_MARGIN = 0.995
 _TCP_MARGIN = 0.999
 _TORQUE_MARGIN = 0.995
+_JERK_MARGIN = 0.995
+_STRETCH_PASSES = 8
+# Smoothing windows tried, in multiples of amax / jmax (the time a jerk-limited drive needs to
+# build up full acceleration): short ones keep the move fast where the joint map is straight,
+# long ones help where the joint map curves (near singular zones) and uniform stretching costs more.
+_WINDOW_FACTORS = (0.5, 1.0, 2.0, 4.0, 8.0)
 _DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
 
@@ -70,6 +82,10 @@ class TimedMove:
         duration_s: K * period.
         speed_ratio, accel_ratio: largest |qd| / limit and |qdd| / limit on the samples.
         torque_ratio: largest |tau| / limit on the samples (0 when the move has no torque limit).
+        jerk_ratio: largest jerk / limit on the samples, seams with a resting neighbour included
+            (0 without a jerk limit).
+        optimal_duration_s: the acceleration-limited (TOPP-RA) duration; ``duration_s`` is longer by
+            what the jerk limit or the quintic law costs. None: the same as ``duration_s``.
     """
 
     u: np.ndarray  # (K+1,)
@@ -78,6 +94,8 @@ class TimedMove:
     speed_ratio: float
     accel_ratio: float
     torque_ratio: float = 0.0
+    jerk_ratio: float = 0.0
+    optimal_duration_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -89,6 +107,8 @@ class MoveLimits:
     length_m: float  # 0 for PTP or a pure reorientation: no TCP speed cap
     tcp_speed_m_s: float | None
     torque: TorqueLimit | None = None  # limits.torque_scale: TOPP-RA's torque constraint, checked on the samples
+    jerk_rad_s3: np.ndarray | None = None  # (n,) limits.jerk, checked on the samples; None: not limited
+    quintic: bool = False  # time the move by SEEDS 003's quintic law (PTP: the joint map is a straight line)
 
 
 def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
@@ -273,6 +293,30 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
     if path_scale(q_ref, limits) == 0.0:
         logger.info("move %d changes nothing: one period at rest", move_index)
         return TimedMove(np.array([0.0, 1.0]), q_ref[[0, -1]], period_s, 0.0, 0.0)
+    optimal, profile = _optimal(jmap, limits, period_s, move_index, max_samples, u_ref, q_ref)
+    if limits.jerk_rad_s3 is None and not limits.quintic:
+        return optimal
+    laws: list[QuinticLaw | SmoothedLaw]
+    if limits.quintic:
+        laws = [QuinticLaw(quintic_duration(np.abs(q_ref[-1] - q_ref[0]), limits.velocity_rad_s,
+                                            limits.acceleration_rad_s2, limits.jerk_rad_s3))]
+    else:
+        assert limits.jerk_rad_s3 is not None
+        rise_s = float(np.min(limits.acceleration_rad_s2) / np.min(limits.jerk_rad_s3))
+        laws = [SmoothedLaw(profile.t_nodes, profile.grid, profile.sd, rise_s * f) for f in _WINDOW_FACTORS]
+    timed = [_stretched(jmap, limits, law, period_s, move_index, max_samples) for law in laws]
+    best = min((tm for tm in timed if tm is not None), key=lambda tm: tm.duration_s, default=None)
+    if best is None:
+        raise TimingError(move_index, 0.5, "could not keep the joint jerk limit on the output samples after "
+                                            f"{_STRETCH_PASSES} stretches of the time law")
+    logger.info("move %d: %.3f s jerk-limited, %.3f s acceleration-limited", move_index, best.duration_s,
+                optimal.duration_s)
+    return replace(best, optimal_duration_s=optimal.duration_s)
+
+
+def _optimal(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int, max_samples: int,
+             u_ref: np.ndarray, q_ref: np.ndarray) -> tuple[TimedMove, _Profile]:
+    """The acceleration-limited samples (TOPP-RA, tightened until the samples keep the limits) and their profile."""
     scale_v = scale_a = scale_t = 1.0
     for _ in range(_TIGHTEN_PASSES):
         profile = _toppra_profile(u_ref, q_ref, limits, (scale_v, scale_a, scale_t), move_index)
@@ -286,7 +330,7 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
                       end_step_ratio(q, period_s, limits.acceleration_rad_s2))  # may reach its bound exactly
         worst_t = torque / _TORQUE_MARGIN
         if worst_v <= 1.0 and worst_a <= 1.0 and worst_t <= 1.0:
-            return TimedMove(u, q, duration, speed, accel, torque)
+            return TimedMove(u, q, duration, speed, accel, torque), profile
         if worst_v > _DISCONTINUOUS or worst_a > _DISCONTINUOUS:
             break  # not a grid effect: the joint map jumps somewhere; tightening cannot help
         logger.debug("move %d: samples at x%.4f speed, x%.4f accel, x%.4f torque; tightening", move_index, speed,
@@ -322,3 +366,42 @@ def _tcp_ratio(u: np.ndarray, limits: MoveLimits, period_s: float) -> float:
         return 0.0
     v = np.diff(u) * limits.length_m / period_s
     return float(np.max(v) / limits.tcp_speed_m_s) * _SPEED_MARGIN / _TCP_MARGIN if len(v) else 0.0
+
+
+def _stretched(jmap: JointMap, limits: MoveLimits, law: QuinticLaw | SmoothedLaw, period_s: float, move_index: int,
+               max_samples: int) -> TimedMove | None:
+    """The law stretched uniformly in time by the least factor whose samples keep every limit (None: not found).
+
+    Stretching by k divides joint speeds by k, accelerations by k^2 and jerks by k^3; the first
+    pass measures the law as it is, the next ones aim at the factor the worst ratio asks for.
+    """
+    stretch, kept = 1.0, None
+    for attempt in range(_STRETCH_PASSES):
+        count = max(3, math.ceil(stretch * law.duration_s / period_s - 1e-9))
+        check_move_samples(move_index, count, max_samples, stretch * law.duration_s, period_s)
+        u = np.maximum.accumulate(np.clip(law.u_at(np.arange(count + 1) * (law.duration_s / count)), 0.0, 1.0))
+        u[0], u[-1] = 0.0, 1.0
+        q = jmap.evaluate(u)
+        tm, worst = _measured(u, q, limits, period_s)
+        if worst <= 1.0:
+            kept = tm if kept is None or tm.duration_s < kept.duration_s else kept
+            if attempt > 0:
+                return kept
+        elif kept is not None:
+            return kept
+        if not math.isfinite(worst):
+            return None
+        stretch = count * period_s / law.duration_s * worst * (1.0005 if worst > 1.0 else 1.0)
+    return kept
+
+
+def _measured(u: np.ndarray, q: np.ndarray, limits: MoveLimits, period_s: float) -> tuple[TimedMove, float]:
+    """The samples as a TimedMove, and the time stretch they need (<= 1: every limit kept)."""
+    speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
+    torque = move_torque_ratio(limits.torque, q, period_s)[0] if limits.torque else 0.0
+    jerk = jerk_ratio(q, period_s, limits.jerk_rad_s3) if limits.jerk_rad_s3 is not None else 0.0
+    accel_like = max(accel / _ACCEL_MARGIN, end_step_ratio(q, period_s, limits.acceleration_rad_s2))
+    worst = max(max(speed, _tcp_ratio(u, limits, period_s)) / _SPEED_MARGIN, math.sqrt(accel_like),
+                math.cbrt(jerk / _JERK_MARGIN), math.sqrt(torque / _TORQUE_MARGIN))
+    duration = (len(u) - 1) * period_s
+    return TimedMove(u, q, duration, speed, accel, torque, jerk), worst

@@ -24,12 +24,14 @@ records the acceleration-limited duration so the time the jerk limit costs can b
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable
 import logging
 import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 import toppra as ta
+from scipy.interpolate import CubicSpline
 import toppra.algorithm as ta_algo
 import toppra.constraint as ta_constraint
 
@@ -304,8 +306,16 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
         assert limits.jerk_rad_s3 is not None
         rise_s = float(np.min(limits.acceleration_rad_s2) / np.min(limits.jerk_rad_s3))
         laws = [SmoothedLaw(profile.t_nodes, profile.grid, profile.sd, rise_s * f) for f in _WINDOW_FACTORS]
-    timed = [_stretched(jmap, limits, law, period_s, move_index, max_samples) for law in laws]
-    best = min((tm for tm in timed if tm is not None), key=lambda tm: tm.duration_s, default=None)
+    # The search runs on a spline through the acceleration-limited samples (the joint map's own
+    # evaluation costs an IK solve per sample); the chosen laws are then sampled on the joint map itself.
+    surrogate = _surrogate(optimal)
+    trial = [(law, _stretched(surrogate, limits, law, 1.0, period_s, move_index, max_samples)) for law in laws]
+    best = None
+    for law, tm in sorted(trial, key=lambda lt: lt[1].duration_s if lt[1] is not None else math.inf):
+        start = tm.duration_s / law.duration_s if tm is not None else 1.0
+        best = _stretched(jmap.evaluate, limits, law, start, period_s, move_index, max_samples)
+        if best is not None:
+            break
     if best is None:
         raise TimingError(move_index, 0.5, "could not keep the joint jerk limit on the output samples after "
                                             f"{_STRETCH_PASSES} stretches of the time law")
@@ -368,21 +378,29 @@ def _tcp_ratio(u: np.ndarray, limits: MoveLimits, period_s: float) -> float:
     return float(np.max(v) / limits.tcp_speed_m_s) * _SPEED_MARGIN / _TCP_MARGIN if len(v) else 0.0
 
 
-def _stretched(jmap: JointMap, limits: MoveLimits, law: QuinticLaw | SmoothedLaw, period_s: float, move_index: int,
-               max_samples: int) -> TimedMove | None:
+def _surrogate(optimal: TimedMove) -> Callable[[np.ndarray], np.ndarray]:
+    """A cubic spline in u through the acceleration-limited samples: the joint map, cheaply."""
+    keep = np.concatenate([[True], np.diff(optimal.u) > 0])
+    if np.count_nonzero(keep) < 4:
+        return lambda u: np.array([np.interp(u, optimal.u[keep], qj) for qj in optimal.q[keep].T]).T
+    spline = CubicSpline(optimal.u[keep], optimal.q[keep], axis=0)
+    return lambda u: np.asarray(spline(u))
+
+
+def _stretched(evaluate: Callable[[np.ndarray], np.ndarray], limits: MoveLimits, law: QuinticLaw | SmoothedLaw,
+               stretch: float, period_s: float, move_index: int, max_samples: int) -> TimedMove | None:
     """The law stretched uniformly in time by the least factor whose samples keep every limit (None: not found).
 
     Stretching by k divides joint speeds by k, accelerations by k^2 and jerks by k^3; the first
-    pass measures the law as it is, the next ones aim at the factor the worst ratio asks for.
+    pass measures the law stretched by ``stretch``, the next ones aim at the factor the worst ratio asks for.
     """
-    stretch, kept = 1.0, None
+    kept = None
     for attempt in range(_STRETCH_PASSES):
         count = max(3, math.ceil(stretch * law.duration_s / period_s - 1e-9))
         check_move_samples(move_index, count, max_samples, stretch * law.duration_s, period_s)
         u = np.maximum.accumulate(np.clip(law.u_at(np.arange(count + 1) * (law.duration_s / count)), 0.0, 1.0))
         u[0], u[-1] = 0.0, 1.0
-        q = jmap.evaluate(u)
-        tm, worst = _measured(u, q, limits, period_s)
+        tm, worst = _measured(u, evaluate(u), limits, period_s)
         if worst <= 1.0:
             kept = tm if kept is None or tm.duration_s < kept.duration_s else kept
             if attempt > 0:

@@ -24,16 +24,16 @@ records the acceleration-limited duration so the time the jerk limit costs can b
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 import toppra as ta
-from scipy.interpolate import CubicSpline
 import toppra.algorithm as ta_algo
 import toppra.constraint as ta_constraint
+from scipy.interpolate import CubicSpline
 
 from singplan.budget import check_move_samples
 from singplan.dynamics import PathDynamics, TorqueLimit, move_torque_ratio
@@ -420,6 +420,6 @@ def _measured(u: np.ndarray, q: np.ndarray, limits: MoveLimits, period_s: float)
     jerk = jerk_ratio(q, period_s, limits.jerk_rad_s3) if limits.jerk_rad_s3 is not None else 0.0
     accel_like = max(accel / _ACCEL_MARGIN, end_step_ratio(q, period_s, limits.acceleration_rad_s2))
     worst = max(max(speed, _tcp_ratio(u, limits, period_s)) / _SPEED_MARGIN, math.sqrt(accel_like),
-                math.cbrt(jerk / _JERK_MARGIN), math.sqrt(torque / _TORQUE_MARGIN))
+                (jerk / _JERK_MARGIN) ** (1.0 / 3.0), math.sqrt(torque / _TORQUE_MARGIN))
     duration = (len(u) - 1) * period_s
     return TimedMove(u, q, duration, speed, accel, torque, jerk), worst

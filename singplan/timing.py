@@ -114,6 +114,11 @@ class MoveLimits:
 
 
 def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
+    if all(part.kind == "ptp" for part in jmap.parts):
+        # A straight joint line: points graded toward the ends (below) only add round-off, in which
+        # a joint that barely moves beside one that moves far made TOPP-RA's instance "not controllable".
+        dense = np.linspace(0.0, 1.0, 9)
+        return dense, jmap.evaluate(dense)
     u, q = jmap.reference()
     # Where a move starts or ends on a reach boundary (a stretched elbow) a joint goes as the
     # square root of the distance to the end: its path derivative grows without bound there. Points

@@ -235,3 +235,20 @@ def test_jerk_and_torque_limits_hold_together() -> None:
     traj = plan(parse_task(mapping))
     assert traj.metrics["max_torque_ratio"] <= 1.0
     assert _third_difference_ratio(traj.q, traj.period, 400.0) <= 1.0 + 1e-9
+
+
+def test_a_ptp_with_joints_that_barely_move_is_timed() -> None:
+    """Found by bench_jerk.py on the pick-and-place program: a PTP from the end of a LIN (some joints
+    1e-7 rad from the target) failed in TOPP-RA ("not controllable"), with or without a jerk limit."""
+    from singplan.jointmap import JointMap, JointPart
+    from singplan.robot import load_robot
+    from singplan.timing import MoveLimits, time_move
+
+    robot = load_robot("abb_irb2400")
+    q0 = np.radians([-7.99997399, 20.0000078, 24.9999977, -9.9e-15, 44.9999945, 2.60087365e-05])
+    q1 = np.radians([8.0, 20.0, 25.0, 0.0, 45.0, 0.0])
+    jmap = JointMap(robot, None, [JointPart("ptp", np.array([0.0, 1.0]), np.array([q0, q1]))])
+    for jmax in (None, np.full(6, 200.0)):
+        tm = time_move(jmap, MoveLimits(robot.velocity_rad_s, np.full(6, 10.0), 0.0, None, jerk_rad_s3=jmax),
+                       0.004, 3)
+        assert tm.speed_ratio <= 1.0 and tm.accel_ratio <= 1.0

@@ -13,6 +13,8 @@ judges the samples), and every plan is judged by the independent checker.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
 import os
 import platform
@@ -72,7 +74,8 @@ def run_one(task: dict[str, Any], out: Path, checker: Path, quintic: bool) -> tu
         save(traj, out)
         return _judge(task, out, checker)
     (out / "in.yaml").write_text(yaml.safe_dump(task))
-    code = cli_main(["plan", str(out / "in.yaml"), "-o", str(out), "--quiet", "--no-report", "--no-replay"])
+    with contextlib.redirect_stdout(io.StringIO()):  # its one-line summary; the table says it all
+        code = cli_main(["plan", str(out / "in.yaml"), "-o", str(out), "--quiet", "--no-report", "--no-replay"])
     return _judge(task, out, checker) if code == 0 else f"exit {code}"
 
 

@@ -252,3 +252,9 @@ def test_a_ptp_with_joints_that_barely_move_is_timed() -> None:
         tm = time_move(jmap, MoveLimits(robot.velocity_rad_s, np.full(6, 10.0), 0.0, None, jerk_rad_s3=jmax),
                        0.004, 3)
         assert tm.speed_ratio <= 1.0 and tm.accel_ratio <= 1.0
+
+
+def test_jerk_limited_plans_are_deterministic() -> None:
+    task = _with_limits(load_task(DEMO), jerk_rad_s3=(250.0,))
+    first, second = plan(task), plan(task)
+    assert np.array_equal(first.q, second.q) and first.duration_s == second.duration_s

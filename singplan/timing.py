@@ -38,7 +38,7 @@ from scipy.interpolate import CubicSpline
 from singplan.budget import check_move_samples
 from singplan.dynamics import PathDynamics, TorqueLimit, move_torque_ratio
 from singplan.errors import PlanningError
-from singplan.jerk import QuinticLaw, SmoothedLaw, jerk_ratio, quintic_duration
+from singplan.jerk import QuinticLaw, SCurveLaw, SmoothedLaw, jerk_ratio, quintic_duration
 from singplan.jointmap import JointMap
 from singplan.task import MAX_OUTPUT_SAMPLES
 
@@ -57,6 +57,8 @@ _STRETCH_PASSES = 8
 # build up full acceleration): short ones keep the move fast where the joint map is straight,
 # long ones help where the joint map curves (near singular zones) and uniform stretching costs more.
 _WINDOW_FACTORS = (0.5, 1.0, 2.0, 4.0, 8.0)
+_S_CURVE_JERKS = (1.0, 0.5, 0.25)
+TimeLaw = QuinticLaw | SmoothedLaw | SCurveLaw  # S-curve candidates: path jerk x these (curved joint maps need less)
 _DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
 
@@ -303,7 +305,7 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
     optimal, profile = _optimal(jmap, limits, period_s, move_index, max_samples, u_ref, q_ref)
     if limits.jerk_rad_s3 is None and not limits.quintic:
         return optimal
-    laws: list[QuinticLaw | SmoothedLaw]
+    laws: list[TimeLaw]
     if limits.quintic:
         laws = [QuinticLaw(quintic_duration(np.abs(q_ref[-1] - q_ref[0]), limits.velocity_rad_s,
                                             limits.acceleration_rad_s2, limits.jerk_rad_s3))]
@@ -311,6 +313,7 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
         assert limits.jerk_rad_s3 is not None
         rise_s = float(np.min(limits.acceleration_rad_s2) / np.min(limits.jerk_rad_s3))
         laws = [SmoothedLaw(profile.t_nodes, profile.grid, profile.sd, rise_s * f) for f in _WINDOW_FACTORS]
+        laws += _s_curves(profile, limits)
     # The search runs on a spline through the acceleration-limited samples (the joint map's own
     # evaluation costs an IK solve per sample); the chosen laws are then sampled on the joint map itself.
     surrogate = _surrogate(optimal)
@@ -327,6 +330,18 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
     logger.info("move %d: %.3f s jerk-limited, %.3f s acceleration-limited", move_index, best.duration_s,
                 optimal.duration_s)
     return replace(best, optimal_duration_s=optimal.duration_s)
+
+
+def _s_curves(profile: _Profile, limits: MoveLimits) -> list[SCurveLaw]:
+    """S-curves in u with TOPP-RA's peak path speed and acceleration, and the path jerk the joint
+    limits allow where the joint map is straight (the exact optimum of a PTP) or less."""
+    assert limits.jerk_rad_s3 is not None
+    speed = float(np.max(profile.sd))
+    accel = float(np.max(np.abs(np.diff(profile.sd)) / np.diff(profile.t_nodes), initial=0.0))
+    if not (speed > 0.0 and accel > 0.0 and math.isfinite(accel)):
+        return []
+    jerk = accel * float(np.min(limits.jerk_rad_s3 / limits.acceleration_rad_s2))
+    return [SCurveLaw(speed, accel, jerk * f) for f in _S_CURVE_JERKS]
 
 
 def _optimal(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int, max_samples: int,
@@ -392,8 +407,8 @@ def _surrogate(optimal: TimedMove) -> Callable[[np.ndarray], np.ndarray]:
     return lambda u: np.asarray(spline(u))
 
 
-def _stretched(evaluate: Callable[[np.ndarray], np.ndarray], limits: MoveLimits, law: QuinticLaw | SmoothedLaw,
-               stretch: float, period_s: float, move_index: int, max_samples: int) -> TimedMove | None:
+def _stretched(evaluate: Callable[[np.ndarray], np.ndarray], limits: MoveLimits, law: TimeLaw, stretch: float,
+               period_s: float, move_index: int, max_samples: int) -> TimedMove | None:
     """The law stretched uniformly in time by the least factor whose samples keep every limit (None: not found).
 
     Stretching by k divides joint speeds by k, accelerations by k^2 and jerks by k^3; the first

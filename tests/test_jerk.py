@@ -258,3 +258,19 @@ def test_jerk_limited_plans_are_deterministic() -> None:
     task = _with_limits(load_task(DEMO), jerk_rad_s3=(250.0,))
     first, second = plan(task), plan(task)
     assert np.array_equal(first.q, second.q) and first.duration_s == second.duration_s
+
+
+@pytest.mark.parametrize(("speed", "accel", "jerk"), [(2.0, 4.0, 30.0), (0.5, 4.0, 30.0), (10.0, 100.0, 30.0),
+                                                      (1.0, 1.0, 1.0)])
+def test_s_curve_goes_from_rest_to_rest_within_its_limits(speed: float, accel: float, jerk: float) -> None:
+    from singplan.jerk import SCurveLaw
+
+    law = SCurveLaw(speed, accel, jerk)
+    t = np.linspace(0.0, law.duration_s, 20001)
+    h = t[1] - t[0]
+    u = law.u_at(t)
+    assert u[0] == 0.0 and u[-1] == pytest.approx(1.0, abs=1e-12) and np.all(np.diff(u) >= 0.0)
+    for k, limit in ((1, speed), (2, accel), (3, jerk)):
+        assert np.max(np.abs(np.diff(u, n=k))) / h**k <= limit * 1.001
+    if (speed, accel, jerk) == (1.0, 1.0, 1.0):  # neither speed nor acceleration reached: four jerk ramps
+        assert law.duration_s == pytest.approx(4.0 * 0.25 ** (1.0 / 6.0), rel=1e-12)

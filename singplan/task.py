@@ -683,6 +683,9 @@ def check_against_robot(task: Task, robot: Robot) -> None:
                           ("limits.jerk", task.limits.jerk_rad_s3 or ())):
         if len(values) not in (0, 1, n):
             raise TaskError(where, f"expected 1 or {n} numbers for {robot.name}, got {len(values)}")
+        for i, v in enumerate(values):  # a Task built in Python, not parsed, is checked here
+            _number(f"{where}[{i}]" if len(values) > 1 else where, v,
+                    JERK_RAD_S3 if where == "limits.jerk" else ACCELERATION_RAD_S2)
     if task.limits.ptp_time_law not in PTP_TIME_LAWS:
         raise TaskError("limits.ptp_time_law", f"expected one of {', '.join(PTP_TIME_LAWS)}, "
                                                f"got {task.limits.ptp_time_law!r}")

@@ -274,3 +274,9 @@ def test_s_curve_goes_from_rest_to_rest_within_its_limits(speed: float, accel: f
         assert np.max(np.abs(np.diff(u, n=k))) / h**k <= limit * 1.001
     if (speed, accel, jerk) == (1.0, 1.0, 1.0):  # neither speed nor acceleration reached: four jerk ramps
         assert law.duration_s == pytest.approx(4.0 * 0.25 ** (1.0 / 6.0), rel=1e-12)
+
+
+@pytest.mark.parametrize("jerk", [(0.0,), (float("nan"),), (100.0, -1.0, 100.0, 100.0, 100.0, 100.0)])
+def test_a_bad_jerk_set_in_python_is_bad_input(jerk: tuple[float, ...]) -> None:
+    with pytest.raises(InputError, match=r"limits\.jerk"):
+        plan(_with_limits(load_task(DEMO), jerk_rad_s3=jerk))

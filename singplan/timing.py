@@ -53,6 +53,7 @@ _TCP_MARGIN = 0.999
 _TORQUE_MARGIN = 0.995
 _JERK_MARGIN = 0.995
 _STRETCH_PASSES = 8
+_MAX_STRETCH = 100.0  # a law that needs more is given up (exit 3), before it could exhaust the sample allowance
 # Smoothing windows tried, in multiples of amax / jmax (the time a jerk-limited drive needs to
 # build up full acceleration): short ones keep the move fast where the joint map is straight,
 # long ones help where the joint map curves (near singular zones) and uniform stretching costs more.
@@ -324,9 +325,12 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
         best = _stretched(jmap.evaluate, limits, law, start, period_s, move_index, max_samples)
         if best is not None:
             break
-    if best is None:
-        raise TimingError(move_index, 0.5, "could not keep the joint jerk limit on the output samples after "
-                                            f"{_STRETCH_PASSES} stretches of the time law")
+    if best is None:  # named where the acceleration-limited samples jerk most
+        steps = np.abs(np.diff(optimal.q, n=3, axis=0)) / (limits.jerk_rad_s3 if limits.jerk_rad_s3 is not None
+                                                            else limits.acceleration_rad_s2)
+        at = float(optimal.u[int(np.argmax(np.max(steps, axis=1))) + 1]) if len(steps) else 0.5
+        raise TimingError(move_index, at, "could not keep the joint speed, acceleration and jerk limits on the "
+                                          f"output samples after {_STRETCH_PASSES} stretches of the time law")
     logger.info("move %d: %.3f s jerk-limited, %.3f s acceleration-limited", move_index, best.duration_s,
                 optimal.duration_s)
     return replace(best, optimal_duration_s=optimal.duration_s)
@@ -427,9 +431,9 @@ def _stretched(evaluate: Callable[[np.ndarray], np.ndarray], limits: MoveLimits,
                 return kept
         elif kept is not None:
             return kept
-        if not math.isfinite(worst):
-            return None
         stretch = count * period_s / law.duration_s * worst * (1.0005 if worst > 1.0 else 1.0)
+        if not stretch <= _MAX_STRETCH:  # NaN too: not a law's jerk but a joint map that jumps
+            return kept
     return kept
 
 

@@ -280,3 +280,26 @@ def test_s_curve_goes_from_rest_to_rest_within_its_limits(speed: float, accel: f
 def test_a_bad_jerk_set_in_python_is_bad_input(jerk: tuple[float, ...]) -> None:
     with pytest.raises(InputError, match=r"limits\.jerk"):
         plan(_with_limits(load_task(DEMO), jerk_rad_s3=jerk))
+
+
+def test_a_joint_map_that_jumps_within_one_sample_is_a_planning_failure() -> None:
+    """A step small enough for the acceleration limit but not for the jerk limit cannot be
+    stretched away: exit 3 naming where, not a runaway stretch."""
+    from singplan.jointmap import JointMap, JointPart
+    from singplan.robot import load_robot
+    from singplan.timing import MoveLimits, TimingError, time_move
+
+    class Stepped(JointMap):
+        def evaluate(self, u: np.ndarray) -> np.ndarray:
+            q = super().evaluate(u)
+            q[np.asarray(u) > 0.5, 0] += 3e-5  # [rad]: 0.19 of amax * period^2, 2.3 of jmax * period^3
+            return q
+
+    robot = load_robot("abb_irb2400")
+    q0 = np.radians([0, 10, 20, 0, 30, 0])
+    q1 = q0 + np.radians([20, 0, 0, 0, 0, 0])
+    jmap = Stepped(robot, None, [JointPart("ptp", np.array([0.0, 1.0]), np.array([q0, q1]))])
+    limits = MoveLimits(robot.velocity_rad_s, np.full(6, 10.0), 0.0, None, jerk_rad_s3=np.full(6, 200.0))
+    with pytest.raises(TimingError, match="jerk") as failure:
+        time_move(jmap, limits, 0.004, 0)
+    assert 0.45 <= failure.value.u <= 0.55

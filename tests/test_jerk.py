@@ -303,3 +303,47 @@ def test_a_joint_map_that_jumps_within_one_sample_is_a_planning_failure() -> Non
     with pytest.raises(TimingError, match="jerk") as failure:
         time_move(jmap, limits, 0.004, 0)
     assert 0.45 <= failure.value.u <= 0.55
+
+
+def test_random_ptp_programs_keep_every_limit_on_the_samples(rng: np.random.Generator) -> None:
+    """Seeded random PTP programs (2-4 moves, accelerations 2-40 rad/s^2, jerks 20-5000 rad/s^3, per joint)."""
+    for _ in range(6):
+        n_moves = int(rng.integers(2, 5))
+        targets = [rng.uniform(-60, 60, 6).round(3).tolist() for _ in range(n_moves)]
+        accel = rng.uniform(2.0, 40.0, 6).round(2).tolist()
+        jerk = np.exp(rng.uniform(np.log(20.0), np.log(5000.0), 6)).round(1).tolist()
+        mapping = {"robot": "abb_irb2400", "start": {"joints_deg": [0, 10, 20, 0, 30, 0]},
+                   "moves": [{"ptp": {"to": {"joints_deg": t}, "velocity_scale": float(rng.uniform(0.2, 1.0))}}
+                             for t in targets],
+                   "limits": {"acceleration": accel, "jerk": jerk}}
+        traj = plan(parse_task(mapping))
+        qd = np.diff(traj.q, axis=0) / traj.period
+        assert np.max(np.abs(np.diff(traj.q, n=3, axis=0)) / traj.period**3 / np.array(jerk)) <= 1.0 + 1e-9
+        assert np.max(np.abs(np.diff(qd, axis=0)) / traj.period / np.array(accel)) <= 1.0 + 1e-9
+        assert traj.metrics["max_joint_speed_ratio"] <= 1.0
+
+
+def test_random_lins_keep_every_limit_on_the_samples(rng: np.random.Generator) -> None:
+    """Seeded random LINs near the demo's start (KR 6 R900-2), jerks 20-2000 rad/s^3: whatever plans keeps them."""
+    from singplan.planner import load_task_robot
+
+    base = load_task(DEMO)
+    start = load_task_robot(base).fk(np.radians(base.start_joints_deg))
+    planned = 0
+    for _ in range(6):
+        to = (start.translation + rng.uniform(-0.15, 0.15, 3)).round(6).tolist()
+        jerk = float(np.exp(rng.uniform(np.log(20.0), np.log(2000.0))).round(1))
+        mapping = {"robot": "kuka_kr6_r900_2", "tool": {"xyz": [0, 0, 0.1]},
+                   "start": {"joints_deg": list(base.start_joints_deg)},
+                   "moves": [{"lin": {"to": {"xyz": to}, "speed": float(rng.uniform(0.05, 1.0))}}],
+                   "singularity": {"method": "auto", "orientation_tolerance_deg": 3.0},
+                   "limits": {"jerk": jerk}}
+        try:
+            traj = plan(parse_task(mapping))
+        except PlanningError:
+            continue
+        planned += 1
+        assert _third_difference_ratio(traj.q, traj.period, jerk) <= 1.0 + 1e-9
+        assert traj.metrics["max_joint_accel_ratio"] <= 1.0 and traj.metrics["max_joint_speed_ratio"] <= 1.0
+        assert traj.metrics["max_position_error_mm"] <= 0.01
+    assert planned >= 3

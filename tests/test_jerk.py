@@ -347,3 +347,14 @@ def test_random_lins_keep_every_limit_on_the_samples(rng: np.random.Generator) -
         assert traj.metrics["max_joint_accel_ratio"] <= 1.0 and traj.metrics["max_joint_speed_ratio"] <= 1.0
         assert traj.metrics["max_position_error_mm"] <= 0.01
     assert planned >= 3
+
+
+def test_third_difference_ratio_over_chunks_is_exact(rng: np.random.Generator) -> None:
+    from singplan.jerk import third_difference_ratio
+
+    q = rng.normal(size=(3 * 65536 + 5, 3))
+    jmax = np.array([1.0, 2.0, 3.0])
+    q[65536 + 1, 2] += 50.0  # a spike whose third differences straddle the first chunk boundary
+    expected = float(np.max(np.abs(np.diff(q, n=3, axis=0)) / (jmax * 0.004**3)))
+    assert third_difference_ratio(q, 0.004, jmax) == expected
+    assert third_difference_ratio(q[:3], 0.004, jmax) == 0.0

@@ -298,8 +298,11 @@ def _limits(robot: Robot, task: Task, move: Move, length_m: float) -> MoveLimits
     scale = task.limits.velocity_scale * (move.velocity_scale if move.kind == "ptp" else 1.0)
     torque = (TorqueLimit(robot, effort_limits_nm(robot) * task.limits.torque_scale)
               if task.limits.torque_scale is not None else None)
+    jerk = (np.broadcast_to(np.asarray(task.limits.jerk_rad_s3, dtype=float), (robot.n_joints,)).copy()
+            if task.limits.jerk_rad_s3 is not None else None)
     return MoveLimits(robot.velocity_rad_s * scale, robot.acceleration_rad_s2, length_m,
-                      move.speed_m_s if move.kind != "ptp" else None, torque)
+                      move.speed_m_s if move.kind != "ptp" else None, torque, jerk,
+                      quintic=move.kind == "ptp" and task.limits.ptp_time_law == "quintic")
 
 
 def _plan_move(robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3, q_start: np.ndarray,

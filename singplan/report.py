@@ -192,7 +192,8 @@ def _tables(traj: Trajectory) -> str:
                  for s in traj.segments if s.kind == "crossing"]
     m = traj.metrics
     metrics = [[k, f"{m[k]:.6g}"] for k in ("duration_s", "max_position_error_mm", "max_orientation_error_deg",
-                                            "max_joint_speed_ratio", "max_joint_accel_ratio", "max_torque_ratio",
+                                            "max_joint_speed_ratio", "max_joint_accel_ratio", "max_joint_jerk_ratio",
+                                            "acceleration_limited_duration_s", "jerk_time_lost_s", "max_torque_ratio",
                                             "planning_time_s") if isinstance(m.get(k), (int, float))]
     metrics += [[f"peak torque {name} [N m]", f"{value:.4g} of {m['torque_limit_Nm'][name]:.4g}"]
                 for name, value in m.get("peak_torque_Nm", {}).items()]

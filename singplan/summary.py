@@ -37,6 +37,11 @@ def summary(traj: Trajectory, task: Task) -> str:
                  f"{m['max_orientation_error_deg']:.5f} deg, joint speed x{m['max_joint_speed_ratio']:.3f}, "
                  f"joint accel x{m['max_joint_accel_ratio']:.3f}, planning {m['planning_time_s']:.2f} s")
     lines.append(_torque_line(traj, task))
+    if "acceleration_limited_duration_s" in m:
+        jerk = f"joint jerk x{m['max_joint_jerk_ratio']:.3f}, " if "max_joint_jerk_ratio" in m else ""
+        law = "quintic PTP law, " if task.limits.ptp_time_law == "quintic" else ""
+        lines.append(f"jerk: {jerk}{law}{m['jerk_time_lost_s']:.3f} s longer than the acceleration-limited "
+                     f"{m['acceleration_limited_duration_s']:.3f} s")
     return "\n".join(lines) + "\n"
 
 

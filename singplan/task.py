@@ -19,6 +19,7 @@ lin/circ speed                         0.0001 .. 10         m/s
 ptp velocity_scale, limits.velocity_   0.001 .. 1           fraction of the URDF limits
 limits.acceleration                    0.01 .. 10000        rad/s^2
 limits.torque_scale                    0.001 .. 1           fraction of the URDF efforts
+limits.jerk                            0.1 .. 1e6           rad/s^3
 singularity.position_tolerance_mm      0.0001 .. 1000       mm
 singularity.orientation_tolerance_deg  0.001 .. 180         deg
 singularity.zone wrist/elbow_deg       0.001 .. 90          deg
@@ -78,6 +79,8 @@ SPEED_M_S = Range(1e-4, 10.0, "m/s")
 VELOCITY_SCALE = Range(1e-3, 1.0, "")
 ACCELERATION_RAD_S2 = Range(1e-2, 1e4, "rad/s^2")
 TORQUE_SCALE = Range(1e-3, 1.0, "")
+JERK_RAD_S3 = Range(0.1, 1e6, "rad/s^3")
+PTP_TIME_LAWS = ("optimal", "quintic")  # Limits.ptp_time_law (Python API only)
 POSITION_TOLERANCE_MM = Range(1e-4, 1000.0, "mm")
 ORIENTATION_TOLERANCE_DEG = Range(1e-3, 180.0, "deg")
 ZONE_ANGLE_DEG = Range(1e-3, 90.0, "deg")
@@ -130,6 +133,10 @@ class Limits:
     velocity_scale: float = 1.0
     acceleration_rad_s2: tuple[float, ...] = (10.0,)  # one value for all joints, or one per joint
     torque_scale: float | None = None  # fraction of the URDF efforts, enforced; None: torques not limited
+    jerk_rad_s3: tuple[float, ...] | None = None  # one value for all joints, or one per joint; None: not limited
+    # Python API only (no YAML key in format v1): "quintic" times every PTP move by SEEDS 003's
+    # 10t^3 - 15t^4 + 6t^5 law instead of the time-optimal one.
+    ptp_time_law: str = "optimal"
 
 
 @dataclass(frozen=True)
@@ -180,6 +187,8 @@ class Task:
             "limits": {"velocity_scale": self.limits.velocity_scale,
                        "acceleration": acc[0] if len(acc) == 1 else list(acc),
                        **({"torque_scale": self.limits.torque_scale} if self.limits.torque_scale is not None
+                          else {}),
+                       **({"jerk": _one_or_list(self.limits.jerk_rad_s3)} if self.limits.jerk_rad_s3 is not None
                           else {})},
             "output": {"period": self.period_s},
         }
@@ -625,17 +634,25 @@ def _singularity(value: Any) -> SingularitySettings:
 
 
 def _limits(value: Any) -> Limits:
-    _check_keys("limits", value, optional=("velocity_scale", "acceleration", "torque_scale"))
-    acc = value.get("acceleration", 10.0)
-    if isinstance(acc, Sequence) and not isinstance(acc, (str, bytes)):
-        if not acc or len(acc) > MAX_JOINTS:
-            raise TaskError("limits.acceleration", f"expected a number or one number per joint, got {len(acc)}")
-        accel = tuple(_number(f"limits.acceleration[{i}]", a, ACCELERATION_RAD_S2) for i, a in enumerate(acc))
-    else:
-        accel = (_number("limits.acceleration", acc, ACCELERATION_RAD_S2),)
+    _check_keys("limits", value, optional=("velocity_scale", "acceleration", "jerk", "torque_scale"))
+    accel = _per_joint("limits.acceleration", value.get("acceleration", 10.0), ACCELERATION_RAD_S2)
+    jerk = _per_joint("limits.jerk", value["jerk"], JERK_RAD_S3) if "jerk" in value else None
     torque = _number("limits.torque_scale", value["torque_scale"], TORQUE_SCALE) if "torque_scale" in value else None
     return Limits(velocity_scale=_scale("limits.velocity_scale", value.get("velocity_scale", 1.0)),
-                  acceleration_rad_s2=accel, torque_scale=torque)
+                  acceleration_rad_s2=accel, torque_scale=torque, jerk_rad_s3=jerk)
+
+
+def _per_joint(where: str, value: Any, bounds: Range) -> tuple[float, ...]:
+    """A number for all joints, or a list of one number per joint (the count is checked against the robot)."""
+    if isinstance(value, Sequence) and not isinstance(value, (str, bytes)):
+        if not value or len(value) > MAX_JOINTS:
+            raise TaskError(where, f"expected a number or one number per joint, got {len(value)}")
+        return tuple(_number(f"{where}[{i}]", v, bounds) for i, v in enumerate(value))
+    return (_number(where, value, bounds),)
+
+
+def _one_or_list(values: tuple[float, ...]) -> float | list[float]:
+    return values[0] if len(values) == 1 else list(values)
 
 
 def _redundancy(value: Any) -> Redundancy:
@@ -662,9 +679,16 @@ def check_against_robot(task: Task, robot: Robot) -> None:
     for i, move in enumerate(task.moves):
         if move.to_joints_deg is not None:
             _check_joint_values(f"moves[{i}].ptp.to.joints_deg", move.to_joints_deg, robot)
-    acc = task.limits.acceleration_rad_s2
-    if len(acc) not in (1, n):
-        raise TaskError("limits.acceleration", f"expected 1 or {n} numbers for {robot.name}, got {len(acc)}")
+    for where, values in (("limits.acceleration", task.limits.acceleration_rad_s2),
+                          ("limits.jerk", task.limits.jerk_rad_s3 or ())):
+        if len(values) not in (0, 1, n):
+            raise TaskError(where, f"expected 1 or {n} numbers for {robot.name}, got {len(values)}")
+        for i, v in enumerate(values):  # a Task built in Python, not parsed, is checked here
+            _number(f"{where}[{i}]" if len(values) > 1 else where, v,
+                    JERK_RAD_S3 if where == "limits.jerk" else ACCELERATION_RAD_S2)
+    if task.limits.ptp_time_law not in PTP_TIME_LAWS:
+        raise TaskError("limits.ptp_time_law", f"expected one of {', '.join(PTP_TIME_LAWS)}, "
+                                               f"got {task.limits.ptp_time_law!r}")
     if robot.family == "seven" and task.redundancy is None:
         _check_no_labels(task, robot)
 

@@ -17,6 +17,7 @@ import numpy as np
 from singplan import reduced
 from singplan.configuration import distances_batch, labels_from_distances
 from singplan.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
+from singplan.jerk import third_difference_ratio
 from singplan.path import CartesianPiece, rotation_angle
 from singplan.redundancy import HeldJoint
 from singplan.robot import Robot
@@ -66,7 +67,7 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
     metrics = {"max_position_error_mm": worst_pos * 1e3, "max_orientation_error_deg": math.degrees(worst_ori),
                "max_joint_speed_ratio": speed, "max_joint_accel_ratio": accel, "duration_s": float(t[-1]),
                "planning_time_s": planning_time_s, "samples": len(t), "method": task.singularity.method,
-               "crossings": crossings, **_torque_metrics(arm, task, q)}
+               "crossings": crossings, **_torque_metrics(arm, task, q), **_jerk_metrics(arm, task, q, timed)}
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
     samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all)}
     if not np.isnan(distances).all():  # an arm without labels (7 joints) has no singular distances to store
@@ -89,6 +90,21 @@ def _move_records(robot: Robot, task: Task, segments: list[Segment], q: np.ndarr
 
 
 _CHUNK = 65_536  # programmed poses formed at once (128 bytes a sample)
+
+
+def _jerk_metrics(robot: Robot, task: Task, q: np.ndarray, timed: list[TimedMove]) -> dict[str, Any]:
+    """With a jerk limit or the quintic PTP law: the jerk ratio and the time they cost against the
+    acceleration-limited optimum (TOPP-RA's duration of every move)."""
+    jerk = task.limits.jerk_rad_s3
+    if jerk is None and task.limits.ptp_time_law == "optimal":
+        return {}
+    optimal_s = sum(tm.optimal_duration_s if tm.optimal_duration_s is not None else tm.duration_s for tm in timed)
+    out: dict[str, Any] = {"acceleration_limited_duration_s": optimal_s,
+                           "jerk_time_lost_s": sum(tm.duration_s for tm in timed) - optimal_s}
+    if jerk is not None:
+        jmax = np.broadcast_to(np.asarray(jerk, dtype=float), (robot.n_joints,))
+        out["max_joint_jerk_ratio"] = third_difference_ratio(q, task.period_s, jmax)
+    return out
 
 
 def _torque_metrics(robot: Robot, task: Task, q: np.ndarray) -> dict[str, Any]:

@@ -40,6 +40,7 @@ from pinocchio.visualize import MeshcatVisualizer
 from singplan.errors import InputError, RobotModelError
 from singplan.outputs import check_output_file, text_writer, write_file
 from singplan.path import move_piece, rpy_deg_to_rotation
+from singplan.weave import drawing_count
 from singplan.robot import Robot, bundled_robots, load_robot
 from singplan.task import parse_task
 from singplan.trajectory import Segment, Trajectory, load
@@ -241,7 +242,7 @@ def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
             T = robot.fk(traj.q[k1])
             continue
         piece = move_piece(i, move, T)
-        points.append(piece.positions(np.linspace(0.0, 1.0, 64)))
+        points.append(piece.positions(np.linspace(0.0, 1.0, drawing_count(piece))))
         T = piece.T_end
     return np.concatenate(points)
 

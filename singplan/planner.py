@@ -38,6 +38,7 @@ from singplan.path import CartesianPiece, move_piece, move_target, rpy_deg_to_ro
 from singplan.redundancy import hold_for_task
 from singplan.robot import Robot, load_robot
 from singplan.singularity import DistanceFunction, Zone, distances_along, find_zones, thresholds_si
+from singplan.stopping import path_estimate, ptp_estimate
 from singplan.task import Move, Task, check_against_robot, load_task
 from singplan.timing import MoveLimits, TimedMove, TimingError, time_move, worst_sample
 from singplan.tracking import BranchCandidates, TrackedPath, track
@@ -492,6 +493,7 @@ class MoveZones:
     kind: str
     length_m: float
     zones: tuple[Zone, ...]
+    stopping: tuple[float, float] = (0.0, 0.0)  # an estimate at the programmed speed [m], and the u where
 
 
 def detect(task: Task | str | Path) -> list[MoveZones]:
@@ -510,10 +512,11 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     T = robot.fk(q)
     out = []
     for i, move in enumerate(task.moves):
+        vmax = robot.velocity_rad_s * task.limits.velocity_scale
         if move.kind == "ptp":
-            q = _ptp_target(robot, i, move, q)
+            q_from, q = q, _ptp_target(robot, i, move, q)
             T = robot.fk(q)
-            out.append(MoveZones(i, "ptp", 0.0, ()))
+            out.append(MoveZones(i, "ptp", 0.0, (), ptp_estimate(robot, q_from, q, vmax * move.velocity_scale)))
             continue
         piece = move_piece(i, move, T)
         grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
@@ -522,6 +525,7 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
         dist, _ = distances_along(robot, tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         zones = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref))
-        out.append(MoveZones(i, move.kind, piece.length_m, tuple(zones)))
+        out.append(MoveZones(i, move.kind, piece.length_m, tuple(zones),
+                             path_estimate(robot, tracked.u, tracked.q, piece.length_m, move.speed_m_s, vmax)))
         q, T = tracked.q[-1], piece.T_end
     return out

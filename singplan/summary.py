@@ -37,6 +37,9 @@ def summary(traj: Trajectory, task: Task) -> str:
                  f"{m['max_orientation_error_deg']:.5f} deg, joint speed x{m['max_joint_speed_ratio']:.3f}, "
                  f"joint accel x{m['max_joint_accel_ratio']:.3f}, planning {m['planning_time_s']:.2f} s")
     lines.append(_torque_line(traj, task))
+    if "max_stopping_distance_mm" in m:
+        lines.append(f"stopping distance: up to {m['max_stopping_distance_mm']:.1f} mm at "
+                     f"t = {m['max_stopping_distance_at_s']:.3f} s (every joint braking at its acceleration limit)")
     return "\n".join(lines) + "\n"
 
 

@@ -231,7 +231,7 @@ def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     where = (f"{worst.stopping[1]:.2f} of the joint motion" if worst.kind == "ptp"
              else f"s {worst.stopping[1] * worst.length_m * 1e3:.1f} mm")
     out.write(f"stopping distance (estimate at the programmed speed, not planned): up to "
-              f"{worst.stopping[0] * 1e3:.1f} mm in move {worst.index} ({worst.kind}) at {where}\n")
+              f"{worst.stopping[0] * 1e3:.3f} mm in move {worst.index} ({worst.kind}) at {where}\n")
     return 0
 
 

@@ -38,7 +38,7 @@ def summary(traj: Trajectory, task: Task) -> str:
                  f"joint accel x{m['max_joint_accel_ratio']:.3f}, planning {m['planning_time_s']:.2f} s")
     lines.append(_torque_line(traj, task))
     if "max_stopping_distance_mm" in m:
-        lines.append(f"stopping distance: up to {m['max_stopping_distance_mm']:.1f} mm at "
+        lines.append(f"stopping distance: up to {m['max_stopping_distance_mm']:.3f} mm at "
                      f"t = {m['max_stopping_distance_at_s']:.3f} s (every joint braking at its acceleration limit)")
     return "\n".join(lines) + "\n"
 

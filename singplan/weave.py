@@ -19,7 +19,9 @@ DESIGN.md asks; the TCP itself moves faster by the lateral motion.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
+from typing import Any
 
 import numpy as np
 
@@ -186,3 +188,10 @@ def drawing_count(piece: CartesianPiece) -> int:
     if not isinstance(piece, WovenPiece):
         return 64
     return min(_DRAW_POINTS_MAX, max(64, _DRAW_POINTS_PER_PERIOD * piece.periods + 1))
+
+
+def woven_moves(task: Mapping[str, Any]) -> frozenset[int]:
+    """Indices of the moves of a task mapping (trajectory.json's ``task``) that carry a weave."""
+    return frozenset(i for i, move in enumerate(task.get("moves", ()))
+                     if isinstance(move, Mapping) and any(isinstance(spec, Mapping) and spec.get("weave")
+                                                          for spec in move.values()))

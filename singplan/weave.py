@@ -123,8 +123,7 @@ class WovenPiece(CartesianPiece):
         (z x t)' normal to n, over |z x t|.
         """
         assert self.weave is not None
-        base = super().velocity(u)
-        T = self.base_poses(np.array([u]))
+        T = self.base_poses(np.array([u]))  # not super().velocity: that reads the (woven) poses
         n, w = self._lateral(T)
         n, w = n[0], w[0]
         z, t = T[0, :3, 2], self._tangents(T)[0]
@@ -135,7 +134,7 @@ class WovenPiece(CartesianPiece):
         x = np.array([2.0 * math.pi * self.periods * u])
         f, f_x = float(wave(self.weave.pattern, x)[0]), float(wave_slope(self.weave.pattern, x)[0])
         lateral = self.amplitude_m * (f_x * 2.0 * math.pi * self.periods * n + f * n_u)
-        return np.concatenate([base[:3] + lateral, base[3:]])
+        return np.concatenate([t + lateral, omega])
 
     def sample_count(self, step_m: float, step_rad: float) -> int:
         """The base path's count, raised to :data:`SAMPLES_PER_PERIOD` per period, in whole quarter periods."""

@@ -18,7 +18,7 @@ middle, and the steps are cut again where a joint stops; on every piece the join
 then linear in t and the integral of |v| is taken in closed form (:func:`mean_norm`), so a TCP
 velocity that turns or reverses while the joints stop at different times is followed exactly.
 On random states of three arms (every joint at up to its speed limit, in any direction) the
-figure is within 1 % of a 20 000-step polyline of forward kinematics (tests/test_stopping.py
+figure is within 1 % of a 10 000-step polyline of forward kinematics (tests/test_stopping.py
 holds it to that). The joint velocities are the trajectory's ``qd`` (central differences of the
 samples); the cost is one batch of Jacobians per sample for slow motion (a few us a sample).
 

@@ -76,10 +76,10 @@ def mean_norm(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     x0 = ad / dd_safe
     k = np.maximum(aa / dd_safe - x0**2, 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        def F(x: np.ndarray) -> np.ndarray:
+        def primitive(x: np.ndarray) -> np.ndarray:
             tail = np.where(k > 0.0, k * np.arcsinh(x / np.sqrt(k)), 0.0)
             return 0.5 * (x * np.sqrt(x**2 + k) + tail)
-        exact = np.sqrt(dd_safe) * (F(x0 + 1.0) - F(x0))
+        exact = np.sqrt(dd_safe) * (primitive(x0 + 1.0) - primitive(x0))
     simpson = (np.linalg.norm(a, axis=-1) + 4.0 * np.linalg.norm(0.5 * (a + b), axis=-1)
                + np.linalg.norm(b, axis=-1)) / 6.0
     return np.where(steady, simpson, exact)

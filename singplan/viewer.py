@@ -40,10 +40,10 @@ from pinocchio.visualize import MeshcatVisualizer
 from singplan.errors import InputError, RobotModelError
 from singplan.outputs import check_output_file, text_writer, write_file
 from singplan.path import move_piece, rpy_deg_to_rotation
-from singplan.weave import drawing_count, woven_moves
 from singplan.robot import Robot, bundled_robots, load_robot
 from singplan.task import parse_task
 from singplan.trajectory import Segment, Trajectory, load
+from singplan.weave import drawing_count, woven_moves
 
 DEFAULT_HOST = "127.0.0.1"  # the live server is for this machine unless asked otherwise
 _SERVER_START_S = 60.0  # longest wait for the live server to report its address

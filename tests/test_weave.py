@@ -135,7 +135,7 @@ CASES = [
 
 def _piece(kind: str, to: list[float], via: list[float] | None, rpy: list[float],
            weave: dict[str, Any]) -> tuple[WovenPiece, pin.SE3]:
-    T_start = pin.SE3(rpy_deg_to_rotation([180.0, 0.0, 0.0]), np.array([0.45, 0.0, 0.4]))
+    T_start = pin.SE3(rpy_deg_to_rotation((180.0, 0.0, 0.0)), np.array([0.45, 0.0, 0.4]))
     spec: dict[str, Any] = {"to": {"xyz": to, "rpy_deg": rpy}, "weave": weave}
     if via is not None:
         spec["via"] = {"xyz": via}
@@ -152,7 +152,7 @@ def test_offsets_match_an_independent_computation(kind: str, to: list[float], vi
     piece, T_start = _piece(kind, to, via, rpy, weave)
     u = np.linspace(0.0, 1.0, 2001)
     want_p, want_R = _independent(kind, T_start.translation, np.array(to), None if via is None else np.array(via),
-                                  T_start.rotation, rpy_deg_to_rotation(rpy), weave, u)
+                                  T_start.rotation, rpy_deg_to_rotation(np.array(rpy)), weave, u)
     T = piece.poses(u)
     np.testing.assert_allclose(T[:, :3, 3], want_p, atol=1e-12)
     np.testing.assert_allclose(T[:, :3, :3], want_R, atol=1e-12)  # the orientation is the base path's

@@ -29,10 +29,13 @@ from singplan.errors import TaskError
 from singplan.path import CartesianPiece
 
 PATTERNS = ("sine", "triangle")
-# Path samples per weave period. A multiple of 4, so that with a whole number of periods on a
-# uniform grid the triangle's corners (quarter periods) fall on samples; 32 keeps the joints'
-# reference spline within TOPP-RA's grid effects on the public welding weaves.
-SAMPLES_PER_PERIOD = 32
+# Path samples per weave period: multiples of 4, so that with a whole number of periods on a
+# uniform grid the triangle's corners (quarter periods) fall on samples. The joints' reference
+# spline handed to TOPP-RA rounds a triangle's corners over about one sample; there the joint
+# velocities jump, and the output samples keep the acceleration limit only if the timing slows
+# enough at each corner, which it does when the rounding is short: 128 a period (32 were not
+# enough for a 1.5 mm / 8 mm triangle at 10 mm/s on a KUKA KR 6, examples/weave_seam.yaml).
+SAMPLES_PER_PERIOD = {"sine": 32, "triangle": 128}
 # Below this angle between the tool's z axis and the path the lateral direction z x t turns too
 # fast to weave along (and at 0 it does not exist): bad input.
 MIN_LATERAL_DEG = 1.0
@@ -137,9 +140,10 @@ class WovenPiece(CartesianPiece):
         return np.concatenate([t + lateral, omega])
 
     def sample_count(self, step_m: float, step_rad: float) -> int:
-        """The base path's count, raised to :data:`SAMPLES_PER_PERIOD` per period, in whole quarter periods."""
+        """The base path's count, raised to :data:`SAMPLES_PER_PERIOD` a period, in whole quarter periods."""
         quarters = 4 * self.periods
-        wanted = max(super().sample_count(step_m, step_rad), SAMPLES_PER_PERIOD * self.periods)
+        assert self.weave is not None
+        wanted = max(super().sample_count(step_m, step_rad), SAMPLES_PER_PERIOD[self.weave.pattern] * self.periods)
         return quarters * math.ceil(wanted / quarters)
 
 

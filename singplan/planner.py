@@ -499,7 +499,8 @@ class MoveZones:
 def detect(task: Task | str | Path) -> list[MoveZones]:
     """Zones along every LIN/CIRC move, in the branch the start configuration leads to.
 
-    Geometry only: no crossing method, no timing, no limit checks.
+    Geometry only: no crossing method, no timing, no limit checks; each move's stopping distance is
+    an estimate at the programmed speed (:func:`singplan.stopping.path_estimate`, ``ptp_estimate``).
     """
     if not isinstance(task, Task):
         task = load_task(task)
@@ -511,8 +512,8 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     check_task(task, robot, q, STEP_M, STEP_RAD, timed=False)  # before any path is sampled
     T = robot.fk(q)
     out = []
+    vmax = robot.velocity_rad_s * task.limits.velocity_scale
     for i, move in enumerate(task.moves):
-        vmax = robot.velocity_rad_s * task.limits.velocity_scale
         if move.kind == "ptp":
             q_from, q = q, _ptp_target(robot, i, move, q)
             T = robot.fk(q)

@@ -44,6 +44,7 @@ from singplan.timing import MoveLimits, TimedMove, TimingError, time_move, worst
 from singplan.tracking import BranchCandidates, TrackedPath, track
 from singplan.trajectory import Trajectory
 from singplan.trajectory_build import build_trajectory, sample_deviations
+from singplan.weave import path_grid
 
 STEP_M = 0.002  # initial path sampling: at most 2 mm ...
 STEP_RAD = math.radians(0.5)  # ... and 0.5 deg of tool rotation between samples
@@ -331,7 +332,7 @@ def _ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.nda
 def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: CartesianPiece, q_start: np.ndarray,
                     method: CrossingMethod) -> PlannedMove:
     """Track the path, let the method handle each zone, and stitch the joint map."""
-    grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
+    grid = path_grid(piece, STEP_M, STEP_RAD)
     thresholds = thresholds_si(task.singularity.zone)
     parts: list[JointPart] = []
     zones: list[Zone] = []
@@ -520,7 +521,7 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
             out.append(MoveZones(i, "ptp", 0.0, (), ptp_estimate(robot, q_from, q, vmax * move.velocity_scale)))
             continue
         piece = move_piece(i, move, T)
-        grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
+        grid = path_grid(piece, STEP_M, STEP_RAD)
         tracked = track(robot, piece.poses, grid, q)
         _check_tracked(robot, i, move, piece, tracked)
         dist, _ = distances_along(robot, tracked.q)

@@ -29,13 +29,16 @@ from singplan.errors import TaskError
 from singplan.path import CartesianPiece
 
 PATTERNS = ("sine", "triangle")
-# Path samples per weave period: multiples of 4, so that with a whole number of periods on a
-# uniform grid the triangle's corners (quarter periods) fall on samples. The joints' reference
-# spline handed to TOPP-RA rounds a triangle's corners over about one sample; there the joint
-# velocities jump, and the output samples keep the acceleration limit only if the timing slows
-# enough at each corner, which it does when the rounding is short: 128 a period (32 were not
-# enough for a 1.5 mm / 8 mm triangle at 10 mm/s on a KUKA KR 6, examples/weave_seam.yaml).
-SAMPLES_PER_PERIOD = {"sine": 32, "triangle": 128}
+# Path samples per weave period, uniform: a multiple of 4, so that with a whole number of periods
+# the triangle's corners (quarter periods) fall on samples.
+SAMPLES_PER_PERIOD = 32
+# At a triangle's corners the joint velocities jump; the output samples keep the acceleration
+# limit only if the timing slows there as much as the samples need. The joints' reference spline
+# handed to TOPP-RA rounds a corner over about one path sample, so corners get extra samples this
+# close (in quarter periods) on either side: the spline turns about as sharply as the samples do.
+# Without them a 3 mm / 6 mm triangle at 20 mm/s failed the acceleration limit (x1.01), and a
+# 3 mm / 20 mm one at 50 mm/s through a wrist singularity x7 (tests/test_weave.py).
+CORNER_OFFSETS = 10.0 ** -np.arange(1.0, 5.0)
 # Below this angle between the tool's z axis and the path the lateral direction z x t turns too
 # fast to weave along (and at 0 it does not exist): bad input.
 MIN_LATERAL_DEG = 1.0
@@ -139,12 +142,29 @@ class WovenPiece(CartesianPiece):
         lateral = self.amplitude_m * (f_x * 2.0 * math.pi * self.periods * n + f * n_u)
         return np.concatenate([t + lateral, omega])
 
-    def sample_count(self, step_m: float, step_rad: float) -> int:
+    def _uniform_count(self, step_m: float, step_rad: float) -> int:
         """The base path's count, raised to :data:`SAMPLES_PER_PERIOD` a period, in whole quarter periods."""
         quarters = 4 * self.periods
-        assert self.weave is not None
-        wanted = max(super().sample_count(step_m, step_rad), SAMPLES_PER_PERIOD[self.weave.pattern] * self.periods)
+        wanted = max(super().sample_count(step_m, step_rad), SAMPLES_PER_PERIOD * self.periods)
         return quarters * math.ceil(wanted / quarters)
+
+    def _corner_samples(self) -> np.ndarray:
+        """The extra path parameters around a triangle's corners (none for a sine)."""
+        assert self.weave is not None
+        if self.weave.pattern != "triangle":
+            return np.empty(0)
+        quarter = 1.0 / (4 * self.periods)
+        corners = (2 * np.arange(2 * self.periods) + 1) * quarter
+        return (corners[:, None] + np.concatenate([-CORNER_OFFSETS, CORNER_OFFSETS]) * quarter).ravel()
+
+    def sample_count(self, step_m: float, step_rad: float) -> int:
+        """Intervals of :meth:`grid` (what the work budget counts), without forming it."""
+        corners = 2 * len(CORNER_OFFSETS) * 2 * self.periods if self.weave and self.weave.pattern == "triangle" else 0
+        return self._uniform_count(step_m, step_rad) + corners
+
+    def grid(self, step_m: float, step_rad: float) -> np.ndarray:
+        """The planner's initial path parameters: uniform, plus the triangle's corner samples."""
+        return np.union1d(np.linspace(0.0, 1.0, self._uniform_count(step_m, step_rad) + 1), self._corner_samples())
 
 
 def woven(piece: CartesianPiece, weave: Weave, field: str) -> WovenPiece:
@@ -184,6 +204,14 @@ def _check_lateral(piece: WovenPiece, where: str) -> None:
                                f"{at}): a weave needs the lateral "
                                f"direction z_tcp x tangent, so the tool must stand at least {MIN_LATERAL_DEG:g} deg "
                                "off the path")
+
+
+def path_grid(piece: CartesianPiece, step_m: float, step_rad: float) -> np.ndarray:
+    """The planner's initial path parameters of a LIN / CIRC: uniform at the steps [m], [rad], or a
+    woven piece's :meth:`WovenPiece.grid`."""
+    if isinstance(piece, WovenPiece):
+        return piece.grid(step_m, step_rad)
+    return np.linspace(0.0, 1.0, piece.sample_count(step_m, step_rad) + 1)
 
 
 def drawing_count(piece: CartesianPiece) -> int:

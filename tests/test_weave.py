@@ -24,7 +24,7 @@ from singplan.errors import TaskError
 from singplan.path import move_piece, rpy_deg_to_rotation
 from singplan.planner import plan
 from singplan.task import parse_task
-from singplan.weave import WovenPiece, wave, whole_periods, woven_moves
+from singplan.weave import WovenPiece, path_grid, wave, whole_periods, woven_moves
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 PROGRAMS = SHARED / "scenarios_programs"
@@ -191,9 +191,16 @@ def test_the_triangle_wave_is_the_unit_triangle_in_phase_with_the_sine() -> None
 
 
 def test_the_path_is_sampled_finely_enough_for_the_weave() -> None:
-    piece, _ = _piece(*CASES[1])  # triangle: its corners at quarter periods must be samples
-    count = piece.sample_count(0.002, math.radians(0.5))
-    assert count >= 128 * piece.periods and count % (4 * piece.periods) == 0
+    piece, _ = _piece(*CASES[1])  # triangle: its corners at quarter periods are samples, with clusters around
+    grid = path_grid(piece, 0.002, math.radians(0.5))
+    assert len(grid) == piece.sample_count(0.002, math.radians(0.5)) + 1  # what the budget counts
+    assert np.all(np.diff(grid) > 0) and grid[0] == 0.0 and grid[-1] == 1.0
+    corners = (2 * np.arange(2 * piece.periods) + 1) / (4 * piece.periods)
+    gaps = np.abs(grid[None, :] - corners[:, None])
+    assert np.all(gaps.min(axis=1) < 1e-15)  # on every corner ...
+    assert np.all(np.sort(gaps, axis=1)[:, 1] < 1e-4 / (4 * piece.periods) * 1.01)  # ... and right next to it
+    sine, _ = _piece(*CASES[0])
+    assert len(path_grid(sine, 0.002, math.radians(0.5))) - 1 >= 32 * sine.periods
 
 
 @pytest.mark.parametrize(("weave", "field"), [
@@ -252,7 +259,8 @@ def test_the_weave_survives_the_tasks_mapping() -> None:
 
 def test_the_weave_seam_example_plans_and_its_triangle_corners_keep_the_acceleration_limit(tmp_path: Path) -> None:
     """examples/weave_seam.yaml: a sine LIN, a triangle CIRC (corners where the joint velocities
-    jump: with 32 samples a period this move failed the acceleration limit) and a PTP."""
+    jump: with 32 uniform samples a period and no corner samples this move failed the acceleration
+    limit) and a PTP."""
     task = Path(__file__).resolve().parents[1] / "examples" / "weave_seam.yaml"
     assert main(["plan", str(task), "-o", str(tmp_path), "--no-report", "--no-replay"]) == 0
     from singplan.trajectory import load
@@ -263,3 +271,30 @@ def test_the_weave_seam_example_plans_and_its_triangle_corners_keep_the_accelera
     if CHECKER.is_file() or os.environ.get("CI") == "true":
         run = _checker(task, tmp_path)
         assert run.returncode == 0, run.stdout + run.stderr
+
+
+def test_report_and_replay_show_the_weave_and_the_stopping_distance() -> None:
+    from singplan.report import report_html
+    from singplan.viewer import SEGMENT_COLOURS, _page_data, programmed_path, robot_of, tcp_path
+
+    # a triangle corner sits on the singular point: this failed (acceleration x7) without corner samples
+    doc = _demo_with_weave("exact", {"pattern": "triangle", "amplitude_mm": 3.0, "wavelength_mm": 20.0})
+    traj = plan(parse_task(doc))
+    assert traj.metrics["max_joint_accel_ratio"] <= 1.0
+    robot = robot_of(traj)
+    page = report_html(traj, robot)
+    assert 'id="plot-stopping"' in page and "max_stopping_distance_mm" in page
+    assert "#00897b" in page.lower()  # the woven move's shading (the SVG writes its colour)
+    tcp = tcp_path(traj, robot)
+    data = _page_data(traj, robot, tcp)
+    colours = {(s["move"], s["kind"]): s["colour"] for s in data["segments"]}
+    assert colours[(0, "crossing")] == SEGMENT_COLOURS["crossing"]
+    assert {colours[(0, kind)] for kind in ("pre", "post")} == {SEGMENT_COLOURS["weave"]}
+    assert colours[(1, "ptp")] == SEGMENT_COLOURS["ptp"]
+    # the programmed path drawn is the woven one: its points leave the straight line by up to the amplitude
+    lin = programmed_path(traj, robot, tcp)
+    start, end = lin[0], traj.task["moves"][0]["lin"]["to"]["xyz"]
+    axis = (np.asarray(end) - start) / np.linalg.norm(np.asarray(end) - start)
+    off = lin[: np.argmin(np.linalg.norm(lin - end, axis=1)) + 1] - start
+    lateral = np.linalg.norm(off - np.outer(off @ axis, axis), axis=1)
+    assert lateral.max() == pytest.approx(3e-3, rel=0.05)

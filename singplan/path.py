@@ -198,5 +198,10 @@ def move_piece(i: int, move: Move, T_start: pin.SE3) -> CartesianPiece:
     """The LIN / CIRC geometry of move ``i`` starting at ``T_start`` (the planner's, the budget's, the replay's)."""
     field_name = f"moves[{i}].{move.kind}"
     if move.kind == "lin":
-        return make_lin(T_start, move_target(move, T_start), field_name)
-    return make_circ(T_start, np.asarray(move.via_xyz, dtype=float), move_target(move, T_start), field_name)
+        piece = make_lin(T_start, move_target(move, T_start), field_name)
+    else:
+        piece = make_circ(T_start, np.asarray(move.via_xyz, dtype=float), move_target(move, T_start), field_name)
+    if move.weave is None:
+        return piece
+    from singplan.weave import woven  # weave builds on this module's pieces: imported where it is needed
+    return woven(piece, move.weave, field_name)

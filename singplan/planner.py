@@ -38,11 +38,13 @@ from singplan.path import CartesianPiece, move_piece, move_target, rpy_deg_to_ro
 from singplan.redundancy import hold_for_task
 from singplan.robot import Robot, load_robot
 from singplan.singularity import DistanceFunction, Zone, distances_along, find_zones, thresholds_si
+from singplan.stopping import path_estimate, ptp_estimate
 from singplan.task import Move, Task, check_against_robot, load_task
 from singplan.timing import MoveLimits, TimedMove, TimingError, time_move, worst_sample
 from singplan.tracking import BranchCandidates, TrackedPath, track
 from singplan.trajectory import Trajectory
 from singplan.trajectory_build import build_trajectory, sample_deviations
+from singplan.weave import path_grid
 
 STEP_M = 0.002  # initial path sampling: at most 2 mm ...
 STEP_RAD = math.radians(0.5)  # ... and 0.5 deg of tool rotation between samples
@@ -333,7 +335,7 @@ def _ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.nda
 def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: CartesianPiece, q_start: np.ndarray,
                     method: CrossingMethod) -> PlannedMove:
     """Track the path, let the method handle each zone, and stitch the joint map."""
-    grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
+    grid = path_grid(piece, STEP_M, STEP_RAD)
     thresholds = thresholds_si(task.singularity.zone)
     parts: list[JointPart] = []
     zones: list[Zone] = []
@@ -496,12 +498,14 @@ class MoveZones:
     kind: str
     length_m: float
     zones: tuple[Zone, ...]
+    stopping: tuple[float, float] = (0.0, 0.0)  # an estimate at the programmed speed [m], and the u where
 
 
 def detect(task: Task | str | Path) -> list[MoveZones]:
     """Zones along every LIN/CIRC move, in the branch the start configuration leads to.
 
-    Geometry only: no crossing method, no timing, no limit checks.
+    Geometry only: no crossing method, no timing, no limit checks; each move's stopping distance is
+    an estimate at the programmed speed (:func:`singplan.stopping.path_estimate`, ``ptp_estimate``).
     """
     if not isinstance(task, Task):
         task = load_task(task)
@@ -513,19 +517,21 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     check_task(task, robot, q, STEP_M, STEP_RAD, timed=False)  # before any path is sampled
     T = robot.fk(q)
     out = []
+    vmax = robot.velocity_rad_s * task.limits.velocity_scale
     for i, move in enumerate(task.moves):
         if move.kind == "ptp":
-            q = _ptp_target(robot, i, move, q)
+            q_from, q = q, _ptp_target(robot, i, move, q)
             T = robot.fk(q)
-            out.append(MoveZones(i, "ptp", 0.0, ()))
+            out.append(MoveZones(i, "ptp", 0.0, (), ptp_estimate(robot, q_from, q, vmax * move.velocity_scale)))
             continue
         piece = move_piece(i, move, T)
-        grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
+        grid = path_grid(piece, STEP_M, STEP_RAD)
         tracked = track(robot, piece.poses, grid, q)
         _check_tracked(robot, i, move, piece, tracked)
         dist, _ = distances_along(robot, tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         zones = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref))
-        out.append(MoveZones(i, move.kind, piece.length_m, tuple(zones)))
+        out.append(MoveZones(i, move.kind, piece.length_m, tuple(zones),
+                             path_estimate(robot, tracked.u, tracked.q, piece.length_m, move.speed_m_s, vmax)))
         q, T = tracked.q[-1], piece.T_end
     return out

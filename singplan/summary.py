@@ -42,6 +42,9 @@ def summary(traj: Trajectory, task: Task) -> str:
         law = "quintic PTP law, " if task.limits.ptp_time_law == "quintic" else ""
         lines.append(f"jerk: {jerk}{law}{m['jerk_time_lost_s']:.3f} s longer than the acceleration-limited "
                      f"{m['acceleration_limited_duration_s']:.3f} s")
+    if "max_stopping_distance_mm" in m:
+        lines.append(f"stopping distance: up to {m['max_stopping_distance_mm']:.3f} mm at "
+                     f"t = {m['max_stopping_distance_at_s']:.3f} s (every joint braking at its acceleration limit)")
     return "\n".join(lines) + "\n"
 
 

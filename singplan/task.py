@@ -25,6 +25,8 @@ singularity.orientation_tolerance_deg  0.001 .. 180         deg
 singularity.zone wrist/elbow_deg       0.001 .. 90          deg
 singularity.zone.shoulder_mm           0.001 .. 1000        mm
 output.period                          0.0001 .. 1          s
+weave.amplitude_mm                     0.001 .. 1000        mm
+weave.wavelength_mm                    0.1 .. 100000        mm
 =====================================  ===================  ==========================
 
 Names (robot, tip) are at most :data:`MAX_NAME_CHARS` characters without control
@@ -46,6 +48,8 @@ import yaml
 from singplan.configuration import parse_configuration
 from singplan.errors import TaskError
 from singplan.robot import Robot
+from singplan.weave import PATTERNS as WEAVE_PATTERNS
+from singplan.weave import Weave
 
 MAX_MOVES = 10_000
 MAX_OUTPUT_SAMPLES = 10_000_000
@@ -86,6 +90,8 @@ ORIENTATION_TOLERANCE_DEG = Range(1e-3, 180.0, "deg")
 ZONE_ANGLE_DEG = Range(1e-3, 90.0, "deg")
 ZONE_SHOULDER_MM = Range(1e-3, 1000.0, "mm")
 PERIOD_S = Range(1e-4, 1.0, "s")
+WEAVE_AMPLITUDE_MM = Range(1e-3, 1000.0, "mm")
+WEAVE_WAVELENGTH_MM = Range(0.1, 1e5, "mm")
 MAX_COORDINATE_M = COORDINATE_M.high
 MAX_SPEED_M_S = SPEED_M_S.high
 
@@ -109,6 +115,7 @@ class Move:
     speed_m_s: float = DEFAULT_SPEED_M_S  # LIN / CIRC TCP speed
     velocity_scale: float = 1.0  # PTP fraction of the joint speed limits
     config: str = "auto"  # "auto" | "keep" | a label like "F U N"
+    weave: Weave | None = None  # LIN / CIRC only (singplan.weave)
 
 
 @dataclass(frozen=True)
@@ -220,6 +227,8 @@ def _move_mapping(move: Move) -> dict[str, Any]:
     else:
         spec["speed"] = move.speed_m_s
     spec["config"] = move.config
+    if move.weave is not None:
+        spec["weave"] = move.weave.to_mapping()
     return {move.kind: spec}
 
 
@@ -586,7 +595,7 @@ def _move(where: str, value: Any) -> Move:
         _check_keys(where, spec, required=("to",), optional=("velocity_scale", "config"))
     else:
         _check_keys(where, spec, required=("to", *(("via",) if kind == "circ" else ())),
-                    optional=("speed", "config"))
+                    optional=("speed", "config", "weave"))
     config = _config(f"{where}.config", spec["config"]) if spec.get("config") is not None else "auto"
     to = spec["to"]
     _check_mapping(f"{where}.to", to)
@@ -605,7 +614,16 @@ def _move(where: str, value: Any) -> Move:
         _check_mapping(f"{where}.via", via_spec)
         _check_keys(f"{where}.via", via_spec, required=("xyz",))
         via = _vector(f"{where}.via.xyz", via_spec["xyz"], 3, COORDINATE_M)
-    return Move(kind, to=target, via_xyz=via, speed_m_s=speed, config=config)  # type: ignore[arg-type]
+    weave = _weave(f"{where}.weave", spec["weave"]) if spec.get("weave") is not None else None
+    return Move(kind, to=target, via_xyz=via, speed_m_s=speed, config=config, weave=weave)  # type: ignore[arg-type]
+
+
+def _weave(where: str, value: Any) -> Weave:
+    _check_mapping(where, value)
+    _check_keys(where, value, required=("amplitude_mm", "wavelength_mm"), optional=("pattern",))
+    return Weave(_check_choice(f"{where}.pattern", value.get("pattern", "sine"), WEAVE_PATTERNS),
+                 _number(f"{where}.amplitude_mm", value["amplitude_mm"], WEAVE_AMPLITUDE_MM),
+                 _number(f"{where}.wavelength_mm", value["wavelength_mm"], WEAVE_WAVELENGTH_MM))
 
 
 def _scale(where: str, value: Any) -> float:

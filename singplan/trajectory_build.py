@@ -22,6 +22,7 @@ from singplan.path import CartesianPiece, rotation_angle
 from singplan.redundancy import HeldJoint
 from singplan.robot import Robot
 from singplan.singularity import Zone
+from singplan.stopping import stopping_distances, stopping_metrics
 from singplan.task import Task
 from singplan.timing import TimedMove, sample_ratios
 from singplan.trajectory import Event, MoveRecord, Segment, Trajectory, finite_differences
@@ -64,12 +65,15 @@ def build_trajectory(robot: Robot, task: Task, planned: list[PlannedMove], timed
     speed, accel = _chunked_ratios(q, period, arm.velocity_rad_s * task.limits.velocity_scale,
                                    arm.acceleration_rad_s2)
     qd, qdd = _chunked_differences(q, period)
+    stopping_m = stopping_distances(arm, q, qd, arm.acceleration_rad_s2)
     metrics = {"max_position_error_mm": worst_pos * 1e3, "max_orientation_error_deg": math.degrees(worst_ori),
                "max_joint_speed_ratio": speed, "max_joint_accel_ratio": accel, "duration_s": float(t[-1]),
                "planning_time_s": planning_time_s, "samples": len(t), "method": task.singularity.method,
-               "crossings": crossings, **_torque_metrics(arm, task, q), **_jerk_metrics(arm, task, q, timed)}
+               "crossings": crossings, **_torque_metrics(arm, task, q), **_jerk_metrics(arm, task, q, timed),
+               **stopping_metrics(stopping_m, period)}
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
-    samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all)}
+    samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all),
+               "stopping_distance_m": stopping_m}
     if not np.isnan(distances).all():  # an arm without labels (7 joints) has no singular distances to store
         samples["distances"] = distances
     return Trajectory(arm.name, str(arm.urdf_path), arm.tip, tool, task.to_mapping(), arm.joint_names,

@@ -143,6 +143,9 @@ class NullSpace:
         joint = 0 if zone.kind == "shoulder" else robot.n_joints - 3
         where = ctx.piece.describe(u_s)
         tried: list[tuple[float, _Blocked]] = []
+        arriving = _outside(robot, before.q, f"{where} (arriving at the singular point)")
+        if arriving is not None:  # no turn at the point can help a path that leaves the limits before it
+            raise _refusal(ctx, zone, joint, None, [(0.0, arriving)])
         for turn in TURNS_RAD:
             try:
                 motion = self_motion(robot, before.q[-1], T_s, joint, turn)
@@ -174,11 +177,13 @@ def _blend(ctx: MoveContext, u0: float, q0: np.ndarray, u1: float, q1: np.ndarra
 
 
 def _outside(robot: Robot, q: np.ndarray, where: str) -> _Blocked | None:
-    """The first joint value of q (K, n) outside its limits, or None."""
+    """The first joint of q (K, n) to leave its limits, at its furthest outside, or None."""
     bad = np.argwhere((q < robot.lower_rad - 1e-9) | (q > robot.upper_rad + 1e-9))
     if bad.size == 0:
         return None
-    k, j = (int(v) for v in bad[0])
+    j = int(bad[0][1])
+    over = np.maximum(robot.lower_rad[j] - q[:, j], q[:, j] - robot.upper_rad[j])
+    k = int(np.argmax(over))
     return _Blocked(j, float(q[k, j]), where, k)
 
 
@@ -206,10 +211,11 @@ def _refusal(ctx: MoveContext, zone: Zone, joint: int, plain: _Blocked | None,
                 f"[{math.degrees(robot.lower_rad[b.joint]):.1f}, {math.degrees(robot.upper_rad[b.joint]):.1f}] deg) "
                 f"at {b.where}")
 
-    ways = [f"turning {robot.joint_names[joint]} by {math.degrees(t):+.0f} deg: {says(b)}" for t, b in tried]
+    ways = [f"turning {robot.joint_names[joint]} by {math.degrees(t):+.0f} deg: {says(b)}" if t else says(b)
+            for t, b in tried]
     if plain is not None:
         ways.insert(0, f"without a pause (exact): {says(plain)}")
-    worst = min([b for _, b in tried] + ([plain] if plain else []), key=over)
+    worst = min((b for _, b in tried), key=over)  # exact's own block is why null-space was asked
     return JointLimitError(
         f"move {ctx.move_index} ({ctx.move_kind}): null-space finds no joint motion at the {zone.kind} singular "
         f"point at {ctx.piece.describe(zone.u_closest)} from which the rest of the path keeps the joint limits; "

@@ -32,6 +32,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pinocchio as pin
 
+from singplan.configuration import distances_batch
 from singplan.crossing import (
     EXACT_ORIENTATION_TOL_RAD,
     Crossing,
@@ -42,7 +43,6 @@ from singplan.crossing import (
     sample_densely,
     through,
 )
-from singplan.configuration import distances_batch
 from singplan.dynamics import move_torque_ratio
 from singplan.errors import JointLimitError, SingularityError
 from singplan.jointmap import JointMap, JointPart, interpolate
@@ -149,7 +149,7 @@ class NullSpace:
         for turn in TURNS_RAD:
             try:
                 motion = self_motion(robot, before.q[-1], T_s, joint, turn)
-            except _NoSelfMotion as exc:
+            except _NoSelfMotionError as exc:
                 raise SingularityError(f"move {ctx.move_index} ({ctx.move_kind}): null-space at the {zone.kind} "
                                        f"singular point at {where}: {exc}", move=ctx.move_index, kind=zone.kind,
                                        s_m=u_s * ctx.piece.length_m) from exc
@@ -224,7 +224,7 @@ def _refusal(ctx: MoveContext, zone: Zone, joint: int, plain: _Blocked | None,
         upper_rad=float(robot.upper_rad[worst.joint]), move=ctx.move_index)
 
 
-class _NoSelfMotion(Exception):
+class _NoSelfMotionError(Exception):
     """The null space does not carry the driven joint on (the message says why)."""
 
 
@@ -274,7 +274,7 @@ def self_motion(robot: Robot, q0: np.ndarray, T_target: np.ndarray, joint: int, 
 
     Each step follows the Jacobian's null vector (its smallest right singular vector, scaled to
     move ``joint`` by the step) and then restores the pose with the other joints
-    (:func:`hold_pose`). Raises _NoSelfMotion where the null space does not move ``joint`` or
+    (:func:`hold_pose`). Raises _NoSelfMotionError where the null space does not move ``joint`` or
     a compensating joint would jump (it would pass another singularity).
     """
     steps = max(2, math.ceil(abs(turn_rad) / _PAUSE_STEP_RAD))
@@ -283,12 +283,12 @@ def self_motion(robot: Robot, q0: np.ndarray, T_target: np.ndarray, joint: int, 
     for k in range(1, steps + 1):
         n = np.linalg.svd(robot.jacobian(out[k - 1]))[2][-1]
         if abs(n[joint]) < 0.1 * float(np.max(np.abs(n))):
-            raise _NoSelfMotion(f"the Jacobian's null space does not move {robot.joint_names[joint]} here")
+            raise _NoSelfMotionError(f"the Jacobian's null space does not move {robot.joint_names[joint]} here")
         guess = out[k - 1] + n / n[joint] * (turn_rad / steps)
         out[k] = hold_pose(robot, guess, T_target, joint)
         jump = float(np.max(np.abs(out[k] - out[k - 1])))
         if jump > _MAX_PAUSE_STEP_RAD:
-            raise _NoSelfMotion(f"turning {robot.joint_names[joint]} makes the other joints jump by "
+            raise _NoSelfMotionError(f"turning {robot.joint_names[joint]} makes the other joints jump by "
                                 f"{math.degrees(jump):.1f} deg (they would pass another singularity)")
     return out
 
@@ -359,6 +359,7 @@ def time_with_pauses(jmap: JointMap, crossings: tuple[Crossing, ...], limits: Mo
     return TimedMove(u, q, duration, speed, accel, torque)
 
 
-def _path_piece(jmap: JointMap, parts: list[JointPart], limits: MoveLimits) -> tuple[JointMap, MoveLimits, float, float]:
+def _path_piece(jmap: JointMap, parts: list[JointPart],
+                limits: MoveLimits) -> tuple[JointMap, MoveLimits, float, float]:
     piece = _PieceMap(jmap.robot, jmap, parts)
     return piece, replace(limits, length_m=limits.length_m * (piece.u1 - piece.u0)), piece.u0, piece.u1

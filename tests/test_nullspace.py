@@ -10,6 +10,7 @@ CI=true where they must run.
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -135,30 +136,31 @@ def test_refusal_names_the_joint_when_no_turn_keeps_the_limits(tmp_path: Path,
     assert "without a pause (exact): joint_4 reaches" in message, message
 
 
-def _singular_wrist(robot: Any, q: np.ndarray) -> np.ndarray:
-    """q with A5 moved (Newton on the signed wrist distance) until axes 4 and 6 align."""
+def _singular(robot: Any, q: np.ndarray, joint: int, kind: str) -> np.ndarray:
+    """q with ``joint`` moved (Newton on the signed ``kind`` distance) onto the singularity, wrapped to (-pi, pi]."""
     q = np.array(q, dtype=float)
-    i, h = KIND_INDEX["wrist"], 1e-7
-    for _ in range(50):
+    i, h = KIND_INDEX[kind], 1e-7
+    for _ in range(60):
         d = distances_batch(robot, q[None])[0, i]
         if abs(d) < 1e-13:
             break
         probe = q.copy()
-        probe[4] += h
-        q[4] -= d * h / (distances_batch(robot, probe[None])[0, i] - d)
+        probe[joint] += h
+        q[joint] -= d * h / (distances_batch(robot, probe[None])[0, i] - d)
+    q[joint] = math.remainder(q[joint], 2 * math.pi)
+    assert abs(distances_batch(robot, q[None])[0, i]) < 1e-12 and robot.within_limits(q), "no singular pose there"
     return q
 
 
-def wrist_hit_task(arm: str, q4_margin_deg: float, joints_deg: list[float], step_deg: list[float]) -> dict[str, Any]:
-    """A LIN through a wrist-singular pose of ``arm`` with A4 ``q4_margin_deg`` above its lower limit.
+def hit_task(arm: str, kind: str, joints_deg: list[float], step_deg: list[float]) -> dict[str, Any]:
+    """A LIN of ``arm`` (tool 120 mm along z) through a ``kind``-singular pose met at its middle.
 
-    The singular pose T_s is met at the LIN's middle: it starts at the pose of q_s + step and ends
-    at the mirror pose (position 2 p_s - p_a, rotation R_s R_a^T R_s, so the slerp's midpoint is R_s).
+    The singular joints q_s are ``joints_deg`` with A5 (wrist) or A2 (shoulder) solved onto the
+    singularity. The LIN starts at the pose of q_s + ``step_deg`` and ends at the mirror pose
+    (position 2 p_s - p_a, rotation R_s R_a^T R_s), so its middle is exactly the pose of q_s.
     """
     robot = load_robot(arm, tool=pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.12])))
-    q_s = np.radians(joints_deg)
-    q_s[3] = robot.lower_rad[3] + math.radians(q4_margin_deg)
-    q_s = _singular_wrist(robot, q_s)
+    q_s = _singular(robot, np.radians(joints_deg), 4 if kind == "wrist" else 1, kind)
     q_a = q_s + np.radians(step_deg)
     T_s, T_a = robot.fk(q_s), robot.fk(q_a)
     R_b = T_s.rotation @ T_a.rotation.T @ T_s.rotation
@@ -170,12 +172,34 @@ def wrist_hit_task(arm: str, q4_margin_deg: float, joints_deg: list[float], step
             "limits": {"velocity_scale": 1.0, "acceleration": 10.0}, "output": {"period": 0.004}}
 
 
-def test_generated_wrist_hit_on_another_opw_arm(tmp_path: Path) -> None:
-    task = wrist_hit_task("fanuc_lrmate200id", 1.0, [20.0, 10.0, 20.0, 0.0, 0.0, 30.0],
-                          [3.0, -4.5, 3.0, 9.0, 12.0, 6.0])
-    task_file = tmp_path / "fanuc_wrist_hit.yaml"
-    task_file.write_text(yaml.safe_dump(task))
-    assert _plan(task_file, tmp_path / "exact", "--method", "exact") == 3  # exact drives A4 below its limit
+# Fanuc LR Mate 200iD, wrist: A4 1 deg above its lower limit (-190 deg) at the singular pose; the
+# approach lowers A4, so exact's continuation passes -190 deg. KUKA KR 6 R900-2, shoulder: the
+# wrist point over axis 1 with the arm up and A6 near -350 deg; exact's continuation turns A6 past
+# its limit, A1's half turn (A6 compensating the other way) keeps it. Both found by a seeded
+# search over joints and steps; the test checks what they must show, not figures of a run.
+GENERATED = {
+    "fanuc_lrmate200id wrist": ("fanuc_lrmate200id", "wrist", [20.0, 10.0, 20.0, -189.0, 0.0, 30.0],
+                                [3.0, -4.5, 3.0, 9.0, 12.0, 6.0]),
+    "kuka_kr6_r900_2 shoulder": ("kuka_kr6_r900_2", "shoulder", [-45.474, -135.932, 48.821, 19.332, 41.833, -348.539],
+                                 [0.744, 1.869, 2.383, 2.427, -2.219, 2.691]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(GENERATED))
+def test_generated_singular_hit_on_other_opw_arms(case: str, tmp_path: Path) -> None:
+    arm, kind, joints_deg, step_deg = GENERATED[case]
+    task_file = tmp_path / "hit.yaml"
+    task_file.write_text(yaml.safe_dump(hit_task(arm, kind, joints_deg, step_deg)))
+    assert _plan(task_file, tmp_path / "exact", "--method", "exact") == 3  # exact's continuation leaves a limit
     assert _plan(task_file, tmp_path / "out") == 0
-    _assert_pause_keeps_pose(task_file, tmp_path / "out", "wrist")
+    _assert_pause_keeps_pose(task_file, tmp_path / "out", kind)
     _check(task_file, tmp_path / "out")
+
+
+@pytest.mark.parametrize(("arm", "line"), [("kuka_kr6_r900_2", "null-space   yes"),
+                                           ("so100", "null-space   no  moves the joints in the null space"),
+                                           ("panda", "null-space   no  moves the joints in the null space")])
+def test_info_lists_null_space_per_family(arm: str, line: str) -> None:
+    out = io.StringIO()
+    assert main(["info", arm], out=out) == 0
+    assert line in out.getvalue(), out.getvalue()

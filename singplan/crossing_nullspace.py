@@ -47,7 +47,7 @@ from singplan.dynamics import move_torque_ratio
 from singplan.errors import JointLimitError, SingularityError
 from singplan.jointmap import JointMap, JointPart, interpolate
 from singplan.robot import Robot
-from singplan.singularity import KIND_INDEX, Zone
+from singplan.singularity import KIND_INDEX, Zone, thresholds_si
 from singplan.timing import MoveLimits, TimedMove, TimingError, sample_ratios, time_move
 from singplan.tracking import nearest_candidate, track
 
@@ -107,8 +107,11 @@ class NullSpace:
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
         met = ctx.settings.position_tolerance_mm / 1e3 if zone.kind == "shoulder" else EXACT_ORIENTATION_TOL_RAD
+        # under auto, a zone that needs no pause refuses (auto has exact's plan already) unless a
+        # later zone on the move may need one
+        refuse = self.only_when_needed and not _zone_after(ctx, zone)
         if zone.kind == "elbow" or zone.min_distance >= met:
-            if self.only_when_needed:
+            if refuse:
                 raise self._not_needed(ctx, zone, "acts only where the path meets a wrist or shoulder singularity "
                                                   f"(this {zone.kind} zone: closest {zone.describe_distance()})")
             return Exact().cross(ctx, zone)
@@ -117,7 +120,7 @@ class NullSpace:
             _outside(ctx.robot, plain.blend.q, ctx.piece.describe(zone.u_closest))
             or _rest_blocked(ctx, plain.blend.u1, plain.q_exit))
         if plain is not None and plain_block is None:
-            if self.only_when_needed:
+            if refuse:
                 raise self._not_needed(ctx, zone, "is not needed: exact's crossing keeps the joint limits")
             return plain
         return self._pause(ctx, zone, plain, plain_block)
@@ -164,6 +167,13 @@ class NullSpace:
                                     Pause(u_s, motion, after, joint, turn, T_s))
             tried.append((turn, blocked))
         raise _refusal(ctx, zone, joint, plain_block, tried)
+
+
+def _zone_after(ctx: MoveContext, zone: Zone) -> bool:
+    """Whether the tracked move comes inside a wrist or shoulder zone again after ``zone``."""
+    after = ctx.tracked.u > zone.u_exit
+    inside = np.abs(ctx.distances[after, :2]) < thresholds_si(ctx.settings.zone)[:2]
+    return bool(np.any(inside))
 
 
 def _blend(ctx: MoveContext, u0: float, q0: np.ndarray, u1: float, q1: np.ndarray, slope0: bool,

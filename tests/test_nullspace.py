@@ -85,7 +85,10 @@ def _assert_pause_keeps_pose(task_file: Path, out: Path, kind: str) -> None:
         assert rotation_angle(T.rotation, T0.rotation) <= POSE_ORI_TOL_RAD, f"sample {k} turns the tool"
     d = np.abs(distances_batch(robot, q[pause])[:, KIND_INDEX[kind]])
     assert d.max() <= SINGULAR_TOL[kind], f"the pause leaves the {kind} singularity by {d.max():.3g}"
-    assert any(seg["method"] == "null-space" for seg in traj["segments"] if seg["kind"] == "crossing")
+    (seg,) = [seg for seg in traj["segments"] if seg["kind"] == "crossing" and seg["method"] == "null-space"]
+    period = traj["period"]
+    assert abs(seg["pause_s"] - len(pause) * period) <= period + 1e-9, (seg["pause_s"], len(pause))
+    assert seg["time_lost_s"] >= seg["pause_s"] - 1e-9  # the pause is time lost
 
 
 @pytest.mark.parametrize("name", sorted(PUBLIC))

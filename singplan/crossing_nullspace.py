@@ -110,10 +110,10 @@ class NullSpace:
         # under auto, a zone that needs no pause refuses (auto has exact's plan already) unless a
         # later zone on the move may need one
         refuse = self.only_when_needed and not _zone_after(ctx, zone)
-        if zone.kind == "elbow" or zone.min_distance >= met:
+        if zone.kind == "elbow" or zone.min_distance >= met or not 1e-9 < zone.u_closest < 1.0 - 1e-9:
             if refuse:
                 raise self._not_needed(ctx, zone, "acts only where the path meets a wrist or shoulder singularity "
-                                                  f"(this {zone.kind} zone: closest {zone.describe_distance()})")
+                                                  f"inside the move (closest {zone.describe_distance()})")
             return Exact().cross(ctx, zone)
         plain = through(ctx, zone, self.name)
         plain_block = None if plain is None else (
@@ -126,13 +126,12 @@ class NullSpace:
         return self._pause(ctx, zone, plain, plain_block)
 
     def _not_needed(self, ctx: MoveContext, zone: Zone, why: str) -> SingularityError:
-        return SingularityError(f"move {ctx.move_index} ({ctx.move_kind}): null-space {why}",
+        return SingularityError(f"move {ctx.move_index} ({ctx.move_kind}): null-space {why}; the {zone.kind} zone's "
+                                f"closest point is at {ctx.piece.describe(zone.u_closest)}",
                                 move=ctx.move_index, kind=zone.kind, s_m=zone.u_closest * ctx.piece.length_m)
 
     def _pause(self, ctx: MoveContext, zone: Zone, plain: Crossing | None, plain_block: _Blocked | None) -> Crossing:
         robot, u, q, u_s = ctx.robot, ctx.tracked.u, ctx.tracked.q, zone.u_closest
-        if not 1e-9 < u_s < 1.0 - 1e-9:
-            raise self._not_needed(ctx, zone, "needs the singular point inside the move, not at its end")
         d = np.abs(ctx.distances[:, KIND_INDEX[zone.kind]])
         edge = max(_EDGE_FACTOR * zone.min_distance, _EDGE_MIN[zone.kind])
         a = int(np.nonzero((u < u_s) & (d >= edge))[0][-1]) if np.any((u < u_s) & (d >= edge)) else 0

@@ -143,29 +143,39 @@ class NullSpace:
         q_s = singular_config(robot, guess, T_s, zone.kind)
         before = _blend(ctx, float(u[a]), q[a], u_s, q_s, a > 0, False)
         joint = 0 if zone.kind == "shoulder" else robot.n_joints - 3
-        where = ctx.piece.describe(u_s)
         tried: list[tuple[float, _Blocked]] = []
-        arriving = _outside(robot, before.q, f"{where} (arriving at the singular point)")
+        arriving = _outside(robot, before.q, f"{ctx.piece.describe(u_s)} (arriving at the singular point)")
         if arriving is not None:  # no turn at the point can help a path that leaves the limits before it
             raise _refusal(ctx, zone, joint, None, [(0.0, arriving)])
         for turn in TURNS_RAD:
-            try:
-                motion = self_motion(robot, before.q[-1], T_s, joint, turn)
-            except _NoSelfMotionError as exc:
-                raise SingularityError(f"move {ctx.move_index} ({ctx.move_kind}): null-space at the {zone.kind} "
-                                       f"singular point at {where}: {exc}", move=ctx.move_index, kind=zone.kind,
-                                       s_m=u_s * ctx.piece.length_m) from exc
-            blocked = _outside(robot, motion, f"{where} (the pause)")
-            if blocked is None:
-                exits = exit_candidates(ctx, u_b)
-                q_exit = nearest_candidate(np.array(exits), motion[-1])[0] if exits else motion[-1]
-                after = _blend(ctx, u_s, motion[-1], u_b, q_exit, False, u_b < 1.0 - 1e-12)
-                blocked = _outside(robot, after.q, where) or _rest_blocked(ctx, u_b, after.q[-1])
-                if blocked is None:
-                    return Crossing(zone, self.name, before, after.q[-1],
-                                    Pause(u_s, motion, after, joint, turn, T_s))
-            tried.append((turn, blocked))
+            found = self._turn(ctx, zone, before, T_s, joint, turn, u_b)
+            if isinstance(found, Crossing):
+                return found
+            tried.append((turn, found))
         raise _refusal(ctx, zone, joint, plain_block, tried)
+
+    def _turn(self, ctx: MoveContext, zone: Zone, before: JointPart, T_s: np.ndarray, joint: int, turn: float,
+              u_b: float) -> Crossing | _Blocked:
+        """The crossing that turns ``joint`` by ``turn`` at the end of ``before`` and rejoins the path
+        at ``u_b``, or where that leaves a joint limit (in the pause, after it, or later on the move)."""
+        u_s, where = before.u1, ctx.piece.describe(before.u1)
+        try:
+            motion = self_motion(ctx.robot, before.q[-1], T_s, joint, turn)
+        except _NoSelfMotionError as exc:
+            raise SingularityError(f"move {ctx.move_index} ({ctx.move_kind}): null-space at the {zone.kind} "
+                                   f"singular point at {where}: {exc}", move=ctx.move_index, kind=zone.kind,
+                                   s_m=u_s * ctx.piece.length_m) from exc
+        blocked = _outside(ctx.robot, motion, f"{where} (the pause)")
+        if blocked is not None:
+            return blocked
+        exits = exit_candidates(ctx, u_b)
+        q_exit = nearest_candidate(np.array(exits), motion[-1])[0] if exits else motion[-1]
+        after = _blend(ctx, u_s, motion[-1], u_b, q_exit, False, u_b < 1.0 - 1e-12)
+        blocked = _outside(ctx.robot, after.q, f"{where} (leaving the singular point)") or \
+            _rest_blocked(ctx, u_b, after.q[-1])
+        if blocked is not None:
+            return blocked
+        return Crossing(zone, self.name, before, after.q[-1], Pause(u_s, motion, after, joint, turn, T_s))
 
 
 def _zone_after(ctx: MoveContext, zone: Zone) -> bool:

@@ -160,7 +160,7 @@ class NullSpace:
         at ``u_b``, or where that leaves a joint limit (in the pause, after it, or later on the move)."""
         u_s, where = before.u1, ctx.piece.describe(before.u1)
         try:
-            motion = self_motion(ctx.robot, before.q[-1], T_s, joint, turn)
+            motion = self_motion(ctx.robot, before.q[-1], T_s, joint, turn, ctx.settings.position_tolerance_mm / 1e3)
         except _NoSelfMotionError as exc:
             raise SingularityError(f"move {ctx.move_index} ({ctx.move_kind}): null-space at the {zone.kind} "
                                    f"singular point at {where}: {exc}", move=ctx.move_index, kind=zone.kind,
@@ -288,13 +288,16 @@ def singular_config(robot: Robot, q: np.ndarray, T_target: np.ndarray, kind: str
     return q
 
 
-def self_motion(robot: Robot, q0: np.ndarray, T_target: np.ndarray, joint: int, turn_rad: float) -> np.ndarray:
+def self_motion(robot: Robot, q0: np.ndarray, T_target: np.ndarray, joint: int, turn_rad: float,
+                tol_m: float = 1e-5) -> np.ndarray:
     """Reference samples (K, n) of the null-space motion from q0 turning ``joint`` by ``turn_rad``.
 
     Each step follows the Jacobian's null vector (its smallest right singular vector, scaled to
     move ``joint`` by the step) and then restores the pose with the other joints
-    (:func:`hold_pose`). Raises _NoSelfMotionError where the null space does not move ``joint`` or
-    a compensating joint would jump (it would pass another singularity).
+    (:func:`hold_pose`). Raises _NoSelfMotionError where the null space does not move ``joint``,
+    a compensating joint would jump (it would pass another singularity), or the pose drifts past
+    ``tol_m`` / 0.01 deg (the singularity has no self-motion: e.g. a UR arm's shoulder, whose wrist
+    point is beside axis 1, not on it).
     """
     steps = max(2, math.ceil(abs(turn_rad) / _PAUSE_STEP_RAD))
     out = np.empty((steps + 1, robot.n_joints))
@@ -305,6 +308,11 @@ def self_motion(robot: Robot, q0: np.ndarray, T_target: np.ndarray, joint: int, 
             raise _NoSelfMotionError(f"the Jacobian's null space does not move {robot.joint_names[joint]} here")
         guess = out[k - 1] + n / n[joint] * (turn_rad / steps)
         out[k] = hold_pose(robot, guess, T_target, joint)
+        err = pose_error(robot, out[k], T_target)
+        moved_m, turned_rad = float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:]))
+        if moved_m > tol_m or turned_rad > EXACT_ORIENTATION_TOL_RAD:
+            raise _NoSelfMotionError(f"turning {robot.joint_names[joint]} moves the tool by {moved_m * 1e3:.4f} mm / "
+                                     f"{math.degrees(turned_rad):.4f} deg: no joint motion keeps the pose here")
         jump = float(np.max(np.abs(out[k] - out[k - 1])))
         if jump > _MAX_PAUSE_STEP_RAD:
             raise _NoSelfMotionError(f"turning {robot.joint_names[joint]} makes the other joints jump by "

@@ -26,6 +26,7 @@ import yaml
 
 from singplan.cli import main
 from singplan.configuration import distances_batch
+from singplan.crossing_nullspace import _NoSelfMotionError, pose_error, self_motion
 from singplan.path import rotation_angle
 from singplan.robot import bundled_robots, load_robot
 from singplan.singularity import KIND_INDEX
@@ -206,3 +207,18 @@ def test_info_lists_null_space_per_family(arm: str, line: str) -> None:
     out = io.StringIO()
     assert main(["info", arm], out=out) == 0
     assert line in out.getvalue(), out.getvalue()
+
+
+def test_self_motion_keeps_the_pose_where_the_singularity_has_one() -> None:
+    """UR5: at the wrist singularity (axes 4 and 6 parallel, with 2 and 3) half a turn of A4 keeps
+    the pose at every reference step; at its shoulder singularity the wrist point lies beside
+    axis 1, so turning A1 moves the tool and the motion is refused with the figures."""
+    robot = load_robot("ur5", tool=pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.12])))
+    q = _singular(robot, np.array([0.3, -1.2, 1.4, 0.4, 0.1, 0.5]), 4, "wrist")
+    T = robot.fk(q).homogeneous
+    motion = self_motion(robot, q, T, 3, math.pi)
+    assert abs(motion[-1, 3] - motion[0, 3] - math.pi) < 1e-12
+    assert max(float(np.max(np.abs(pose_error(robot, m, T)))) for m in motion) < 1e-12
+    q = _singular(robot, np.array([0.3, -1.2, 1.4, 0.4, 0.8, 0.5]), 1, "shoulder")
+    with pytest.raises(_NoSelfMotionError, match="no joint motion keeps the pose"):
+        self_motion(robot, q, robot.fk(q).homogeneous, 0, math.pi)

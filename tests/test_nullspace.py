@@ -86,8 +86,11 @@ def _assert_pause_keeps_pose(task_file: Path, out: Path, kind: str) -> None:
         assert rotation_angle(T.rotation, T0.rotation) <= POSE_ORI_TOL_RAD, f"sample {k} turns the tool"
     d = np.abs(distances_batch(robot, q[pause])[:, KIND_INDEX[kind]])
     assert d.max() <= SINGULAR_TOL[kind], f"the pause leaves the {kind} singularity by {d.max():.3g}"
-    (seg,) = [seg for seg in traj["segments"] if seg["kind"] == "crossing" and seg["method"] == "null-space"]
     period = traj["period"]
+    from_rest = float(task["limits"]["acceleration"]) * period**2 / 2  # one step from (or to) rest
+    assert np.max(np.abs(q[pause[0]] - q[pause[0] - 1])) <= from_rest * (1 + 1e-9), "the pause starts moving"
+    assert np.max(np.abs(q[pause[-1] + 1] - q[pause[-1]])) <= from_rest * (1 + 1e-9), "the pause ends moving"
+    (seg,) = [seg for seg in traj["segments"] if seg["kind"] == "crossing" and seg["method"] == "null-space"]
     assert abs(seg["pause_s"] - len(pause) * period) <= period + 1e-9, (seg["pause_s"], len(pause))
     assert seg["time_lost_s"] >= seg["pause_s"] - 1e-9  # the pause is time lost
 

@@ -143,7 +143,7 @@ class NullSpace:
         q_s = singular_config(robot, guess, T_s, zone.kind)
         before = _blend(ctx, float(u[a]), q[a], u_s, q_s, a > 0, False)
         joint = 0 if zone.kind == "shoulder" else robot.n_joints - 3
-        tried: list[tuple[float, _Blocked]] = []
+        tried: list[tuple[float, _Blocked | str]] = []
         arriving = _outside(robot, before.q, f"{ctx.piece.describe(u_s)} (arriving at the singular point)")
         if arriving is not None:  # no turn at the point can help a path that leaves the limits before it
             raise _refusal(ctx, zone, joint, None, [(0.0, arriving)])
@@ -155,16 +155,15 @@ class NullSpace:
         raise _refusal(ctx, zone, joint, plain_block, tried)
 
     def _turn(self, ctx: MoveContext, zone: Zone, before: JointPart, T_s: np.ndarray, joint: int, turn: float,
-              u_b: float) -> Crossing | _Blocked:
+              u_b: float) -> Crossing | _Blocked | str:
         """The crossing that turns ``joint`` by ``turn`` at the end of ``before`` and rejoins the path
-        at ``u_b``, or where that leaves a joint limit (in the pause, after it, or later on the move)."""
+        at ``u_b``; else where that leaves a joint limit (in the pause, after it, or later on the move),
+        or why no pose-keeping motion turns it so far."""
         u_s, where = before.u1, ctx.piece.describe(before.u1)
         try:
             motion = self_motion(ctx.robot, before.q[-1], T_s, joint, turn, ctx.settings.position_tolerance_mm / 1e3)
         except _NoSelfMotionError as exc:
-            raise SingularityError(f"move {ctx.move_index} ({ctx.move_kind}): null-space at the {zone.kind} "
-                                   f"singular point at {where}: {exc}", move=ctx.move_index, kind=zone.kind,
-                                   s_m=u_s * ctx.piece.length_m) from exc
+            return str(exc)
         blocked = _outside(ctx.robot, motion, f"{where} (the pause)")
         if blocked is not None:
             return blocked
@@ -218,14 +217,17 @@ def _rest_blocked(ctx: MoveContext, u_from: float, q_from: np.ndarray) -> _Block
 
 
 def _refusal(ctx: MoveContext, zone: Zone, joint: int, plain: _Blocked | None,
-             tried: list[tuple[float, _Blocked]]) -> JointLimitError:
-    """Exit 3 naming the joint that stops each way on; the error's figures are the smallest overshoot's."""
+             tried: list[tuple[float, _Blocked | str]]) -> JointLimitError | SingularityError:
+    """Exit 3 naming the joint that stops each way on (the error's figures are the smallest
+    overshoot's), or, where no turn keeps the pose at all, why."""
     robot = ctx.robot
 
     def over(b: _Blocked) -> float:
         return max(robot.lower_rad[b.joint] - b.value_rad, b.value_rad - robot.upper_rad[b.joint])
 
-    def says(b: _Blocked) -> str:
+    def says(b: _Blocked | str) -> str:
+        if isinstance(b, str):
+            return b
         return (f"{robot.joint_names[b.joint]} reaches {math.degrees(b.value_rad):.2f} deg (limits "
                 f"[{math.degrees(robot.lower_rad[b.joint]):.1f}, {math.degrees(robot.upper_rad[b.joint]):.1f}] deg) "
                 f"at {b.where}")
@@ -234,11 +236,15 @@ def _refusal(ctx: MoveContext, zone: Zone, joint: int, plain: _Blocked | None,
             for t, b in tried]
     if plain is not None:
         ways.insert(0, f"without a pause (exact): {says(plain)}")
-    worst = min((b for _, b in tried), key=over)  # exact's own block is why null-space was asked
+    head = (f"move {ctx.move_index} ({ctx.move_kind}): null-space finds no joint motion at the {zone.kind} singular "
+            f"point at {ctx.piece.describe(zone.u_closest)} from which the rest of the path keeps the joint limits; ")
+    blocks = [b for _, b in tried if not isinstance(b, str)]  # exact's own block is why null-space was asked
+    if not blocks:
+        return SingularityError(head + "; ".join(ways), move=ctx.move_index, kind=zone.kind,
+                                s_m=zone.u_closest * ctx.piece.length_m)
+    worst = min(blocks, key=over)
     return JointLimitError(
-        f"move {ctx.move_index} ({ctx.move_kind}): null-space finds no joint motion at the {zone.kind} singular "
-        f"point at {ctx.piece.describe(zone.u_closest)} from which the rest of the path keeps the joint limits; "
-        f"{robot.joint_names[worst.joint]} stops it: " + "; ".join(ways),
+        head + f"{robot.joint_names[worst.joint]} stops it: " + "; ".join(ways),
         joint=robot.joint_names[worst.joint], value_rad=worst.value_rad, lower_rad=float(robot.lower_rad[worst.joint]),
         upper_rad=float(robot.upper_rad[worst.joint]), move=ctx.move_index)
 

@@ -21,7 +21,9 @@ piece's end steps are (:func:`singplan.timing.end_step_ratio`).
 The method acts only where the path meets the singularity within exact's tolerance (0.01 deg,
 or the position tolerance at the shoulder): elsewhere no joint motion keeps the pose, and it
 keeps the branch as exact does. An elbow singularity has no finite self-motion; there it
-behaves as exact.
+behaves as exact. Neither has a shoulder singularity whose wrist point lies beside axis 1 rather
+than on it (a UR arm, a shoulder offset): turning A1 moves the tool, and the turn is refused
+with the figures (:func:`self_motion`).
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import ClassVar, Protocol
+from typing import TYPE_CHECKING, ClassVar, Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -35,6 +35,9 @@ from singplan.robot import Robot
 from singplan.singularity import KIND_INDEX, Zone
 from singplan.task import SingularitySettings
 from singplan.tracking import TrackedPath, nearest_candidate
+
+if TYPE_CHECKING:
+    from singplan.crossing_nullspace import Pause
 
 EXACT_ORIENTATION_TOL_RAD = math.radians(0.01)
 # a through-crossing blends where the in-branch swing has not started: |distance| above
@@ -69,6 +72,13 @@ class Crossing:
     method: str
     blend: JointPart
     q_exit: np.ndarray  # (n,)
+    # null-space: the TCP waits at the end of ``blend`` while the joints move; ``pause.after`` goes on
+    pause: Pause | None = None
+
+    @property
+    def parts(self) -> list[JointPart]:
+        """The joint-map parts that replace the zone (two around a pause)."""
+        return [self.blend] if self.pause is None else [self.blend, self.pause.after]
 
 
 class CrossingMethod(Protocol):

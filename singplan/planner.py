@@ -30,6 +30,7 @@ from singplan.crossing import (
     MoveContext,
     WristJoint,
 )
+from singplan.crossing_nullspace import NullSpace, time_with_pauses
 from singplan.dynamics import TorqueLimit, effort_limits_nm, require_dynamics
 from singplan.errors import JointLimitError, PlanningError, SingularityError, UnreachableError
 from singplan.ik import solve_all
@@ -79,8 +80,10 @@ def candidate_methods(name: str, move: Move) -> list[CrossingMethod]:
     """
     target = move.config if move.config not in ("auto", "keep") else None
     wrist_joint: list[CrossingMethod] = [WristJoint(target, w) for w in WRIST_JOINT_WINDOWS]
-    if name == "auto":
-        return [Exact(), *wrist_joint, Axis(target)]
+    if name == "auto":  # null-space only where exact's crossing would leave a joint limit
+        return [Exact(), *wrist_joint, Axis(target), NullSpace(only_when_needed=True)]
+    if name == "null-space":
+        return [NullSpace()]
     if name == "wrist-joint":
         return wrist_joint
     if name == "axis":
@@ -194,6 +197,8 @@ def _where(robot: Robot, pm: PlannedMove, u: float) -> str:
 def _timed(robot: Robot, pm: PlannedMove, period_s: float, max_samples: int) -> TimedMove:
     """time_move, with a failure's path parameter turned into the point on the move."""
     try:
+        if any(c.pause is not None for c in pm.crossings):  # the TCP waits: timed in pieces
+            return time_with_pauses(pm.jmap, pm.crossings, pm.limits, period_s, pm.index, max_samples)
         return time_move(pm.jmap, pm.limits, period_s, pm.index, max_samples)
     except TimingError as exc:
         raise TimingError(pm.index, exc.u, exc.reason, kind=pm.kind, where=_where(robot, pm, exc.u)) from exc
@@ -369,10 +374,11 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
         k_a = int(np.searchsorted(tracked.u, result.blend.u0))
         parts.append(JointPart("track", tracked.u[:k_a + 1], tracked.q[:k_a + 1]))
         _check_limits(robot, i, move, piece, tracked.u[:k_a + 1], tracked.q[:k_a + 1], zones)
-        parts.append(result.blend)
-        _check_limits(robot, i, move, piece, result.blend.u, result.blend.q, zones)  # every method's crossing
+        for part in result.parts:
+            parts.append(part)
+            _check_limits(robot, i, move, piece, part.u, part.q, zones)  # every method's crossing
         crossings.append(result)
-        u_from, q_from = result.blend.u1, result.q_exit
+        u_from, q_from = result.parts[-1].u1, result.q_exit
     return PlannedMove(i, move.kind, JointMap(robot, piece.poses, parts), _limits(robot, task, move, piece.length_m),
                        piece, tuple(zones), tuple(crossings))
 
@@ -399,8 +405,8 @@ def _spanning(crossing: Crossing) -> Zone:
     A method may start its part before the detected entry (at the tracked sample below it) or end
     it after the exit; every sample of that part is the crossing's, so its segment must cover it.
     """
-    z, part = crossing.zone, crossing.blend
-    return Zone(z.kind, min(z.u_entry, part.u0), max(z.u_exit, part.u1), z.u_closest, z.min_distance, z.threshold)
+    z, u0, u1 = crossing.zone, crossing.parts[0].u0, crossing.parts[-1].u1
+    return Zone(z.kind, min(z.u_entry, u0), max(z.u_exit, u1), z.u_closest, z.min_distance, z.threshold)
 
 
 class _ZoneTest:

@@ -25,6 +25,8 @@ def summary(traj: Trajectory, task: Task) -> str:
             unit_value = (f"{d['min_distance'] * 1e3:.3f} mm" if d.get("min_distance_unit") == "m"
                           else f"{math.degrees(d['min_distance']):.4f} deg")
             how = "changing branch" if d.get("changes_branch") else "keeping the branch (joints swing, path slowed)"
+            if "pause_s" in d:  # null-space
+                how = f"pausing {d['pause_s']:.3f} s on the singular point while the aligned joints turn"
             lines.append(f"      {s.singularity} zone {s.t0:.3f} .. {s.t1:.3f} s: closest {unit_value}, "
                          f"method {s.method} {how}, {s.config_before} -> {s.config_after}, "
                          f"dev {d['max_position_error_mm']:.4f} mm / {d['max_orientation_error_deg']:.4f} deg, "

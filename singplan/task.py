@@ -60,7 +60,7 @@ MAX_SCALAR_CHARS = 10_000
 MAX_NAME_CHARS = 256
 MAX_PATH_CHARS = 4096
 MAX_JOINTS = 64
-METHODS = ("auto", "wrist-joint", "axis", "exact", "dls", "average", "ptp", "stop")
+METHODS = ("auto", "wrist-joint", "axis", "null-space", "exact", "dls", "average", "ptp", "stop")
 DEFAULT_SPEED_M_S = 0.25
 # more digits than any float can hold: decimal (and YAML 1.1 octal), hexadecimal, binary
 _LONG_INTEGER = re.compile(r"[-+]?(?:[0-9][0-9_:]{399,}|0[xX][0-9a-fA-F_]{256,}|0[bB][01_]{1024,})")

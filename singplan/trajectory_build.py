@@ -246,7 +246,11 @@ def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone
     speed = pm.limits.tcp_speed_m_s or 0.0
     nominal = (tm.u[b] - tm.u[a]) * pm.limits.length_m / speed if speed > 0 else 0.0
     through = any(c.zone.u_closest == zone.u_closest for c in pm.crossings)
-    return {"min_distance": zone.min_distance, "min_distance_unit": zone.unit,
+    # a null-space pause: the samples that stay at the singular point's u while the joints turn
+    waits = [int(np.count_nonzero(np.abs(tm.u[a:b + 1] - c.pause.u) < 1e-12)) - 1 for c in pm.crossings
+             if c.pause is not None and c.zone.u_closest == zone.u_closest]
+    pause = {"pause_s": max(0, sum(waits)) * period} if waits else {}
+    return {**pause, "min_distance": zone.min_distance, "min_distance_unit": zone.unit,
             "max_position_error_mm": float(pos_err[a:b + 1].max()) * 1e3,
             "max_orientation_error_deg": math.degrees(float(ori_err[a:b + 1].max())),
             "max_orientation_error_at_s": float(tm.u[k] * pm.limits.length_m),

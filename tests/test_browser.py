@@ -154,7 +154,7 @@ def test_report_renders_every_plot(browser: Browser, planned: Path) -> None:
     page, errors = _open(browser, planned / "report.html")
     page.wait_for_load_state("load")
     figures = page.locator("figure")
-    assert figures.count() == 5
+    assert figures.count() == 6  # joints, speed, distances, deviation, TCP speed, stopping distance
     for i in range(figures.count()):
         svg = figures.nth(i).locator("svg")
         box = svg.bounding_box()

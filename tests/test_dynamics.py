@@ -144,7 +144,7 @@ def test_without_torque_scale_torques_are_reported_not_enforced(tmp_path: Path) 
     code, err = _plan_cli(UR5_TASK, tmp_path / "free")
     assert code == 0, err
     page = (tmp_path / "free" / "out" / "report.html").read_text()
-    assert 'id="plot-torque"' in page and page.count("<svg") == 6
+    assert 'id="plot-torque"' in page and page.count("<svg") == 7  # with the stopping distance
     assert "not enforced" in page
 
 

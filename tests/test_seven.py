@@ -21,7 +21,7 @@ import yaml
 
 from singplan.cli import main
 from singplan.kinematics.robot import Robot, load_robot
-from singplan.planning.path import move_piece
+from singplan.planning.pieces import move_piece
 from singplan.planning.redundancy import HeldJoint, hold_joint
 from singplan.results.plan import plan
 from singplan.task.load import parse_task

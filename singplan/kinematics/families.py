@@ -513,7 +513,8 @@ def crossing_methods(family: Family, no_wrist: str = "") -> dict[str, str]:
     all-branch numeric IK; wrist-joint needs a wrist singularity to cross (``no_wrist`` says
     why an arm has none, :class:`Recognition`).
     """
-    serves = {"exact": "", "stop": "", "wrist-joint": "", "axis": "", "dls": "", "average": "", "ptp": "", "auto": ""}
+    serves = {"exact": "", "stop": "", "wrist-joint": "", "axis": "", "null-space": "", "dls": "", "average": "",
+              "ptp": "", "auto": ""}
     if family in ("opw", "ur"):
         return serves
     if family == "general6":
@@ -522,12 +523,16 @@ def crossing_methods(family: Family, no_wrist: str = "") -> dict[str, str]:
     if family == "five":
         return _FIVE_METHODS
     no_closed = "needs a closed form (opw or ur), which this arm does not have"
-    return {**serves, "wrist-joint": no_closed, "axis": no_closed,
+    seven = f"{_NO_SQUARE_JACOBIAN} (6 x 7); with `redundancy` holding one joint the six-axis chain can"
+    return {**serves, "wrist-joint": no_closed, "axis": no_closed, "null-space": seven,
             "auto": "compares exact only: wrist-joint and axis need a closed form"}
 
 
 _NO_WRIST = "needs a spherical wrist (three wrist axes meeting in a point); a five-axis arm has a two-axis wrist"
+_NO_SQUARE_JACOBIAN = ("moves the joints in the null space of a square (6 x 6) Jacobian at a singular "
+                       "configuration; this arm's Jacobian is not square")
 _FIVE_METHODS = {"exact": "", "stop": "", "dls": "", "average": "", "ptp": "", "wrist-joint": _NO_WRIST,
+                 "null-space": _NO_SQUARE_JACOBIAN,
                  "axis": "interpolates one axis while three others keep a full pose component; a five-axis arm "
                          "keeps position and tool axis only, with no closed form to re-solve them",
                  "auto": "compares exact only: wrist-joint and axis need a six-axis arm's closed form"}

@@ -175,6 +175,27 @@ class Robot:
         tool = self.model.frames[self.tip_frame_id].placement * self.T_tip_tcp
         return position + rotation @ tool.translation
 
+    def tcp_jacobians(self, q: np.ndarray) -> np.ndarray:
+        """Linear part of the TCP Jacobian (N, 3, n) [m/rad] in the base frame, of joint samples q (N, n):
+        column j is ``axis_j x (p_tcp - origin_j)``, composed in numpy a chunk at a time like
+        :meth:`tcp_positions` (a Pinocchio call per sample costs ten times more)."""
+        q = np.asarray(q, dtype=float).reshape(-1, self.n_joints)
+        out = np.zeros((len(q), 3, self.n_joints))
+        for c in range(0, len(q), _FK_CHUNK):
+            part = q[c:c + _FK_CHUNK]
+            rotation = np.broadcast_to(np.eye(3), (len(part), 3, 3))
+            position = np.zeros((len(part), 3))
+            joints = []
+            for placement, axis, iq in self._chain_steps:
+                position = position + rotation @ placement.translation
+                rotation = rotation @ placement.rotation
+                joints.append((iq, position, rotation @ axis))
+                rotation = rotation @ _rotations_about(axis, part[:, iq])
+            tcp = position + rotation @ (self.model.frames[self.tip_frame_id].placement * self.T_tip_tcp).translation
+            for iq, origin, axis_base in joints:
+                out[c:c + _FK_CHUNK, :, iq] = np.cross(axis_base, tcp - origin)
+        return out
+
     @cached_property
     def _chain_steps(self) -> list[tuple[pin.SE3, np.ndarray, int]]:
         """Base to tip: each joint's placement in its parent's frame, its unit axis and its q index.

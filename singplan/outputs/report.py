@@ -4,7 +4,8 @@ Plots (matplotlib, embedded as SVG, so the page needs no network and no other fi
 positions with their limits, joint speed against the limit, the signed singular distances
 with the detection thresholds, the position and orientation deviation from the programmed
 path with the tolerances, the TCP speed against the programmed speed, and for a robot with
-dynamics the joint torques against their limits. Crossing segments are shaded on every time plot.
+dynamics the joint torques against their limits, and the stopping distance. Crossing segments
+(and woven moves, in another colour) are shaded on every time plot.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from numpy.typing import ArrayLike
 
 from singplan.kinematics.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.kinematics.robot import Robot
+from singplan.planning.weave import woven_moves
 from singplan.results.trajectory import Trajectory
 
 _PLOT_BUCKETS = 2000  # a curve longer than two points a bucket is drawn as its min/max envelope
@@ -59,9 +61,12 @@ def _envelope(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _shade(ax: Any, traj: Trajectory) -> None:
+    woven = woven_moves(traj.task)
     for s in traj.segments:
         if s.kind == "crossing":
             ax.axvspan(s.t0, s.t1, color="#f4b400", alpha=0.18, lw=0)
+        elif s.move in woven:
+            ax.axvspan(s.t0, s.t1, color="#00897b", alpha=0.10, lw=0)
 
 
 def _joints(traj: Trajectory, robot: Robot) -> Callable[[plt.Figure], None]:
@@ -174,6 +179,22 @@ def _tcp_speed(traj: Trajectory, step_m: np.ndarray) -> Callable[[plt.Figure], N
     return draw
 
 
+def _stopping(traj: Trajectory) -> Callable[[plt.Figure], None]:
+    distance_mm = traj.samples["stopping_distance_m"] * 1e3
+
+    def draw(fig: plt.Figure) -> None:
+        ax = fig.add_subplot(1, 1, 1)
+        _shade(ax, traj)
+        ax.plot(*_envelope(traj.t, distance_mm), lw=1.2)
+        k = int(np.argmax(distance_mm))
+        ax.plot([traj.t[k]], [distance_mm[k]], "o", color="r", ms=4)
+        ax.annotate(f"{distance_mm[k]:.1f} mm", (traj.t[k], distance_mm[k]), textcoords="offset points",
+                    xytext=(6, -10), fontsize=8)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("stopping distance [mm]")
+    return draw
+
+
 def _table(header: list[str], rows: list[list[Any]]) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows)
@@ -192,7 +213,9 @@ def _tables(traj: Trajectory) -> str:
                  for s in traj.segments if s.kind == "crossing"]
     m = traj.metrics
     metrics = [[k, f"{m[k]:.6g}"] for k in ("duration_s", "max_position_error_mm", "max_orientation_error_deg",
-                                            "max_joint_speed_ratio", "max_joint_accel_ratio", "max_torque_ratio",
+                                            "max_joint_speed_ratio", "max_joint_accel_ratio", "max_joint_jerk_ratio",
+                                            "acceleration_limited_duration_s", "jerk_time_lost_s", "max_torque_ratio",
+                                            "max_stopping_distance_mm", "max_stopping_distance_at_s",
                                             "planning_time_s") if isinstance(m.get(k), (int, float))]
     metrics += [[f"peak torque {name} [N m]", f"{value:.4g} of {m['torque_limit_Nm'][name]:.4g}"]
                 for name, value in m.get("peak_torque_Nm", {}).items()]
@@ -227,6 +250,9 @@ def report_html(traj: Trajectory, robot: Robot) -> str:
          3.3),
         ("tcp", "TCP speed against the programmed speed (dashed).", _tcp_speed(traj, step_m), 3.0),
     ]
+    if "stopping_distance_m" in traj.samples:
+        figures.append(("stopping", "Stopping distance: how far the TCP would travel if every joint braked now at its "
+                                    "acceleration limit (the worst marked).", _stopping(traj), 3.0))
     limits = traj.task.get("limits", {})
     if no_dynamics_reason(robot) is None:
         scale = limits.get("torque_scale")

@@ -25,6 +25,8 @@ def summary(traj: Trajectory, task: Task) -> str:
             unit_value = (f"{d['min_distance'] * 1e3:.3f} mm" if d.get("min_distance_unit") == "m"
                           else f"{math.degrees(d['min_distance']):.4f} deg")
             how = "changing branch" if d.get("changes_branch") else "keeping the branch (joints swing, path slowed)"
+            if "pause_s" in d:  # null-space
+                how = f"pausing {d['pause_s']:.3f} s on the singular point while the aligned joints turn"
             lines.append(f"      {s.singularity} zone {s.t0:.3f} .. {s.t1:.3f} s: closest {unit_value}, "
                          f"method {s.method} {how}, {s.config_before} -> {s.config_after}, "
                          f"dev {d['max_position_error_mm']:.4f} mm / {d['max_orientation_error_deg']:.4f} deg, "
@@ -37,6 +39,14 @@ def summary(traj: Trajectory, task: Task) -> str:
                  f"{m['max_orientation_error_deg']:.5f} deg, joint speed x{m['max_joint_speed_ratio']:.3f}, "
                  f"joint accel x{m['max_joint_accel_ratio']:.3f}, planning {m['planning_time_s']:.2f} s")
     lines.append(_torque_line(traj, task))
+    if "acceleration_limited_duration_s" in m:
+        jerk = f"joint jerk x{m['max_joint_jerk_ratio']:.3f}, " if "max_joint_jerk_ratio" in m else ""
+        law = "quintic PTP law, " if task.limits.ptp_time_law == "quintic" else ""
+        lines.append(f"jerk: {jerk}{law}{m['jerk_time_lost_s']:.3f} s longer than the acceleration-limited "
+                     f"{m['acceleration_limited_duration_s']:.3f} s")
+    if "max_stopping_distance_mm" in m:
+        lines.append(f"stopping distance: up to {m['max_stopping_distance_mm']:.3f} mm at "
+                     f"t = {m['max_stopping_distance_at_s']:.3f} s (every joint braking at its acceleration limit)")
     return "\n".join(lines) + "\n"
 
 

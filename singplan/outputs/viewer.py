@@ -41,14 +41,16 @@ from singplan.errors import InputError, RobotModelError
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot, bundled_robots, load_robot
 from singplan.outputs.choices import DEFAULT_HOST
-from singplan.planning.path import move_piece
+from singplan.planning.pieces import move_piece
+from singplan.planning.weave import drawing_count, woven_moves
 from singplan.results.files import check_output_file, text_writer, write_file
 from singplan.results.trajectory import Segment, Trajectory, load
 from singplan.task.load import parse_task
 
 _SERVER_START_S = 60.0  # longest wait for the live server to report its address
 ANIMATION_STEP_S = 0.02  # animation keyframes at most this often; the browser interpolates between them
-SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575}
+SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575,
+                   "weave": 0x00897B}  # the segments of a woven move, but its crossings
 # What the page holds is bounded whatever the number of samples (a million samples would be
 # hundreds of MB of page and a minute of building): a time grid of at most so many points, more
 # where the joints move fast (no joint turns more than the turn between two kept samples, so a
@@ -193,9 +195,10 @@ def _robot_visuals(vis: meshcat.Visualizer, robot: Robot) -> tuple[MeshcatVisual
 
 def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath) -> None:
     """The executed TCP path by segment kind (a line plus dots), and a marker at each crossing."""
+    woven = woven_moves(traj.task)
     for n, seg in enumerate(traj.segments):
         k0, k1 = _sample_range(traj, seg)
-        colour = SEGMENT_COLOURS.get(seg.kind, 0)
+        colour = _colour(seg, woven)
         path = tcp.between(k0, k1)
         vis[f"paths/executed/{n:03d}_{seg.kind}"].set_object(_line(path, colour, 3.0))
         # browsers draw lines one pixel wide: dots make the executed path readable at a glance
@@ -242,7 +245,7 @@ def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
             T = robot.fk(traj.q[k1])
             continue
         piece = move_piece(i, move, T)
-        points.append(piece.positions(np.linspace(0.0, 1.0, 64)))
+        points.append(piece.positions(np.linspace(0.0, 1.0, drawing_count(piece))))
         T = piece.T_end
     return np.concatenate(points)
 
@@ -277,12 +280,14 @@ def _meshcat_bundle() -> str:
 def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath) -> dict[str, Any]:
     """What replay.js shows besides the scene: segments, crossing labels, speed strip, camera."""
     segments, labels = [], []
+    woven = woven_moves(traj.task)
     for seg in traj.segments:
         title, detail = _describe(seg)
+        title += " (woven)" if seg.move in woven and seg.kind != "crossing" else ""
         crossing = seg.kind == "crossing"
         t_jump = traj.t[_midpoint(traj, seg)] if crossing else seg.t0
         segments.append({"kind": seg.kind, "move": seg.move, "t0": seg.t0, "t1": seg.t1, "t_jump": float(t_jump),
-                         "colour": SEGMENT_COLOURS.get(seg.kind, 0), "title": title, "detail": detail})
+                         "colour": _colour(seg, woven), "title": title, "detail": detail})
         if crossing:
             d = seg.details
             text = (f"{title.split(': ', 1)[1]}; {d.get('max_position_error_mm', 0.0):.3f} mm / "
@@ -299,6 +304,12 @@ def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath) -> dict[str, Any]:
             "speed": {"t": np.round(traj.t[keep], 4).tolist(), "ratio": np.round(ratio[keep], 4).tolist()},
             "frame": {"center": (0.5 * (lo + hi)).tolist(), "distance": 2.2 * radius,
                       "direction": _VIEW_DIRECTION.tolist()}}
+
+
+def _colour(seg: Segment, woven: frozenset[int]) -> int:
+    """A segment's colour: its kind's, or the weave's for a woven move's segments other than crossings."""
+    kind = "weave" if seg.move in woven and seg.kind != "crossing" else seg.kind
+    return SEGMENT_COLOURS.get(kind, 0)
 
 
 def _extremes(values: np.ndarray, count: int) -> np.ndarray:

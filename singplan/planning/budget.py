@@ -23,7 +23,8 @@ import numpy as np
 
 from singplan.errors import TaskError
 from singplan.kinematics.robot import Robot
-from singplan.planning.path import move_piece, move_target
+from singplan.planning.path import move_target
+from singplan.planning.pieces import move_piece
 from singplan.task.schema import MAX_OUTPUT_SAMPLES, Move, Task
 
 TASK_MEMORY_MB = 1500.0  # DESIGN.md "Bounded resources": the whole process, in all

@@ -178,14 +178,6 @@ def move_target(move: Move, T_start: pin.SE3) -> pin.SE3:
     return pin.SE3(rotation, np.asarray(move.to.xyz, dtype=float))
 
 
-def move_piece(i: int, move: Move, T_start: pin.SE3) -> CartesianPiece:
-    """The LIN / CIRC geometry of move ``i`` starting at ``T_start`` (the planner's, the budget's, the replay's)."""
-    field_name = f"moves[{i}].{move.kind}"
-    if move.kind == "lin":
-        return make_lin(T_start, move_target(move, T_start), field_name)
-    return make_circ(T_start, np.asarray(move.via_xyz, dtype=float), move_target(move, T_start), field_name)
-
-
 _DEVIATION_CHUNK = 65_536  # programmed poses formed at once (128 bytes a sample)
 
 

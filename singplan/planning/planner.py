@@ -25,16 +25,20 @@ from singplan.kinematics.dynamics import TorqueLimit, effort_limits_nm, require_
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import Robot, load_robot
+from singplan.kinematics.stopping import path_estimate, ptp_estimate
 from singplan.planning.budget import check_task
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import Crossing, CrossingMethod, MoveContext
+from singplan.planning.crossing.nullspace import time_with_pauses
 from singplan.planning.jointmap import JointMap, JointPart
-from singplan.planning.path import CartesianPiece, move_piece, move_target, sample_deviations
+from singplan.planning.path import CartesianPiece, move_target, sample_deviations
+from singplan.planning.pieces import move_piece
 from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint, hold_for_task
 from singplan.planning.select import best_of
 from singplan.planning.timing import MoveLimits, TimedMove, TimingError, time_move
 from singplan.planning.tracking import BranchCandidates, TrackedPath, track
+from singplan.planning.weave import path_grid
 from singplan.planning.zones import DistanceFunction, Zone, distances_along, find_zones
 from singplan.task.load import check_against_robot, load_task
 from singplan.task.schema import Move, Task
@@ -112,6 +116,8 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
 def _timed(robot: Robot, pm: PlannedMove, period_s: float, max_samples: int) -> TimedMove:
     """time_move, with a failure's path parameter turned into the point on the move."""
     try:
+        if any(c.pause is not None for c in pm.crossings):  # the TCP waits: timed in pieces
+            return time_with_pauses(pm.jmap, pm.crossings, pm.limits, period_s, pm.index, max_samples)
         return time_move(pm.jmap, pm.limits, period_s, pm.index, max_samples)
     except TimingError as exc:
         raise TimingError(pm.index, exc.u, exc.reason, kind=pm.kind, where=pm.describe(exc.u)) from exc
@@ -169,8 +175,11 @@ def _limits(robot: Robot, task: Task, move: Move, length_m: float) -> MoveLimits
     scale = task.limits.velocity_scale * (move.velocity_scale if move.kind == "ptp" else 1.0)
     torque = (TorqueLimit(robot, effort_limits_nm(robot) * task.limits.torque_scale)
               if task.limits.torque_scale is not None else None)
+    jerk = (np.broadcast_to(np.asarray(task.limits.jerk_rad_s3, dtype=float), (robot.n_joints,)).copy()
+            if task.limits.jerk_rad_s3 is not None else None)
     return MoveLimits(robot.velocity_rad_s * scale, robot.acceleration_rad_s2, length_m,
-                      move.speed_m_s if move.kind != "ptp" else None, torque)
+                      move.speed_m_s if move.kind != "ptp" else None, torque, jerk,
+                      quintic=move.kind == "ptp" and task.limits.ptp_time_law == "quintic")
 
 
 def _plan_move(robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3, q_start: np.ndarray,
@@ -201,7 +210,7 @@ def _ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.nda
 def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: CartesianPiece, q_start: np.ndarray,
                     method: CrossingMethod) -> PlannedMove:
     """Track the path, let the method handle each zone, and stitch the joint map."""
-    grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
+    grid = path_grid(piece, STEP_M, STEP_RAD)
     thresholds = task.singularity.zone.si()
     parts: list[JointPart] = []
     zones: list[Zone] = []
@@ -222,7 +231,7 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
         found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref),
                            continued=crossings[-1].zone.kind if crossings else None)
         ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, task.singularity.position_tolerance_mm / 1e3,
-                          math.radians(task.singularity.orientation_tolerance_deg))
+                          math.radians(task.singularity.orientation_tolerance_deg), thresholds)
         zones_before = list(zones)
         result = _first_crossing(method, ctx, found, zones, u_from)
         if tracked.coarse_from_u < (result.blend.u0 if result is not None else math.inf):
@@ -236,10 +245,11 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
         k_a = int(np.searchsorted(tracked.u, result.blend.u0))
         parts.append(JointPart("track", tracked.u[:k_a + 1], tracked.q[:k_a + 1]))
         _check_limits(robot, i, move, piece, tracked.u[:k_a + 1], tracked.q[:k_a + 1], zones)
-        parts.append(result.blend)
-        _check_limits(robot, i, move, piece, result.blend.u, result.blend.q, zones)  # every method's crossing
+        for part in result.parts:
+            parts.append(part)
+            _check_limits(robot, i, move, piece, part.u, part.q, zones)  # every method's crossing
         crossings.append(result)
-        u_from, q_from = result.blend.u1, result.q_exit
+        u_from, q_from = result.parts[-1].u1, result.q_exit
     return PlannedMove(i, move.kind, JointMap(robot, piece.poses, parts), _limits(robot, task, move, piece.length_m),
                        piece, tuple(zones), tuple(crossings))
 
@@ -266,8 +276,8 @@ def _spanning(crossing: Crossing) -> Zone:
     A method may start its part before the detected entry (at the tracked sample below it) or end
     it after the exit; every sample of that part is the crossing's, so its segment must cover it.
     """
-    z, part = crossing.zone, crossing.blend
-    return Zone(z.kind, min(z.u_entry, part.u0), max(z.u_exit, part.u1), z.u_closest, z.min_distance, z.threshold)
+    z, u0, u1 = crossing.zone, crossing.parts[0].u0, crossing.parts[-1].u1
+    return Zone(z.kind, min(z.u_entry, u0), max(z.u_exit, u1), z.u_closest, z.min_distance, z.threshold)
 
 
 class _ZoneTest:
@@ -365,12 +375,14 @@ class MoveZones:
     kind: str
     length_m: float
     zones: tuple[Zone, ...]
+    stopping: tuple[float, float] = (0.0, 0.0)  # an estimate at the programmed speed [m], and the u where
 
 
 def detect(task: Task | str | Path) -> list[MoveZones]:
     """Zones along every LIN/CIRC move, in the branch the start configuration leads to.
 
-    Geometry only: no crossing method, no timing, no limit checks.
+    Geometry only: no crossing method, no timing, no limit checks; each move's stopping distance is
+    an estimate at the programmed speed (:func:`singplan.kinematics.stopping.path_estimate`, ``ptp_estimate``).
     """
     if not isinstance(task, Task):
         task = load_task(task)
@@ -382,19 +394,21 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     check_task(task, robot, q, STEP_M, STEP_RAD, timed=False)  # before any path is sampled
     T = robot.fk(q)
     out = []
+    vmax = robot.velocity_rad_s * task.limits.velocity_scale
     for i, move in enumerate(task.moves):
         if move.kind == "ptp":
-            q = _ptp_target(robot, i, move, q)
+            q_from, q = q, _ptp_target(robot, i, move, q)
             T = robot.fk(q)
-            out.append(MoveZones(i, "ptp", 0.0, ()))
+            out.append(MoveZones(i, "ptp", 0.0, (), ptp_estimate(robot, q_from, q, vmax * move.velocity_scale)))
             continue
         piece = move_piece(i, move, T)
-        grid = np.linspace(0.0, 1.0, piece.sample_count(STEP_M, STEP_RAD) + 1)
+        grid = path_grid(piece, STEP_M, STEP_RAD)
         tracked = track(robot, piece.poses, grid, q)
         _check_tracked(robot, i, move, piece, tracked)
         dist, _ = distances_along(robot, tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         zones = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref))
-        out.append(MoveZones(i, move.kind, piece.length_m, tuple(zones)))
+        out.append(MoveZones(i, move.kind, piece.length_m, tuple(zones),
+                             path_estimate(robot, tracked.u, tracked.q, piece.length_m, move.speed_m_s, vmax)))
         q, T = tracked.q[-1], piece.T_end
     return out

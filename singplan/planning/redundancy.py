@@ -61,7 +61,9 @@ class HeldJoint:
     def reduce_task(self, task: Task) -> Task:
         """The task as the 6R chain sees it: joint values and per-joint accelerations without the held joint."""
         acc = task.limits.acceleration_rad_s2
-        limits = replace(task.limits, acceleration_rad_s2=acc if len(acc) == 1 else self._drop(acc))
+        jerk = task.limits.jerk_rad_s3
+        limits = replace(task.limits, acceleration_rad_s2=acc if len(acc) == 1 else self._drop(acc),
+                         jerk_rad_s3=jerk if jerk is None or len(jerk) == 1 else self._drop(jerk))
         moves = tuple(replace(m, to_joints_deg=self._drop(m.to_joints_deg)) if m.to_joints_deg is not None else m
                       for m in task.moves)
         start = self._drop(task.start_joints_deg) if task.start_joints_deg is not None else None

@@ -14,6 +14,11 @@ sample is on the path. Limits are then checked on the samples with the same fini
 differences a checker uses, and the profile is tightened where TOPP-RA's grid let them slip.
 Both end steps are held within amax * period^2 / 2 (a start from rest, an arrival at rest), so
 a seam between two moves stays within the acceleration limit whatever its neighbours do.
+
+With a jerk limit (or the quintic PTP law) the acceleration-limited result is the reference:
+jerk.py's time laws are sampled, stretched uniformly until every limit holds on the samples
+(jerk by third differences, seams included), and the one that ends soonest is kept; the move
+records the acceleration-limited duration so the time the jerk limit costs can be reported.
 """
 
 from __future__ import annotations
@@ -21,16 +26,19 @@ from __future__ import annotations
 import itertools
 import logging
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 import toppra as ta
 import toppra.algorithm as ta_algo
 import toppra.constraint as ta_constraint
+from scipy.interpolate import CubicSpline
 
 from singplan.errors import PlanningError
 from singplan.kinematics.dynamics import PathDynamics, TorqueLimit, move_torque_ratio
 from singplan.planning.budget import check_move_samples
+from singplan.planning.jerk import QuinticLaw, SCurveLaw, SmoothedLaw, jerk_ratio, quintic_duration
 from singplan.planning.jointmap import JointMap
 
 logger = logging.getLogger(__name__)
@@ -42,6 +50,15 @@ _SPEED_MARGIN = 0.999  # ratios the samples must stay under
 _ACCEL_MARGIN = 0.995
 _TCP_MARGIN = 0.999
 _TORQUE_MARGIN = 0.995
+_JERK_MARGIN = 0.995
+_STRETCH_PASSES = 8
+_MAX_STRETCH = 100.0  # a law that needs more is given up (exit 3), before it could exhaust the sample allowance
+# Smoothing windows tried, in multiples of amax / jmax (the time a jerk-limited drive needs to
+# build up full acceleration): short ones keep the move fast where the joint map is straight,
+# long ones help where the joint map curves (near singular zones) and uniform stretching costs more.
+_WINDOW_FACTORS = (0.5, 1.0, 2.0, 4.0, 8.0)
+_S_CURVE_JERKS = (1.0, 0.5, 0.25)
+TimeLaw = QuinticLaw | SmoothedLaw | SCurveLaw  # S-curve candidates: path jerk x these (curved joint maps need less)
 _DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
 
@@ -69,6 +86,10 @@ class TimedMove:
         duration_s: K * period.
         speed_ratio, accel_ratio: largest |qd| / limit and |qdd| / limit on the samples.
         torque_ratio: largest |tau| / limit on the samples (0 when the move has no torque limit).
+        jerk_ratio: largest jerk / limit on the samples, seams with a resting neighbour included
+            (0 without a jerk limit).
+        optimal_duration_s: the acceleration-limited (TOPP-RA) duration; ``duration_s`` is longer by
+            what the jerk limit or the quintic law costs. None: the same as ``duration_s``.
     """
 
     u: np.ndarray  # (K+1,)
@@ -77,6 +98,8 @@ class TimedMove:
     speed_ratio: float
     accel_ratio: float
     torque_ratio: float = 0.0
+    jerk_ratio: float = 0.0
+    optimal_duration_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -88,9 +111,16 @@ class MoveLimits:
     length_m: float  # 0 for PTP or a pure reorientation: no TCP speed cap
     tcp_speed_m_s: float | None
     torque: TorqueLimit | None = None  # limits.torque_scale: TOPP-RA's torque constraint, checked on the samples
+    jerk_rad_s3: np.ndarray | None = None  # (n,) limits.jerk, checked on the samples; None: not limited
+    quintic: bool = False  # time the move by SEEDS 003's quintic law (PTP: the joint map is a straight line)
 
 
 def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
+    if all(part.kind == "ptp" for part in jmap.parts):
+        # A straight joint line: points graded toward the ends (below) only add round-off, in which
+        # a joint that barely moves beside one that moves far made TOPP-RA's instance "not controllable".
+        dense = np.linspace(0.0, 1.0, 9)
+        return dense, jmap.evaluate(dense)
     u, q = jmap.reference()
     # Where a move starts or ends on a reach boundary (a stretched elbow) a joint goes as the
     # square root of the distance to the end: its path derivative grows without bound there. Points
@@ -272,6 +302,54 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
     if path_scale(q_ref, limits) == 0.0:
         logger.info("move %d changes nothing: one period at rest", move_index)
         return TimedMove(np.array([0.0, 1.0]), q_ref[[0, -1]], period_s, 0.0, 0.0)
+    optimal, profile = _optimal(jmap, limits, period_s, move_index, max_samples, u_ref, q_ref)
+    if limits.jerk_rad_s3 is None and not limits.quintic:
+        return optimal
+    laws: list[TimeLaw]
+    if limits.quintic:
+        laws = [QuinticLaw(quintic_duration(np.abs(q_ref[-1] - q_ref[0]), limits.velocity_rad_s,
+                                            limits.acceleration_rad_s2, limits.jerk_rad_s3))]
+    else:
+        assert limits.jerk_rad_s3 is not None
+        rise_s = float(np.min(limits.acceleration_rad_s2) / np.min(limits.jerk_rad_s3))
+        laws = [SmoothedLaw(profile.t_nodes, profile.grid, profile.sd, rise_s * f) for f in _WINDOW_FACTORS]
+        laws += _s_curves(profile, limits)
+    # The search runs on a spline through the acceleration-limited samples (the joint map's own
+    # evaluation costs an IK solve per sample); the chosen laws are then sampled on the joint map itself.
+    surrogate = _surrogate(optimal)
+    trial = [(law, _stretched(surrogate, limits, law, 1.0, period_s, move_index, max_samples)) for law in laws]
+    best = None
+    for law, tm in sorted(trial, key=lambda lt: lt[1].duration_s if lt[1] is not None else math.inf):
+        start = tm.duration_s / law.duration_s if tm is not None else 1.0
+        best = _stretched(jmap.evaluate, limits, law, start, period_s, move_index, max_samples)
+        if best is not None:
+            break
+    if best is None:  # named where the acceleration-limited samples jerk most
+        steps = np.abs(np.diff(optimal.q, n=3, axis=0)) / (limits.jerk_rad_s3 if limits.jerk_rad_s3 is not None
+                                                            else limits.acceleration_rad_s2)
+        at = float(optimal.u[int(np.argmax(np.max(steps, axis=1))) + 1]) if len(steps) else 0.5
+        raise TimingError(move_index, at, "could not keep the joint speed, acceleration and jerk limits on the "
+                                          f"output samples after {_STRETCH_PASSES} stretches of the time law")
+    logger.info("move %d: %.3f s jerk-limited, %.3f s acceleration-limited", move_index, best.duration_s,
+                optimal.duration_s)
+    return replace(best, optimal_duration_s=optimal.duration_s)
+
+
+def _s_curves(profile: _Profile, limits: MoveLimits) -> list[SCurveLaw]:
+    """S-curves in u with TOPP-RA's peak path speed and acceleration, and the path jerk the joint
+    limits allow where the joint map is straight (the exact optimum of a PTP) or less."""
+    assert limits.jerk_rad_s3 is not None
+    speed = float(np.max(profile.sd))
+    accel = float(np.max(np.abs(np.diff(profile.sd)) / np.diff(profile.t_nodes), initial=0.0))
+    if not (speed > 0.0 and accel > 0.0 and math.isfinite(accel)):
+        return []
+    jerk = accel * float(np.min(limits.jerk_rad_s3 / limits.acceleration_rad_s2))
+    return [SCurveLaw(speed, accel, jerk * f) for f in _S_CURVE_JERKS]
+
+
+def _optimal(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int, max_samples: int,
+             u_ref: np.ndarray, q_ref: np.ndarray) -> tuple[TimedMove, _Profile]:
+    """The acceleration-limited samples (TOPP-RA, tightened until the samples keep the limits) and their profile."""
     scale_v = scale_a = scale_t = 1.0
     for _ in range(_TIGHTEN_PASSES):
         profile = _toppra_profile(u_ref, q_ref, limits, (scale_v, scale_a, scale_t), move_index)
@@ -285,7 +363,7 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
                       end_step_ratio(q, period_s, limits.acceleration_rad_s2))  # may reach its bound exactly
         worst_t = torque / _TORQUE_MARGIN
         if worst_v <= 1.0 and worst_a <= 1.0 and worst_t <= 1.0:
-            return TimedMove(u, q, duration, speed, accel, torque)
+            return TimedMove(u, q, duration, speed, accel, torque), profile
         if worst_v > _DISCONTINUOUS or worst_a > _DISCONTINUOUS:
             break  # not a grid effect: the joint map jumps somewhere; tightening cannot help
         logger.debug("move %d: samples at x%.4f speed, x%.4f accel, x%.4f torque; tightening", move_index, speed,
@@ -321,3 +399,50 @@ def _tcp_ratio(u: np.ndarray, limits: MoveLimits, period_s: float) -> float:
         return 0.0
     v = np.diff(u) * limits.length_m / period_s
     return float(np.max(v) / limits.tcp_speed_m_s) * _SPEED_MARGIN / _TCP_MARGIN if len(v) else 0.0
+
+
+def _surrogate(optimal: TimedMove) -> Callable[[np.ndarray], np.ndarray]:
+    """A cubic spline in u through the acceleration-limited samples: the joint map, cheaply."""
+    keep = np.concatenate([[True], np.diff(optimal.u) > 0])
+    if np.count_nonzero(keep) < 4:
+        return lambda u: np.array([np.interp(u, optimal.u[keep], qj) for qj in optimal.q[keep].T]).T
+    spline = CubicSpline(optimal.u[keep], optimal.q[keep], axis=0)
+    return lambda u: np.asarray(spline(u))
+
+
+def _stretched(evaluate: Callable[[np.ndarray], np.ndarray], limits: MoveLimits, law: TimeLaw, stretch: float,
+               period_s: float, move_index: int, max_samples: int) -> TimedMove | None:
+    """The law stretched uniformly in time by the least factor whose samples keep every limit (None: not found).
+
+    Stretching by k divides joint speeds by k, accelerations by k^2 and jerks by k^3; the first
+    pass measures the law stretched by ``stretch``, the next ones aim at the factor the worst ratio asks for.
+    """
+    kept = None
+    for attempt in range(_STRETCH_PASSES):
+        count = max(3, math.ceil(stretch * law.duration_s / period_s - 1e-9))
+        check_move_samples(move_index, count, max_samples, stretch * law.duration_s, period_s)
+        u = np.maximum.accumulate(np.clip(law.u_at(np.arange(count + 1) * (law.duration_s / count)), 0.0, 1.0))
+        u[0], u[-1] = 0.0, 1.0
+        tm, worst = _measured(u, evaluate(u), limits, period_s)
+        if worst <= 1.0:
+            kept = tm if kept is None or tm.duration_s < kept.duration_s else kept
+            if attempt > 0:
+                return kept
+        elif kept is not None:
+            return kept
+        stretch = count * period_s / law.duration_s * worst * (1.0005 if worst > 1.0 else 1.0)
+        if not stretch <= _MAX_STRETCH:  # NaN too: not a law's jerk but a joint map that jumps
+            return kept
+    return kept
+
+
+def _measured(u: np.ndarray, q: np.ndarray, limits: MoveLimits, period_s: float) -> tuple[TimedMove, float]:
+    """The samples as a TimedMove, and the time stretch they need (<= 1: every limit kept)."""
+    speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
+    torque = move_torque_ratio(limits.torque, q, period_s)[0] if limits.torque else 0.0
+    jerk = jerk_ratio(q, period_s, limits.jerk_rad_s3) if limits.jerk_rad_s3 is not None else 0.0
+    accel_like = max(accel / _ACCEL_MARGIN, end_step_ratio(q, period_s, limits.acceleration_rad_s2))
+    worst = max(max(speed, _tcp_ratio(u, limits, period_s)) / _SPEED_MARGIN, math.sqrt(accel_like),
+                (jerk / _JERK_MARGIN) ** (1.0 / 3.0), math.sqrt(torque / _TORQUE_MARGIN))
+    duration = (len(u) - 1) * period_s
+    return TimedMove(u, q, duration, speed, accel, torque, jerk), worst

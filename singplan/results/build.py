@@ -17,7 +17,9 @@ import numpy as np
 from singplan.kinematics.configuration import distances_batch, labels_from_distances
 from singplan.kinematics.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.kinematics.robot import Robot
+from singplan.kinematics.stopping import stopping_distances, stopping_metrics
 from singplan.kinematics.vendor_config import vendor_configs
+from singplan.planning.jerk import third_difference_ratio
 from singplan.planning.path import sample_deviations
 from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint
@@ -63,12 +65,15 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     speed, accel = _chunked_ratios(q, period, arm.velocity_rad_s * task.limits.velocity_scale,
                                    arm.acceleration_rad_s2)
     qd, qdd = _chunked_differences(q, period)
+    stopping_m = stopping_distances(arm, q, qd, arm.acceleration_rad_s2)
     metrics = {"max_position_error_mm": worst_pos * 1e3, "max_orientation_error_deg": math.degrees(worst_ori),
                "max_joint_speed_ratio": speed, "max_joint_accel_ratio": accel, "duration_s": float(t[-1]),
                "planning_time_s": planning_time_s, "samples": len(t), "method": method,
-               "crossings": crossings, **_torque_metrics(arm, task, q)}
+               "crossings": crossings, **_torque_metrics(arm, task, q), **_jerk_metrics(arm, task, q, timed),
+               **stopping_metrics(stopping_m, period)}
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
-    samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all)}
+    samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all),
+               "stopping_distance_m": stopping_m}
     if not np.isnan(distances).all():  # an arm without labels (7 joints) has no singular distances to store
         samples["distances"] = distances
     return Trajectory(arm.name, str(arm.urdf_path), arm.tip, tool, task.to_mapping(), arm.joint_names,
@@ -89,6 +94,21 @@ def _move_records(robot: Robot, task: Task, segments: list[Segment], q: np.ndarr
 
 
 _CHUNK = 65_536  # programmed poses formed at once (128 bytes a sample)
+
+
+def _jerk_metrics(robot: Robot, task: Task, q: np.ndarray, timed: list[TimedMove]) -> dict[str, Any]:
+    """With a jerk limit or the quintic PTP law: the jerk ratio and the time they cost against the
+    acceleration-limited optimum (TOPP-RA's duration of every move)."""
+    jerk = task.limits.jerk_rad_s3
+    if jerk is None and task.limits.ptp_time_law == "optimal":
+        return {}
+    optimal_s = sum(tm.optimal_duration_s if tm.optimal_duration_s is not None else tm.duration_s for tm in timed)
+    out: dict[str, Any] = {"acceleration_limited_duration_s": optimal_s,
+                           "jerk_time_lost_s": sum(tm.duration_s for tm in timed) - optimal_s}
+    if jerk is not None:
+        jmax = np.broadcast_to(np.asarray(jerk, dtype=float), (robot.n_joints,))
+        out["max_joint_jerk_ratio"] = third_difference_ratio(q, task.period_s, jmax)
+    return out
 
 
 def _torque_metrics(robot: Robot, task: Task, q: np.ndarray) -> dict[str, Any]:
@@ -205,7 +225,11 @@ def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone
     speed = pm.limits.tcp_speed_m_s or 0.0
     nominal = (tm.u[b] - tm.u[a]) * pm.limits.length_m / speed if speed > 0 else 0.0
     through = any(c.zone.u_closest == zone.u_closest for c in pm.crossings)
-    return {"min_distance": zone.min_distance, "min_distance_unit": zone.unit,
+    # a null-space pause: the samples that stay at the singular point's u while the joints turn
+    waits = [int(np.count_nonzero(np.abs(tm.u[a:b + 1] - c.pause.u) < 1e-12)) - 1 for c in pm.crossings
+             if c.pause is not None and c.zone.u_closest == zone.u_closest]
+    pause = {"pause_s": max(0, sum(waits)) * period} if waits else {}
+    return {**pause, "min_distance": zone.min_distance, "min_distance_unit": zone.unit,
             "max_position_error_mm": float(pos_err[a:b + 1].max()) * 1e3,
             "max_orientation_error_deg": math.degrees(float(ori_err[a:b + 1].max())),
             "max_orientation_error_at_s": float(tm.u[k] * pm.limits.length_m),

@@ -107,7 +107,8 @@ class Trajectory:
     segments: tuple[Segment, ...]
     events: tuple[Event, ...]
     metrics: dict[str, Any]
-    # per-sample series, each (K,) or (K, 3): position_error_m, orientation_error_rad, distances
+    # per-sample series, each (K,) or (K, 3): position_error_m, orientation_error_rad, distances,
+    # stopping_distance_m (singplan.kinematics.stopping)
     samples: dict[str, np.ndarray] = field(default_factory=dict)
     moves: tuple[MoveRecord, ...] = ()
 
@@ -142,6 +143,8 @@ def _sample_series(samples: dict[str, np.ndarray]) -> dict[str, Any]:
         d = samples["distances"]
         out["singular_distances"] = {"wrist_deg": np.degrees(d[:, 0]), "shoulder_mm": d[:, 1] * 1e3,
                                      "elbow_deg": np.degrees(d[:, 2])}
+    if "stopping_distance_m" in samples:  # in metres as computed: loading gives back the same floats
+        out["stopping_distance_m"] = samples["stopping_distance_m"]
     return out
 
 
@@ -157,6 +160,8 @@ def _samples_from_file(series: Mapping[str, Any]) -> dict[str, np.ndarray]:
         out["distances"] = np.column_stack([np.radians(np.asarray(d["wrist_deg"], dtype=float)),
                                             np.asarray(d["shoulder_mm"], dtype=float) * 1e-3,
                                             np.radians(np.asarray(d["elbow_deg"], dtype=float))])
+    if "stopping_distance_m" in series:
+        out["stopping_distance_m"] = np.asarray(series["stopping_distance_m"], dtype=float)
     return out
 
 

@@ -25,6 +25,7 @@ from singplan.task.schema import (
     ANGLE_DEG,
     COORDINATE_M,
     DEFAULT_SPEED_M_S,
+    JERK_RAD_S3,
     JOINT_DEG,
     MAX_DEPTH,
     MAX_FILE_BYTES,
@@ -38,18 +39,24 @@ from singplan.task.schema import (
     ORIENTATION_TOLERANCE_DEG,
     PERIOD_S,
     POSITION_TOLERANCE_MM,
+    PTP_TIME_LAWS,
     SPEED_M_S,
     TOOL_OFFSET_M,
     TORQUE_SCALE,
     VELOCITY_SCALE,
+    WEAVE_AMPLITUDE_MM,
+    WEAVE_PATTERNS,
+    WEAVE_WAVELENGTH_MM,
     ZONE_ANGLE_DEG,
     ZONE_SHOULDER_MM,
     Limits,
     Move,
     PoseSpec,
+    Range,
     Redundancy,
     SingularitySettings,
     Task,
+    Weave,
     ZoneThresholds,
     _check_choice,
     _check_keys,
@@ -324,7 +331,7 @@ def _move(where: str, value: Any) -> Move:
         _check_keys(where, spec, required=("to",), optional=("velocity_scale", "config"))
     else:
         _check_keys(where, spec, required=("to", *(("via",) if kind == "circ" else ())),
-                    optional=("speed", "config"))
+                    optional=("speed", "config", "weave"))
     config = _config(f"{where}.config", spec["config"]) if spec.get("config") is not None else "auto"
     to = spec["to"]
     _check_mapping(f"{where}.to", to)
@@ -343,7 +350,16 @@ def _move(where: str, value: Any) -> Move:
         _check_mapping(f"{where}.via", via_spec)
         _check_keys(f"{where}.via", via_spec, required=("xyz",))
         via = _vector(f"{where}.via.xyz", via_spec["xyz"], 3, COORDINATE_M)
-    return Move(kind, to=target, via_xyz=via, speed_m_s=speed, config=config)  # type: ignore[arg-type]
+    weave = _weave(f"{where}.weave", spec["weave"]) if spec.get("weave") is not None else None
+    return Move(kind, to=target, via_xyz=via, speed_m_s=speed, config=config, weave=weave)  # type: ignore[arg-type]
+
+
+def _weave(where: str, value: Any) -> Weave:
+    _check_mapping(where, value)
+    _check_keys(where, value, required=("amplitude_mm", "wavelength_mm"), optional=("pattern",))
+    return Weave(_check_choice(f"{where}.pattern", value.get("pattern", "sine"), WEAVE_PATTERNS),
+                 _number(f"{where}.amplitude_mm", value["amplitude_mm"], WEAVE_AMPLITUDE_MM),
+                 _number(f"{where}.wavelength_mm", value["wavelength_mm"], WEAVE_WAVELENGTH_MM))
 
 
 def _scale(where: str, value: Any) -> float:
@@ -372,17 +388,21 @@ def _singularity(value: Any) -> SingularitySettings:
 
 
 def _limits(value: Any) -> Limits:
-    _check_keys("limits", value, optional=("velocity_scale", "acceleration", "torque_scale"))
-    acc = value.get("acceleration", 10.0)
-    if isinstance(acc, Sequence) and not isinstance(acc, (str, bytes)):
-        if not acc or len(acc) > MAX_JOINTS:
-            raise TaskError("limits.acceleration", f"expected a number or one number per joint, got {len(acc)}")
-        accel = tuple(_number(f"limits.acceleration[{i}]", a, ACCELERATION_RAD_S2) for i, a in enumerate(acc))
-    else:
-        accel = (_number("limits.acceleration", acc, ACCELERATION_RAD_S2),)
+    _check_keys("limits", value, optional=("velocity_scale", "acceleration", "jerk", "torque_scale"))
+    accel = _per_joint("limits.acceleration", value.get("acceleration", 10.0), ACCELERATION_RAD_S2)
+    jerk = _per_joint("limits.jerk", value["jerk"], JERK_RAD_S3) if "jerk" in value else None
     torque = _number("limits.torque_scale", value["torque_scale"], TORQUE_SCALE) if "torque_scale" in value else None
     return Limits(velocity_scale=_scale("limits.velocity_scale", value.get("velocity_scale", 1.0)),
-                  acceleration_rad_s2=accel, torque_scale=torque)
+                  acceleration_rad_s2=accel, torque_scale=torque, jerk_rad_s3=jerk)
+
+
+def _per_joint(where: str, value: Any, bounds: Range) -> tuple[float, ...]:
+    """A number for all joints, or a list of one number per joint (the count is checked against the robot)."""
+    if isinstance(value, Sequence) and not isinstance(value, (str, bytes)):
+        if not value or len(value) > MAX_JOINTS:
+            raise TaskError(where, f"expected a number or one number per joint, got {len(value)}")
+        return tuple(_number(f"{where}[{i}]", v, bounds) for i, v in enumerate(value))
+    return (_number(where, value, bounds),)
 
 
 def _redundancy(value: Any) -> Redundancy:
@@ -409,9 +429,16 @@ def check_against_robot(task: Task, robot: Robot) -> None:
     for i, move in enumerate(task.moves):
         if move.to_joints_deg is not None:
             _check_joint_values(f"moves[{i}].ptp.to.joints_deg", move.to_joints_deg, robot)
-    acc = task.limits.acceleration_rad_s2
-    if len(acc) not in (1, n):
-        raise TaskError("limits.acceleration", f"expected 1 or {n} numbers for {robot.name}, got {len(acc)}")
+    for where, values in (("limits.acceleration", task.limits.acceleration_rad_s2),
+                          ("limits.jerk", task.limits.jerk_rad_s3 or ())):
+        if len(values) not in (0, 1, n):
+            raise TaskError(where, f"expected 1 or {n} numbers for {robot.name}, got {len(values)}")
+        for i, v in enumerate(values):  # a Task built in Python, not parsed, is checked here
+            _number(f"{where}[{i}]" if len(values) > 1 else where, v,
+                    JERK_RAD_S3 if where == "limits.jerk" else ACCELERATION_RAD_S2)
+    if task.limits.ptp_time_law not in PTP_TIME_LAWS:
+        raise TaskError("limits.ptp_time_law", f"expected one of {', '.join(PTP_TIME_LAWS)}, "
+                                               f"got {task.limits.ptp_time_law!r}")
     if robot.family == "seven" and task.redundancy is None:
         _check_no_labels(task, robot)
 

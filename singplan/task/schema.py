@@ -20,11 +20,14 @@ lin/circ speed                         0.0001 .. 10         m/s
 ptp velocity_scale, limits.velocity_   0.001 .. 1           fraction of the URDF limits
 limits.acceleration                    0.01 .. 10000        rad/s^2
 limits.torque_scale                    0.001 .. 1           fraction of the URDF efforts
+limits.jerk                            0.1 .. 1e6           rad/s^3
 singularity.position_tolerance_mm      0.0001 .. 1000       mm
 singularity.orientation_tolerance_deg  0.001 .. 180         deg
 singularity.zone wrist/elbow_deg       0.001 .. 90          deg
 singularity.zone.shoulder_mm           0.001 .. 1000        mm
 output.period                          0.0001 .. 1          s
+weave.amplitude_mm                     0.001 .. 1000        mm
+weave.wavelength_mm                    0.1 .. 100000        mm
 =====================================  ===================  ==========================
 
 Names (robot, tip) are at most :data:`MAX_NAME_CHARS` characters without control
@@ -52,7 +55,7 @@ MAX_SCALAR_CHARS = 10_000
 MAX_NAME_CHARS = 256
 MAX_PATH_CHARS = 4096
 MAX_JOINTS = 64
-METHODS = ("auto", "wrist-joint", "axis", "exact", "dls", "average", "ptp", "stop")  # built in
+METHODS = ("auto", "wrist-joint", "axis", "null-space", "exact", "dls", "average", "ptp", "stop")  # built in
 _ADDED_METHODS: list[str] = []  # names registered by users (singplan.planning.crossing.registry.register)
 DEFAULT_SPEED_M_S = 0.25
 MAX_KEY_CHARS = 256  # keys are field names; a longer one can only be a mistake (or a huge number)
@@ -74,11 +77,16 @@ SPEED_M_S = Range(1e-4, 10.0, "m/s")
 VELOCITY_SCALE = Range(1e-3, 1.0, "")
 ACCELERATION_RAD_S2 = Range(1e-2, 1e4, "rad/s^2")
 TORQUE_SCALE = Range(1e-3, 1.0, "")
+JERK_RAD_S3 = Range(0.1, 1e6, "rad/s^3")
+PTP_TIME_LAWS = ("optimal", "quintic")  # Limits.ptp_time_law (Python API only)
 POSITION_TOLERANCE_MM = Range(1e-4, 1000.0, "mm")
 ORIENTATION_TOLERANCE_DEG = Range(1e-3, 180.0, "deg")
 ZONE_ANGLE_DEG = Range(1e-3, 90.0, "deg")
 ZONE_SHOULDER_MM = Range(1e-3, 1000.0, "mm")
 PERIOD_S = Range(1e-4, 1.0, "s")
+WEAVE_AMPLITUDE_MM = Range(1e-3, 1000.0, "mm")
+WEAVE_WAVELENGTH_MM = Range(0.1, 1e5, "mm")
+WEAVE_PATTERNS = ("sine", "triangle")
 MAX_COORDINATE_M = COORDINATE_M.high
 MAX_SPEED_M_S = SPEED_M_S.high
 
@@ -92,6 +100,19 @@ class PoseSpec:
 
 
 @dataclass(frozen=True)
+class Weave:
+    """A move's ``weave`` as given in the task (millimetres, as written; the geometry is
+    :mod:`singplan.planning.weave`)."""
+
+    pattern: str  # "sine" | "triangle"
+    amplitude_mm: float
+    wavelength_mm: float
+
+    def to_mapping(self) -> dict[str, float | str]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
 class Move:
     """One motion. ``kind`` is "lin", "circ" or "ptp"; PTP targets may be joints or a pose."""
 
@@ -102,6 +123,7 @@ class Move:
     speed_m_s: float = DEFAULT_SPEED_M_S  # LIN / CIRC TCP speed
     velocity_scale: float = 1.0  # PTP fraction of the joint speed limits
     config: str = "auto"  # "auto" | "keep" | a label like "F U N"
+    weave: Weave | None = None  # LIN / CIRC only
 
 
 @dataclass(frozen=True)
@@ -130,6 +152,10 @@ class Limits:
     velocity_scale: float = 1.0
     acceleration_rad_s2: tuple[float, ...] = (10.0,)  # one value for all joints, or one per joint
     torque_scale: float | None = None  # fraction of the URDF efforts, enforced; None: torques not limited
+    jerk_rad_s3: tuple[float, ...] | None = None  # one value for all joints, or one per joint; None: not limited
+    # Python API only (no YAML key in format v1): "quintic" times every PTP move by SEEDS 003's
+    # 10t^3 - 15t^4 + 6t^5 law instead of the time-optimal one.
+    ptp_time_law: str = "optimal"
 
 
 @dataclass(frozen=True)
@@ -180,6 +206,8 @@ class Task:
             "limits": {"velocity_scale": self.limits.velocity_scale,
                        "acceleration": acc[0] if len(acc) == 1 else list(acc),
                        **({"torque_scale": self.limits.torque_scale} if self.limits.torque_scale is not None
+                          else {}),
+                       **({"jerk": _one_or_list(self.limits.jerk_rad_s3)} if self.limits.jerk_rad_s3 is not None
                           else {})},
             "output": {"period": self.period_s},
         }
@@ -211,7 +239,13 @@ def _move_mapping(move: Move) -> dict[str, Any]:
     else:
         spec["speed"] = move.speed_m_s
     spec["config"] = move.config
+    if move.weave is not None:
+        spec["weave"] = move.weave.to_mapping()
     return {move.kind: spec}
+
+
+def _one_or_list(values: tuple[float, ...]) -> float | list[float]:
+    return values[0] if len(values) == 1 else list(values)
 
 
 # -- field checks ----------------------------------------------------------------------------

@@ -26,6 +26,29 @@ class MoveContext:
     distances: np.ndarray  # (N, 3) signed (wrist, shoulder, elbow) at tracked.u
     position_tolerance_m: float  # the task's tolerances, the most a crossing may deviate
     orientation_tolerance_rad: float
+    thresholds: np.ndarray  # (3,) zone detection thresholds: wrist [rad], shoulder [m], elbow [rad]
+
+
+@dataclass(frozen=True)
+class Pause:
+    """The TCP waits at path parameter ``u`` while the joints move from ``q[0]`` to ``q[-1]``.
+
+    Attributes:
+        u: where on the move the pause happens (the singular point).
+        q: reference joint values of the null-space motion [rad], shape (K, n), every one at the
+            path pose of ``u``; the driven joint is linear in the sample index.
+        after: the joint-map part from ``q[-1]`` at ``u`` to the crossing's exit.
+        joint: index of the driven joint (A4 at the wrist, A1 at the shoulder).
+        turn_rad: how far it turns.
+        T_target: the pose kept (4, 4).
+    """
+
+    u: float
+    q: np.ndarray
+    after: JointPart
+    joint: int
+    turn_rad: float
+    T_target: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -39,6 +62,13 @@ class Crossing:
     method: str
     blend: JointPart
     q_exit: np.ndarray  # (n,)
+    # null-space: the TCP waits at the end of ``blend`` while the joints move; ``pause.after`` goes on
+    pause: Pause | None = None
+
+    @property
+    def parts(self) -> list[JointPart]:
+        """The joint-map parts that replace the zone (two around a pause)."""
+        return [self.blend] if self.pause is None else [self.blend, self.pause.after]
 
 
 class CrossingMethod(Protocol):

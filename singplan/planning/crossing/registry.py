@@ -12,6 +12,7 @@ from collections.abc import Callable
 from singplan.errors import InputError
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Average, Axis, Dls, Exact, Ptp, Stop, WristJoint
+from singplan.planning.crossing.nullspace import NullSpace
 from singplan.task.schema import Move, accept_method_name
 
 AUTO = "auto"
@@ -24,6 +25,7 @@ _BUILT_IN: dict[str, _Factory] = {
     # over more path (less acceleration) at the price of more orientation deviation; the fastest wins
     "wrist-joint": lambda target: [WristJoint(target, w) for w in WRIST_JOINT_WINDOWS],
     "axis": lambda target: [Axis(target)],
+    "null-space": lambda target: [NullSpace()],
     "exact": lambda target: [Exact()],
     "dls": lambda target: [Dls()],
     "average": lambda target: [Average()],
@@ -50,8 +52,9 @@ def register(method: CrossingMethod) -> None:
 def candidates(name: str, move: Move) -> list[CrossingMethod]:
     """The method objects to try on a move: one method's (several wrist-joint windows), or auto's set."""
     target = move.config if move.config not in ("auto", "keep") else None
-    if name == AUTO:
-        return [m for candidate in AUTO_CANDIDATES for m in _BUILT_IN[candidate](target)]
+    if name == AUTO:  # null-space only where exact's crossing would leave a joint limit
+        return [*(m for candidate in AUTO_CANDIDATES for m in _BUILT_IN[candidate](target)),
+                NullSpace(only_when_needed=True)]
     if name in _registered:
         return [_registered[name]]
     return _BUILT_IN[name](target)

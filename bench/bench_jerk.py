@@ -29,7 +29,7 @@ from typing import Any
 import yaml
 
 from singplan.cli import main as cli_main
-from singplan.planning.planner import plan
+from singplan.results.plan import plan
 from singplan.results.trajectory import save
 from singplan.task.load import parse_task
 

@@ -92,7 +92,7 @@ def test_a_registered_name_is_accepted_by_tasks_and_the_command_line(clean_regis
 def test_auto_compares_the_pose_keeping_candidates_in_order(clean_registry: None) -> None:
     move = load_task(NEAR_MISS).moves[0]
     found = registry.candidates("auto", move)
-    assert [m.name for m in found] == ["exact", "wrist-joint", "wrist-joint", "wrist-joint", "axis"]
+    assert [m.name for m in found] == ["exact", "wrist-joint", "wrist-joint", "wrist-joint", "axis", "null-space"]
     assert [m.variant for m in found if m.name == "wrist-joint"] == [
         f"window x{w:g}" for w in registry.WRIST_JOINT_WINDOWS]
     assert math.isclose(registry.WRIST_JOINT_WINDOWS[0], 1.0)

@@ -23,8 +23,8 @@ from singplan.cli import main
 from singplan.errors import TaskError
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.planning.pieces import move_piece
-from singplan.planning.planner import plan
 from singplan.planning.weave import WovenPiece, path_grid, wave, whole_periods, woven_moves
+from singplan.results.plan import plan
 from singplan.task.load import parse_task
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"

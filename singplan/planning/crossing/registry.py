@@ -32,7 +32,9 @@ _BUILT_IN: dict[str, _Factory] = {
     "ptp": lambda target: [Ptp()],
     "stop": lambda target: [Stop()],
 }
-AUTO_CANDIDATES = ("exact", "wrist-joint", "axis")  # the pose-keeping methods auto compares, in this order
+AUTO_CANDIDATES = ("exact", "wrist-joint", "axis", "null-space")  # the pose-keeping methods auto compares, in order
+# under auto, null-space serves only where exact's own crossing would leave a joint limit
+_AUTO_FORM: dict[str, _Factory] = {"null-space": lambda target: [NullSpace(only_when_needed=True)]}
 _registered: dict[str, CrossingMethod] = {}
 
 
@@ -52,9 +54,8 @@ def register(method: CrossingMethod) -> None:
 def candidates(name: str, move: Move) -> list[CrossingMethod]:
     """The method objects to try on a move: one method's (several wrist-joint windows), or auto's set."""
     target = move.config if move.config not in ("auto", "keep") else None
-    if name == AUTO:  # null-space only where exact's crossing would leave a joint limit
-        return [*(m for candidate in AUTO_CANDIDATES for m in _BUILT_IN[candidate](target)),
-                NullSpace(only_when_needed=True)]
+    if name == AUTO:
+        return [m for candidate in AUTO_CANDIDATES for m in _AUTO_FORM.get(candidate, _BUILT_IN[candidate])(target)]
     if name in _registered:
         return [_registered[name]]
     return _BUILT_IN[name](target)

@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import io
-import os
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +19,8 @@ from singplan.kinematics.robot import bundled_robots, load_robot
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
 
-VERIFY = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"
+from .shared import run_checker
+
 # A UR5 PTP (shoulder pan 90 deg, arm raised) then a LIN; at 40 rad/s^2 the unconstrained timing
 # drives the shoulder to ~0.9 of its 150 N m effort, so torque_scale 0.45 binds.
 UR5_TASK: dict[str, Any] = {
@@ -116,12 +115,7 @@ def _plan_cli(task: dict[str, Any], folder: Path) -> tuple[int, str]:
 
 
 def _checker(folder: Path) -> subprocess.CompletedProcess[str]:
-    if not VERIFY.is_file():
-        if os.environ.get("CI") == "true":
-            raise RuntimeError(f"CI=true but the independent checker is missing at {VERIFY}")
-        pytest.skip(f"no independent checker at {VERIFY}")
-    return subprocess.run([sys.executable, str(VERIFY), str(folder / "task.yaml"), str(folder / "out"), "--quiet"],
-                          capture_output=True, text=True, timeout=300, check=False)
+    return run_checker(folder / "task.yaml", folder / "out", "--quiet")
 
 
 def test_torque_scale_binds_slows_the_plan_and_passes_the_checker(tmp_path: Path) -> None:

@@ -5,8 +5,6 @@ from __future__ import annotations
 import io
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -22,9 +20,10 @@ from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.reduced import free_joints, z_angles
 from singplan.kinematics.robot import load_robot, robots_dir
 
+from .shared import run_checker
+
 DATA = Path(__file__).parent / "data"
 SCORBOT = DATA / "five_scorbot_er4u.urdf"
-CHECKER = Path("/work/shared/verify/verify_trajectory.py")
 Z_TOL_RAD = np.radians(0.01)
 
 
@@ -75,10 +74,8 @@ def test_scorbot_tasks_plan_and_pass_the_checker(task: str, tmp_path: Path) -> N
 
 
 def _checked(path: Path, out: Path) -> None:
-    if CHECKER.exists():
-        done = subprocess.run([sys.executable, str(CHECKER), str(path), str(out)], capture_output=True, text=True,
-                              timeout=300)
-        assert done.returncode == 0, done.stdout[-2000:]
+    done = run_checker(path, out)
+    assert done.returncode == 0, done.stdout[-2000:]
 
 
 def _so_task(task: str, tmp_path: Path) -> Path:

@@ -11,9 +11,7 @@ from __future__ import annotations
 import io
 import json
 import math
-import os
 import subprocess
-import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
@@ -27,17 +25,13 @@ from singplan.cli import main
 from singplan.kinematics.ik import numeric as ik_numeric
 from singplan.kinematics.robot import Robot, load_robot
 
-VERIFY = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"
+from .shared import run_checker
+
 erd = pytest.importorskip("example_robot_data")
 
 
 def _checker(folder: Path) -> subprocess.CompletedProcess[str]:
-    if not VERIFY.is_file():
-        if os.environ.get("CI") == "true":
-            raise RuntimeError(f"CI=true but the independent checker is missing at {VERIFY}")
-        pytest.skip(f"no independent checker at {VERIFY}")
-    return subprocess.run([sys.executable, str(VERIFY), str(folder / "task.yaml"), str(folder / "out"), "--quiet"],
-                          capture_output=True, text=True, timeout=300, check=False)
+    return run_checker(folder / "task.yaml", folder / "out", "--quiet")
 
 
 @pytest.fixture(scope="module")

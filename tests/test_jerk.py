@@ -9,9 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -28,17 +25,9 @@ from singplan.results.trajectory import Trajectory
 from singplan.task.load import load_task, parse_task
 from singplan.task.schema import Limits, Task
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-PROGRAMS = SHARED / "scenarios_programs"
+from .shared import PROGRAMS, require, run_checker
+
 DEMO = Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml"
-
-
-def _shared_or_skip() -> None:
-    if PROGRAMS.is_dir():
-        return
-    if os.environ.get("CI") == "true":
-        raise RuntimeError(f"CI=true but the shared program scenarios are missing at {PROGRAMS}")
-    pytest.skip(f"no shared program scenarios at {PROGRAMS} (not part of a user's clone)")
 
 
 def _third_difference_ratio(q: np.ndarray, period_s: float, jmax: float) -> float:
@@ -52,12 +41,11 @@ def _with_limits(task: Task, **changes: object) -> Task:
 
 @pytest.mark.parametrize("name", ["kuka_kr6_r900_2__jerk200_wrist_near_lin", "abb_irb2400__jerk1000_program"])
 def test_public_jerk_program_passes_the_checker_and_reports_the_time_lost(name: str, tmp_path: Path) -> None:
-    _shared_or_skip()
+    require(PROGRAMS)
     task_path = PROGRAMS / f"{name}.yaml"
     expect = yaml.safe_load((PROGRAMS / "expect.yaml").read_text())[name]
     assert main(["plan", str(task_path), "-o", str(tmp_path)]) == 0
-    checked = subprocess.run([sys.executable, str(SHARED / "verify" / "verify_trajectory.py"), str(task_path),
-                              str(tmp_path)], capture_output=True, text=True, timeout=300)
+    checked = run_checker(task_path, tmp_path)
     assert checked.returncode == 0, checked.stdout[-2000:]
     traj = json.loads((tmp_path / "trajectory.json").read_text())
     jmax = float(yaml.safe_load(task_path.read_text())["limits"]["jerk"])

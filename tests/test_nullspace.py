@@ -13,9 +13,6 @@ from __future__ import annotations
 import io
 import json
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -31,8 +28,8 @@ from singplan.planning.crossing.nullspace import _NoSelfMotionError, pose_error,
 from singplan.planning.path import rotation_angle
 from singplan.planning.zones import KIND_INDEX
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-CHECKER = SHARED / "verify" / "verify_trajectory.py"
+from .shared import PROGRAMS, require, run_checker
+
 PUBLIC = {"kuka_kr6_r900_2__nullspace_wrist_exact_hit": "wrist", "abb_irb2400__nullspace_shoulder_pass": "shoulder"}
 POSE_POS_TOL_M = 1e-5  # the tasks' position tolerance (0.01 mm)
 POSE_ORI_TOL_RAD = math.radians(0.01)  # the checker's bound outside crossings
@@ -40,21 +37,12 @@ STILL_M = 1e-8  # a pause step moves the TCP by ~1e-11 m; a path step from rest 
 SINGULAR_TOL = {"wrist": math.radians(0.01), "shoulder": 1e-5}  # the pause sits on the singularity
 
 
-def _shared(path: Path) -> Path:
-    if not path.exists():
-        if os.environ.get("CI") == "true":
-            raise RuntimeError(f"CI=true but {path} is missing")
-        pytest.skip(f"{path} is absent (the shared scenarios sit next to the project in development and CI)")
-    return path
-
-
 def _plan(task_file: Path, out: Path, *extra: str) -> int:
     return main(["plan", str(task_file), "-o", str(out), "--no-report", "--no-replay", "--quiet", *extra])
 
 
 def _check(task_file: Path, out: Path) -> None:
-    run = subprocess.run([sys.executable, str(_shared(CHECKER)), str(task_file), str(out)], capture_output=True,
-                         text=True, timeout=300)
+    run = run_checker(task_file, out)
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
 
 
@@ -97,7 +85,7 @@ def _assert_pause_keeps_pose(task_file: Path, out: Path, kind: str) -> None:
 
 @pytest.mark.parametrize("name", sorted(PUBLIC))
 def test_public_null_space_task_plans_keeps_the_pose_and_passes_the_checker(name: str, tmp_path: Path) -> None:
-    task_file = _shared(SHARED / "scenarios_programs" / f"{name}.yaml")
+    task_file = require(PROGRAMS / f"{name}.yaml")
     assert _plan(task_file, tmp_path / "out") == 0
     _check(task_file, tmp_path / "out")
     _assert_pause_keeps_pose(task_file, tmp_path / "out", PUBLIC[name])
@@ -105,13 +93,13 @@ def test_public_null_space_task_plans_keeps_the_pose_and_passes_the_checker(name
 
 @pytest.mark.parametrize("name", sorted(PUBLIC))
 def test_exact_refuses_the_public_null_space_task(name: str, tmp_path: Path) -> None:
-    task_file = _shared(SHARED / "scenarios_programs" / f"{name}.yaml")
+    task_file = require(PROGRAMS / f"{name}.yaml")
     assert _plan(task_file, tmp_path / "out", "--method", "exact") == 3
     assert not (tmp_path / "out").exists()
 
 
 def test_auto_takes_null_space_where_exact_leaves_a_limit(tmp_path: Path) -> None:
-    task_file = _shared(SHARED / "scenarios_programs" / "kuka_kr6_r900_2__nullspace_wrist_exact_hit.yaml")
+    task_file = require(PROGRAMS / "kuka_kr6_r900_2__nullspace_wrist_exact_hit.yaml")
     assert _plan(task_file, tmp_path / "out", "--method", "auto") == 0
     traj = json.loads((tmp_path / "out" / "trajectory.json").read_text())
     assert [s["method"] for s in traj["segments"] if s["kind"] == "crossing"] == ["null-space"]
@@ -120,7 +108,7 @@ def test_auto_takes_null_space_where_exact_leaves_a_limit(tmp_path: Path) -> Non
 def _narrow_a6_task(tmp_path: Path) -> Path:
     """The public wrist task on a copy of the KUKA URDF whose A6 range is +-200 deg: half a turn of A4
     (with A6 the other way) from -176 deg leaves A6 or A4 outside its range either way."""
-    task_file = _shared(SHARED / "scenarios_programs" / "kuka_kr6_r900_2__nullspace_wrist_exact_hit.yaml")
+    task_file = require(PROGRAMS / "kuka_kr6_r900_2__nullspace_wrist_exact_hit.yaml")
     urdf = bundled_robots()["kuka_kr6_r900_2"].urdf_path().read_text()
     wide = 'lower="-6.1086523819801535" upper="6.1086523819801535"'
     assert urdf.count(wide) == 1, "the KUKA URDF's A6 limits changed: update this test"

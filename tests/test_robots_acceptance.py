@@ -13,9 +13,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
-import os
 import shutil
-import subprocess
 import sys
 from pathlib import Path
 from types import ModuleType
@@ -30,8 +28,9 @@ from singplan.cli import main
 from singplan.kinematics.configuration import distances_batch
 from singplan.kinematics.robot import bundled_robots, load_robot
 
+from .shared import run_checker
+
 BENCH = Path(__file__).resolve().parents[1] / "bench" / "robots_acceptance.py"
-CHECKER = Path(__file__).resolve().parents[2] / "shared" / "verify" / "verify_trajectory.py"
 ARM = "fanuc_m10ia"
 TWIN_TOL = 0.02
 FK_TOL_M = 1e-12
@@ -133,10 +132,5 @@ def test_the_wrist_near_miss_is_crossed_by_a_crossing_method_and_passes_the_chec
     assert [s["singularity"] for s in crossings] == ["wrist"]
     assert crossings[0]["method"] not in (None, "exact"), crossings[0]["alternatives"]
     assert crossings[0]["min_distance"] == pytest.approx(ra.WRIST_MISS_RAD, abs=math.radians(0.05))
-    if not CHECKER.is_file():
-        if os.environ.get("CI") == "true":
-            raise RuntimeError(f"CI=true but the independent checker is missing at {CHECKER}")
-        pytest.skip(f"no independent checker at {CHECKER} (not part of a user's clone)")
-    run = subprocess.run([sys.executable, str(CHECKER), str(task_file), str(out)], capture_output=True, text=True,
-                         timeout=300)
+    run = run_checker(task_file, out)
     assert run.returncode == 0, run.stdout[-2000:]

@@ -7,9 +7,6 @@ The public weave tasks of ../shared/scenarios_programs are judged by the indepen
 from __future__ import annotations
 
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -25,39 +22,25 @@ from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.planning.pieces import move_piece
 from singplan.planning.weave import WovenPiece, path_grid, wave, whole_periods, woven_moves
 from singplan.results.plan import plan
+from singplan.results.trajectory import save
 from singplan.task.load import parse_task
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-PROGRAMS = SHARED / "scenarios_programs"
-CHECKER = SHARED / "verify" / "verify_trajectory.py"
+from .shared import PROGRAMS, require, run_checker
+
 DEMO = Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml"
 
 
-def _shared() -> None:
-    """Skip where the shared acceptance suite is absent; under CI=true it must be there."""
-    if CHECKER.is_file() and PROGRAMS.is_dir():
-        return
-    if os.environ.get("CI") == "true":
-        pytest.fail(f"CI=true but the shared acceptance suite is missing at {SHARED}")
-    pytest.skip(f"no shared acceptance suite at {SHARED} (not part of a user's clone)")
-
-
-def _checker(task: Path, out: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, str(CHECKER), str(task), str(out)], capture_output=True, text=True,
-                          timeout=600)
-
-
 @pytest.mark.parametrize("name", ["kuka_kr6_r900_2__weave_lin_sine", "abb_irb2400__weave_circ_triangle"])
-def test_the_public_weave_tasks_pass_the_independent_checker(tmp_path: Path, name: str) -> None:
-    _shared()
+def test_the_public_weave_tasks_pass_the_independentrun_checker(tmp_path: Path, name: str) -> None:
+    require(PROGRAMS)
     task = PROGRAMS / f"{name}.yaml"
     assert main(["plan", str(task), "-o", str(tmp_path), "--no-report", "--no-replay"]) == 0
-    run = _checker(task, tmp_path)
+    run = run_checker(task, tmp_path)
     assert run.returncode == 0 and "PASS" in run.stdout, run.stdout + run.stderr
 
 
 def test_a_tool_along_the_path_is_bad_input_naming_the_move(capsys: pytest.CaptureFixture[str]) -> None:
-    _shared()
+    require(PROGRAMS)
     expect = yaml.safe_load((PROGRAMS / "expect.yaml").read_text())["bad__weave_tool_along_path"]
     assert main(["plan", str(PROGRAMS / "bad__weave_tool_along_path.yaml"), "-o", "/nonexistent/never"]) == 2
     last = capsys.readouterr().err.strip().splitlines()[-1]
@@ -81,13 +64,10 @@ def test_a_woven_path_through_a_wrist_singularity_is_detected_crossed_and_checke
     assert [s.singularity for s in crossings] == ["wrist"] and crossings[0].move == 0
     assert traj.metrics["max_position_error_mm"] < 0.01
     assert woven_moves(traj.task) == {0}
-    if CHECKER.is_file() or os.environ.get("CI") == "true":
-        from singplan.results.trajectory import save
-
-        task_file = tmp_path / "task.yaml"
-        task_file.write_text(yaml.safe_dump(doc))
-        run = _checker(task_file, save(traj, tmp_path / "out"))
-        assert run.returncode == 0, run.stdout + run.stderr
+    task_file = tmp_path / "task.yaml"
+    task_file.write_text(yaml.safe_dump(doc))
+    run = run_checker(task_file, save(traj, tmp_path / "out"))
+    assert run.returncode == 0, run.stdout + run.stderr
 
 
 # -- the offsets against an independent computation -------------------------------------------
@@ -269,9 +249,8 @@ def test_the_weave_seam_example_plans_and_its_triangle_corners_keep_the_accelera
     traj = load(tmp_path)
     assert traj.metrics["max_joint_accel_ratio"] <= 1.0 and traj.metrics["max_position_error_mm"] < 0.01
     assert woven_moves(traj.task) == {0, 1}
-    if CHECKER.is_file() or os.environ.get("CI") == "true":
-        run = _checker(task, tmp_path)
-        assert run.returncode == 0, run.stdout + run.stderr
+    run = run_checker(task, tmp_path)
+    assert run.returncode == 0, run.stdout + run.stderr
 
 
 def test_report_and_replay_show_the_weave_and_the_stopping_distance() -> None:

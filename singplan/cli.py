@@ -164,7 +164,12 @@ def cmd_ik(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from singplan.kinematics.configuration import singularity_distances
     from singplan.kinematics.ik.solve import solve_all
     from singplan.kinematics.robot import load_robot
+    from singplan.task.schema import ANGLE_DEG, COORDINATE_M, TOOL_OFFSET_M, check_vector
 
+    for flag, values, bounds in (("--xyz", args.xyz, COORDINATE_M), ("--rpy-deg", args.rpy_deg, ANGLE_DEG),
+                                 ("--tool-xyz", args.tool_xyz, TOOL_OFFSET_M),
+                                 ("--tool-rpy-deg", args.tool_rpy_deg, ANGLE_DEG)):
+        check_vector(flag, values, 3, bounds)  # before any solve: NaN or 1e300 is bad input, not "no solution"
     full = load_robot(args.robot, tip=args.tip, tool=_pose(args.tool_xyz, args.tool_rpy_deg))
     if args.seed_deg is not None and len(args.seed_deg) != full.n_joints:
         raise InputError(f"--seed-deg: expected {full.n_joints} numbers, got {len(args.seed_deg)}")

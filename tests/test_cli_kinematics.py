@@ -44,3 +44,12 @@ def test_ik_errors_exit_2_and_unreachable_exit_3() -> None:
     assert code == 2
     code, out, _ = run(["ik", "abb_irb2400", "--xyz", "9", "0", "1"])
     assert code == 3 and "no solution" in out
+
+
+def test_ik_numbers_that_are_not_finite_or_out_of_range_are_bad_input_naming_the_flag() -> None:
+    for extra, named in ((["--xyz", "1", "0.2", "nan"], "--xyz[2]: must be finite"),
+                         (["--xyz", "1", "0.2", "0.8", "--rpy-deg", "inf", "0", "0"], "--rpy-deg[0]: must be finite"),
+                         (["--xyz", "1e300", "0.2", "0.8"], "--xyz[0]: must be at most 100 m"),
+                         (["--xyz", "1", "0.2", "0.8", "--tool-xyz", "nan", "0", "0"], "--tool-xyz[0]")):
+        code, out, err = run(["ik", "abb_irb2400", *extra])
+        assert code == 2 and named in err and out == "", (extra, err)

@@ -69,7 +69,7 @@ from singplan.task.schema import (
     _path_text,
     _short,
     _string,
-    _vector,
+    check_vector,
     method_names,
 )
 
@@ -237,8 +237,8 @@ def parse_task(doc: Any, base_dir: Path | None = None) -> Task:
     return Task(
         robot=robot, moves=moves, start_joints_deg=start_joints, start_pose=start_pose, start_config=start_config,
         tip=tip,
-        tool_xyz=_vector("tool.xyz", tool.get("xyz", (0, 0, 0)), 3, TOOL_OFFSET_M),  # type: ignore[arg-type]
-        tool_rpy_deg=_vector("tool.rpy_deg", tool.get("rpy_deg", (0, 0, 0)), 3, ANGLE_DEG),  # type: ignore[arg-type]
+        tool_xyz=check_vector("tool.xyz", tool.get("xyz", (0, 0, 0)), 3, TOOL_OFFSET_M),  # type: ignore[arg-type]
+        tool_rpy_deg=check_vector("tool.rpy_deg", tool.get("rpy_deg", (0, 0, 0)), 3, ANGLE_DEG),  # type: ignore[arg-type]
         singularity=_singularity(_optional_mapping(doc, "singularity", "")),
         limits=_limits(_optional_mapping(doc, "limits", "")),
         period_s=_output_period(_optional_mapping(doc, "output", "")),
@@ -270,9 +270,9 @@ def _robot_ref(value: Any, base_dir: Path | None) -> str:
 def _pose(where: str, value: Any, need_rpy: bool = False) -> PoseSpec:
     _check_mapping(where, value)
     _check_keys(where, value, required=("xyz", *(("rpy_deg",) if need_rpy else ())), optional=("rpy_deg",))
-    xyz = _vector(f"{where}.xyz", value["xyz"], 3, COORDINATE_M)
+    xyz = check_vector(f"{where}.xyz", value["xyz"], 3, COORDINATE_M)
     rpy = value.get("rpy_deg")
-    rpy_t = _vector(f"{where}.rpy_deg", rpy, 3, ANGLE_DEG) if rpy is not None else None
+    rpy_t = check_vector(f"{where}.rpy_deg", rpy, 3, ANGLE_DEG) if rpy is not None else None
     return PoseSpec(xyz, rpy_t)  # type: ignore[arg-type]
 
 
@@ -349,7 +349,7 @@ def _move(where: str, value: Any) -> Move:
         via_spec = spec["via"]
         _check_mapping(f"{where}.via", via_spec)
         _check_keys(f"{where}.via", via_spec, required=("xyz",))
-        via = _vector(f"{where}.via.xyz", via_spec["xyz"], 3, COORDINATE_M)
+        via = check_vector(f"{where}.via.xyz", via_spec["xyz"], 3, COORDINATE_M)
     weave = _weave(f"{where}.weave", spec["weave"]) if spec.get("weave") is not None else None
     return Move(kind, to=target, via_xyz=via, speed_m_s=speed, config=config, weave=weave)  # type: ignore[arg-type]
 

@@ -327,7 +327,9 @@ def _number(where: str, value: Any, bounds: Range) -> float:
     return x
 
 
-def _vector(where: str, value: Any, n: int, bounds: Range) -> tuple[float, ...]:
+def check_vector(where: str, value: Any, n: int, bounds: Range) -> tuple[float, ...]:
+    """``value`` as ``n`` finite numbers inside ``bounds``; a TaskError naming ``where[i]`` otherwise
+    (task fields, and the CLI's numeric flags)."""
     if not isinstance(value, Sequence) or isinstance(value, (str, bytes)):
         raise TaskError(where, f"expected {n} numbers, got {_describe(value)}")
     if len(value) != n:

@@ -26,8 +26,9 @@ def main() -> int:
             line += (f"  {seg.singularity} via {seg.method}: {seg.config_before} -> {seg.config_after}, "
                      f"orientation dev {d['max_orientation_error_deg']:.3f} deg, time lost {d['time_lost_s']:.3f} s")
             for alt in d["alternatives"]:
-                line += f"\n      compared: {alt['method']} " + (
-                    f"{alt['duration_s']:.3f} s" if alt["feasible"] else f"infeasible ({alt['reason'][:80]})")
+                variant = f" ({alt['variant']})" if alt.get("variant") else ""
+                line += f"\n      compared: {alt['method']}{variant} " + (
+                    f"{alt['duration_s']:.3f} s" if alt["feasible"] else f"infeasible: {alt['reason']}")
         print(line)
     return 0
 

@@ -523,7 +523,7 @@ def crossing_methods(family: Family, no_wrist: str = "") -> dict[str, str]:
     if family == "five":
         return _FIVE_METHODS
     no_closed = "needs a closed form (opw or ur), which this arm does not have"
-    seven = f"{_NO_SQUARE_JACOBIAN} (6 x 7); with `redundancy` holding one joint the six-axis chain can"
+    seven = f"{_NO_SQUARE_JACOBIAN} (6 x 7); with `redundancy` holding one joint, the six-axis chain left can use it"
     return {**serves, "wrist-joint": no_closed, "axis": no_closed, "null-space": seven,
             "auto": "compares exact only: wrist-joint and axis need a closed form"}
 

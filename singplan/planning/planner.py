@@ -318,7 +318,9 @@ def _check_tracked(robot: Robot, i: int, move: Move, piece: CartesianPiece, trac
     u = float(tracked.u[k])
     if not np.all(np.isfinite(tracked.q[k])):
         what = ("no joint values give that position with the path's tool z axis (five joints keep both only "
-                "where the axis is within the arm's reach)" if robot.n_joints == 5 else
+                "where the axis is within the arm's reach; the z axis turns with the slerp from the start's "
+                "orientation to the target's, so a target rotated about its z axis against the start turns it "
+                "too: give the target the start's rotation about z)" if robot.n_joints == 5 else
                 "no inverse kinematics solution there")
         raise UnreachableError(f"move {i} ({move.kind}): the path leaves the workspace at {piece.describe(u)}: "
                                f"{what}", move=i)

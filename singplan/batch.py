@@ -342,8 +342,9 @@ class _Worker:
 
     def stop(self) -> None:
         """Interrupt the current job (its temporary files are removed) and end the process."""
-        if self.process.is_alive():
-            os.kill(self.process.pid, signal.SIGTERM)
+        # terminate() is SIGTERM that tolerates a process already gone (a fork server's child may be
+        # reaped between any is_alive() and a kill, which then raises ProcessLookupError)
+        self.process.terminate()
         self.process.join(_STOP_WAIT_S)
         if self.process.is_alive():
             self.process.kill()

@@ -123,17 +123,6 @@ def _insert_fixed(root: ET.Element, name: str, xyz: tuple[float, float, float]) 
     origin.set("xyz", " ".join(str(a - b) for a, b in zip(old, xyz, strict=True)))
 
 
-def _new_base(root: ET.Element, height_m: float, yaw_rad: float) -> None:
-    """A new root link below the old one: the base frame raised and turned about z."""
-    children = {c.get("link") for c in root.iter("child")}
-    old_root = next(link.get("name") for link in root.iter("link") if link.get("name") not in children)
-    ET.SubElement(root, "link", name="floor")
-    fixed = ET.SubElement(root, "joint", name="floor_joint", type="fixed")
-    ET.SubElement(fixed, "parent", link="floor")
-    ET.SubElement(fixed, "child", link=str(old_root))
-    ET.SubElement(fixed, "origin", xyz=f"0 0 {height_m}", rpy=f"0 0 {yaw_rad}")
-
-
 def _rename_link(root: ET.Element, old: str, new: str) -> None:
     """Rename a link and the joint that makes it its child."""
     for link in root.iter("link"):
@@ -187,7 +176,7 @@ def test_another_zero_pose_is_opw_with_the_offset_moved(name: str, joint: str, d
 def test_extra_fixed_joints_and_a_new_base_link_keep_the_arm_opw(tmp_path: Path, rng) -> None:
     tree = _tree("kuka_kr120_r2500_pro")
     root = tree.getroot()
-    _new_base(root, 0.3, 0.6)
+    _placed_base(root, (0.0, 0.0, 0.3), (0.0, 0.0, 0.6))
     _insert_fixed(root, "joint_3", (0.4, 0.0, 0.0))
     _insert_fixed(root, "joint_5", (0.2, 0.0, -0.041))
     variant = load_robot(_write(tree, tmp_path / "kr120_variant.urdf"))
@@ -208,7 +197,7 @@ def test_every_convention_at_once_still_plans_the_twins_path(tmp_path: Path) -> 
     _shift_zero(root, "joint_2", 0.3)
     _shift_zero(root, "joint_6", -1.0)
     _insert_fixed(root, "joint_5", (0.2, 0.0, 0.0))
-    _new_base(root, 0.5, 0.0)
+    _placed_base(root, (0.0, 0.0, 0.5), (0.0, 0.0, 0.0))
     variant = load_robot(_write(tree, tmp_path / "irb2400_variant.urdf"))
     twin = load_robot("abb_irb2400")
     assert variant.family == "opw"
@@ -229,7 +218,7 @@ def test_a_variant_has_its_twins_labels_and_closed_form_distances(tmp_path: Path
     _flip_axis(root, "joint_1")
     _flip_axis(root, "joint_5")
     _shift_zero(root, "joint_4", 0.5)
-    _new_base(root, 0.1, 0.8)
+    _placed_base(root, (0.0, 0.0, 0.1), (0.0, 0.0, 0.8))
     variant, twin = load_robot(_write(tree, tmp_path / "kr6_labels.urdf")), load_robot("kuka_kr6_r900_2")
     q_variant = rng.uniform(np.maximum(variant.lower_rad, -math.pi), np.minimum(variant.upper_rad, math.pi),
                             size=(200, 6))
@@ -259,7 +248,7 @@ def test_ur5_with_an_extra_fixed_joint_and_a_raised_base_is_ur(tmp_path: Path, r
     tree = _tree("ur5")
     root = tree.getroot()
     _insert_fixed(root, "elbow_joint", (0.0, -0.05, 0.2))
-    _new_base(root, 0.25, 0.0)
+    _placed_base(root, (0.0, 0.0, 0.25), (0.0, 0.0, 0.0))
     variant = load_robot(_write(tree, tmp_path / "ur5_variant.urdf"))
     twin = load_robot("ur5")
     assert variant.family == "ur" and variant.ur is not None and twin.ur is not None

@@ -23,7 +23,7 @@ import logging
 import math
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, TextIO
@@ -111,21 +111,28 @@ def _json_list(row: list[float]) -> str:
     return "[" + ", ".join(map(repr, row)) + "]"  # finite floats (checked): repr is valid JSON
 
 
+_Point = tuple[int, int, list[float], list[float], list[float]]  # sec, nanosec, positions, velocities, accelerations
+
+
+def _point_chunks(traj: Trajectory) -> Iterator[list[_Point]]:
+    """The message's points, ``_CHUNK`` samples at a time (the file is streamed, never held whole)."""
+    for start in range(0, len(traj.t), _CHUNK):
+        stop = start + _CHUNK
+        yield [(*_duration(t), q, qd, qdd)
+               for t, q, qd, qdd in zip(traj.t[start:stop].tolist(), traj.q[start:stop].tolist(),
+                                        traj.qd[start:stop].tolist(), traj.qdd[start:stop].tolist(), strict=True)]
+
+
 def write_ros2_yaml(stream: TextIO, traj: Trajectory) -> None:
     """trajectory_msgs/msg/JointTrajectory as YAML (block style, one flow list per array)."""
     check_trajectory(traj)
     stream.write("header:\n  stamp: {sec: 0, nanosec: 0}\n  frame_id: ''\n")
     stream.write("joint_names: [" + ", ".join(json.dumps(n) for n in traj.joint_names) + "]\npoints:\n")
-    for start in range(0, len(traj.t), _CHUNK):
-        stop = start + _CHUNK
-        parts = []
-        for t, q, qd, qdd in zip(traj.t[start:stop].tolist(), traj.q[start:stop].tolist(),
-                                 traj.qd[start:stop].tolist(), traj.qdd[start:stop].tolist(), strict=True):
-            sec, nanosec = _duration(t)
-            parts.append(f"- positions: {_yaml_list(q)}\n  velocities: {_yaml_list(qd)}\n"
-                         f"  accelerations: {_yaml_list(qdd)}\n  effort: []\n"
-                         f"  time_from_start: {{sec: {sec}, nanosec: {nanosec}}}\n")
-        stream.write("".join(parts))
+    for chunk in _point_chunks(traj):
+        stream.write("".join(f"- positions: {_yaml_list(q)}\n  velocities: {_yaml_list(qd)}\n"
+                             f"  accelerations: {_yaml_list(qdd)}\n  effort: []\n"
+                             f"  time_from_start: {{sec: {sec}, nanosec: {nanosec}}}\n"
+                             for sec, nanosec, q, qd, qdd in chunk))
 
 
 def write_ros2_json(stream: TextIO, traj: Trajectory) -> None:
@@ -133,16 +140,12 @@ def write_ros2_json(stream: TextIO, traj: Trajectory) -> None:
     check_trajectory(traj)
     stream.write('{"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""}, "joint_names": '
                  + json.dumps(list(traj.joint_names)) + ', "points": [')
-    for start in range(0, len(traj.t), _CHUNK):
-        stop = start + _CHUNK
-        points = []
-        for t, q, qd, qdd in zip(traj.t[start:stop].tolist(), traj.q[start:stop].tolist(),
-                                 traj.qd[start:stop].tolist(), traj.qdd[start:stop].tolist(), strict=True):
-            sec, nanosec = _duration(t)
-            points.append(f'{{"positions": {_json_list(q)}, "velocities": {_json_list(qd)}, '
-                          f'"accelerations": {_json_list(qdd)}, "effort": [], '
-                          f'"time_from_start": {{"sec": {sec}, "nanosec": {nanosec}}}}}')
-        stream.write((", " if start else "") + ", ".join(points))
+    for i, chunk in enumerate(_point_chunks(traj)):
+        stream.write((", " if i else "") + ", ".join(
+            f'{{"positions": {_json_list(q)}, "velocities": {_json_list(qd)}, '
+            f'"accelerations": {_json_list(qdd)}, "effort": [], '
+            f'"time_from_start": {{"sec": {sec}, "nanosec": {nanosec}}}}}'
+            for sec, nanosec, q, qd, qdd in chunk))
     stream.write("]}\n")
 
 

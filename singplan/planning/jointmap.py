@@ -103,6 +103,11 @@ class JointMap:
         self.poses = poses
         self.parts = parts
 
+    @property
+    def straight(self) -> bool:
+        """A straight line in joint space (a PTP): a few reference points describe it."""
+        return all(part.kind == "ptp" for part in self.parts)
+
     def reference(self) -> tuple[np.ndarray, np.ndarray]:
         """All reference samples (u (K,), q (K, n)), without repeated part ends."""
         us, qs = [self.parts[0].u[:1]], [self.parts[0].q[:1]]

@@ -26,7 +26,9 @@ from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import Robot, load_robot
 from singplan.kinematics.stopping import path_estimate, ptp_estimate
+from singplan.planning.blending import Blend, corners
 from singplan.planning.budget import check_task
+from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import Crossing, CrossingMethod, MoveContext
 from singplan.planning.crossing.nullspace import time_with_pauses
@@ -69,8 +71,9 @@ class PlannedTask:
     robot: Robot  # the chain planned: ``full``, or with ``redundancy`` the 6R chain with one joint held
     held: HeldJoint | None
     moves: tuple[PlannedMove, ...]
-    timed: tuple[TimedMove, ...]
+    timed: tuple[TimedMove, ...]  # moves joined by fly-by corners were timed together, then split
     planning_s: float  # wall time from the call to the last move timed
+    blends: tuple[Blend, ...] = ()  # every corner that asked for a fly-by, with the radius it got
 
 
 def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = None,
@@ -109,8 +112,34 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
         T = pm.piece.T_end if pm.piece is not None else robot.fk(q)
         if progress is not None:
             progress(i + 1, len(task.moves))
+    blends = corners(robot, [(pm.jmap, pm.piece is not None, pm.limits.tcp_speed_m_s,
+                              any(c.pause is not None for c in pm.crossings)) for pm in planned],
+                     [m.blend_mm / 1e3 for m in arm_task.moves])
+    if any(b.jmap is not None for b in blends.values()):
+        timed = _time_chains(planned, timed, blends, task.period_s, allowance)
     return PlannedTask(task, task.singularity.method if chosen is None else chosen.name,
-                       full, robot, held, tuple(planned), tuple(timed), time.perf_counter() - started)
+                       full, robot, held, tuple(planned), tuple(timed), time.perf_counter() - started,
+                       tuple(blends.values()))
+
+
+def _time_chains(planned: list[PlannedMove], timed: list[TimedMove], blends: dict[int, Blend], period_s: float,
+                 allowance: int) -> list[TimedMove]:
+    """Moves joined by flown corners timed in one pass each (the others keep their timing)."""
+    out: list[TimedMove] = []
+    for group in chains(planned, blends):
+        if len(group) == 1:
+            out.append(timed[group[0]])
+            continue
+        members = [planned[i] for i in group]
+        cmap = chain_map(members, blends)
+        limits = chain_limits(members, cmap)
+        try:
+            tm = time_move(cmap, limits, period_s, group[0], allowance)
+        except TimingError as exc:
+            move, where = describe_chain_point(cmap, members, exc.u)
+            raise TimingError(move, exc.u, exc.reason, kind=planned[move].kind, where=where) from exc
+        out.extend(split(cmap, tm, limits, period_s))
+    return out
 
 
 def _timed(robot: Robot, pm: PlannedMove, period_s: float, max_samples: int) -> TimedMove:

@@ -90,6 +90,9 @@ class TimedMove:
             (0 without a jerk limit).
         optimal_duration_s: the acceleration-limited (TOPP-RA) duration; ``duration_s`` is longer by
             what the jerk limit or the quintic law costs. None: the same as ``duration_s``.
+        blend_from: the sample where the move's fly-by corner starts (its last sample on the move's
+            path); the samples after it are the corner's, their ``u`` the move's end. None: the move
+            ends at rest on its target.
     """
 
     u: np.ndarray  # (K+1,)
@@ -100,6 +103,7 @@ class TimedMove:
     torque_ratio: float = 0.0
     jerk_ratio: float = 0.0
     optimal_duration_s: float | None = None
+    blend_from: int | None = None
 
 
 @dataclass(frozen=True)
@@ -109,14 +113,25 @@ class MoveLimits:
     velocity_rad_s: np.ndarray  # (n,) already scaled
     acceleration_rad_s2: np.ndarray  # (n,)
     length_m: float  # 0 for PTP or a pure reorientation: no TCP speed cap
-    tcp_speed_m_s: float | None
+    tcp_speed_m_s: float | None  # the programmed TCP speed (moves joined by fly-by corners: the fastest)
     torque: TorqueLimit | None = None  # limits.torque_scale: TOPP-RA's torque constraint, checked on the samples
     jerk_rad_s3: np.ndarray | None = None  # (n,) limits.jerk, checked on the samples; None: not limited
     quintic: bool = False  # time the move by SEEDS 003's quintic law (PTP: the joint map is a straight line)
+    # moves joined by fly-by corners: the time [s] the TCP needs at the programmed speeds to reach
+    # each path parameter (N,) -> (N,); None: u * length_m / tcp_speed_m_s
+    clock: Callable[[np.ndarray], np.ndarray] | None = None
+
+    def tcp_clock(self, u: np.ndarray) -> np.ndarray | None:
+        """The time [s] the TCP needs at its programmed speed to reach each u (N,); None: no TCP speed cap."""
+        if self.clock is not None:
+            return self.clock(u)
+        if not self.tcp_speed_m_s or self.length_m <= 0:
+            return None
+        return u * (self.length_m / self.tcp_speed_m_s)
 
 
 def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
-    if all(part.kind == "ptp" for part in jmap.parts):
+    if jmap.straight:
         # A straight joint line: points graded toward the ends (below) only add round-off, in which
         # a joint that barely moves beside one that moves far made TOPP-RA's instance "not controllable".
         dense = np.linspace(0.0, 1.0, 9)
@@ -182,10 +197,12 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tup
     length = path_scale(q, limits)
     amax = limits.acceleration_rad_s2 * scale_a
     tau = math.sqrt(length / float(np.min(amax)))
-    arc = u * (limits.length_m if limits.length_m > 0 else length)  # the TCP's arc length, capped at its speed
-    path = ta.SplineInterpolator(u, np.hstack([q - q[0], arc[:, None]]) / length)  # from 0: no digits lost
-    vmax = np.append(limits.velocity_rad_s * scale_v,
-                     limits.tcp_speed_m_s * scale_v if limits.tcp_speed_m_s and limits.length_m > 0 else _UNLIMITED)
+    # the TCP's clock (time at programmed speed, whose rate is capped at 1) times a reference speed,
+    # so the coordinate keeps the size of an arc length
+    clock = limits.tcp_clock(u)
+    ref = limits.tcp_speed_m_s or 1.0
+    path = ta.SplineInterpolator(u, np.hstack([q - q[0], (clock * ref if clock is not None else u)[:, None]]) / length)
+    vmax = np.append(limits.velocity_rad_s * scale_v, ref * scale_v if clock is not None else _UNLIMITED)
     vmax_1 = np.minimum(vmax * tau / length, _UNLIMITED)
     amax_1 = np.append(amax * tau**2 / length, _UNLIMITED)
     constraints = [ta_constraint.JointVelocityConstraint(np.stack([-vmax_1, vmax_1], axis=1)),
@@ -394,11 +411,11 @@ def worst_sample(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.ndar
 
 
 def _tcp_ratio(u: np.ndarray, limits: MoveLimits, period_s: float) -> float:
-    """Largest TCP speed over its cap, from the arc-length parameter (exact for LIN / CIRC)."""
-    if not limits.tcp_speed_m_s or limits.length_m <= 0:
+    """Largest TCP speed over its cap, from the TCP's clock (exact for LIN / CIRC)."""
+    clock = limits.tcp_clock(u)
+    if clock is None or len(u) < 2:
         return 0.0
-    v = np.diff(u) * limits.length_m / period_s
-    return float(np.max(v) / limits.tcp_speed_m_s) * _SPEED_MARGIN / _TCP_MARGIN if len(v) else 0.0
+    return float(np.max(np.diff(clock)) / period_s) * _SPEED_MARGIN / _TCP_MARGIN
 
 
 def _surrogate(optimal: TimedMove) -> Callable[[np.ndarray], np.ndarray]:

@@ -10,6 +10,7 @@ pose at the sample's own path parameter, an upper bound of the distance to the p
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -19,6 +20,7 @@ from singplan.kinematics.dynamics import effort_limits_nm, no_dynamics_reason, t
 from singplan.kinematics.robot import Robot
 from singplan.kinematics.stopping import stopping_distances, stopping_metrics
 from singplan.kinematics.vendor_config import vendor_configs
+from singplan.planning.blending import Blend
 from singplan.planning.jerk import third_difference_ratio
 from singplan.planning.path import sample_deviations
 from singplan.planning.records import PlannedMove
@@ -30,11 +32,13 @@ from singplan.task.schema import Task
 
 
 def build_trajectory(robot: Robot, task: Task, method: str, planned: list[PlannedMove], timed: list[TimedMove],
-                     planning_time_s: float, held: HeldJoint | None = None) -> Trajectory:
+                     planning_time_s: float, held: HeldJoint | None = None,
+                     blends: tuple[Blend, ...] = ()) -> Trajectory:
     """The trajectory of the planned moves of ``robot`` (``method``: the crossing method asked for).
 
     With ``held`` (``robot`` is then its 6R chain) the held joint comes back as a constant column,
-    so samples, limits and torques are the 7-joint arm's.
+    so samples, limits and torques are the 7-joint arm's. ``blends``: the corners that asked for
+    a fly-by; a flown one is its incoming move's ``blend`` segment, and every one is reported.
     """
     period = task.period_s
     q_planned = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
@@ -47,14 +51,17 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     worst_pos, worst_ori = 0.0, 0.0
     k0 = 0
     pos_all, ori_all = [np.zeros(1)], [np.zeros(1)]
+    flown = {b.move: b for b in blends if b.jmap is not None}
     for pm, tm in zip(planned, timed, strict=True):
         k1 = k0 + len(tm.q) - 1
         pos_err, ori_err = sample_deviations(robot, pm.piece, tm.u, tm.q)
+        if tm.blend_from is not None:  # a fly-by corner leaves the path on purpose: its own figures
+            pos_err[tm.blend_from + 1:] = ori_err[tm.blend_from + 1:] = 0.0
         pos_all.append(pos_err[1:])
         ori_all.append(ori_err[1:])
         worst_pos = max(worst_pos, float(pos_err.max(initial=0.0)))
         worst_ori = max(worst_ori, float(ori_err.max(initial=0.0)))
-        segs = _move_segments(pm, tm, k0, k1, period, labels, pos_err, ori_err)
+        segs = _move_segments(pm, tm, k0, k1, period, labels, pos_err, ori_err, flown.get(pm.index))
         segments.extend(segs)
         events.extend(_move_events(pm, segs, k0, k1, period, labels))
         crossings.extend({"move": s.move, "t0": s.t0, "t1": s.t1, "singularity": s.singularity, "method": s.method,
@@ -70,7 +77,7 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
                "max_joint_speed_ratio": speed, "max_joint_accel_ratio": accel, "duration_s": float(t[-1]),
                "planning_time_s": planning_time_s, "samples": len(t), "method": method,
                "crossings": crossings, **_torque_metrics(arm, task, q), **_jerk_metrics(arm, task, q, timed),
-               **stopping_metrics(stopping_m, period)}
+               **stopping_metrics(stopping_m, period), **_blend_metrics(blends)}
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
     samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all),
                "stopping_distance_m": stopping_m}
@@ -171,11 +178,14 @@ def _sample_at(u: np.ndarray, value: float) -> int:
     return min(len(u) - 1, int(np.searchsorted(u, value - 1e-12)))
 
 
-def _merged_spans(pm: PlannedMove, tm: TimedMove) -> list[tuple[int, int, list[Zone]]]:
-    """Sample spans of the zones, overlapping ones merged; at least one step long."""
+def _merged_spans(pm: PlannedMove, tm: TimedMove, last: int) -> list[tuple[int, int, list[Zone]]]:
+    """Sample spans (up to sample ``last``) of the zones, overlapping ones merged; at least one step long.
+
+    Zones wholly in a fly-by corner (before the move's first sample or after ``last``) are the corner's.
+    """
     spans: list[tuple[int, int, list[Zone]]] = []
-    last = len(tm.u) - 1
-    for zone in sorted(pm.zones, key=lambda z: z.u_entry):
+    visible = [z for z in pm.zones if z.u_exit > tm.u[0] and z.u_entry < tm.u[last]]
+    for zone in sorted(visible, key=lambda z: z.u_entry):
         a = _sample_at(tm.u, zone.u_entry)
         b = max(_sample_at(tm.u, zone.u_exit), a + 1)
         a, b = min(a, last - 1), min(b, last)
@@ -187,16 +197,39 @@ def _merged_spans(pm: PlannedMove, tm: TimedMove) -> list[tuple[int, int, list[Z
     return spans
 
 
+def _blend_metrics(blends: tuple[Blend, ...]) -> dict[str, Any]:
+    """Every corner that asked for a fly-by: the radius asked for, the radius used and why it differs."""
+    if not blends:
+        return {}
+    return {"blends": [{"move": b.move, "requested_mm": b.requested_m * 1e3, "radius_mm": b.radius_m * 1e3,
+                        "flown": b.jmap is not None, **({"reduced": b.note} if b.note else {})} for b in blends]}
+
+
 def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float, labels: _Labels,
-                   pos_err: np.ndarray, ori_err: np.ndarray) -> list[Segment]:
+                   pos_err: np.ndarray, ori_err: np.ndarray, blend: Blend | None) -> list[Segment]:
     def seg(kind: str, a: int, b: int, **extra: Any) -> Segment:
         return Segment(pm.index, kind, (k0 + a) * period, (k0 + b) * period, labels[k0 + a], labels[k0 + b], **extra)
 
+    if tm.blend_from is None:
+        return _path_segments(pm, tm, k1 - k0, seg, period, pos_err, ori_err)
+    assert blend is not None
+    own = _path_segments(pm, tm, tm.blend_from, seg, period, pos_err, ori_err) if tm.blend_from > 0 else []
+    return [*own, seg("blend", tm.blend_from, k1 - k0, details={
+        "radius_mm": blend.radius_m * 1e3, "requested_mm": blend.requested_m * 1e3,
+        **({"reduced": blend.note} if blend.note else {})})]
+
+
+SegmentMaker = Callable[..., Segment]
+
+
+def _path_segments(pm: PlannedMove, tm: TimedMove, last: int, seg: SegmentMaker, period: float,
+                   pos_err: np.ndarray, ori_err: np.ndarray) -> list[Segment]:
+    """The segments of the move's samples 0 .. last on its own path."""
     if pm.kind == "ptp":
-        return [seg("ptp", 0, k1 - k0)]
-    spans = _merged_spans(pm, tm)
+        return [seg("ptp", 0, last)]
+    spans = _merged_spans(pm, tm, last)
     if not spans:
-        return [seg("path", 0, k1 - k0)]
+        return [seg("path", 0, last)]
     out: list[Segment] = []
     cursor = 0
     for n, (a, b, zones) in enumerate(spans):
@@ -206,8 +239,8 @@ def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: flo
         out.append(seg("crossing", a, b, singularity=closest.kind, method=_zone_method(pm, closest),
                        details=_crossing_figures(pm, tm, a, b, closest, pos_err, ori_err, period)))
         cursor = b
-    if cursor < k1 - k0:
-        out.append(seg("post", cursor, k1 - k0))
+    if cursor < last:
+        out.append(seg("post", cursor, last))
     return out
 
 

@@ -41,7 +41,7 @@ def trajectory_of(planned: PlannedTask) -> Trajectory:
     """The trajectory record of planned moves, checked against the limits sample by sample."""
     moves, timed = list(planned.moves), list(planned.timed)
     traj = build_trajectory(planned.robot, planned.task, planned.method, moves, timed, planned.planning_s,
-                            planned.held)
+                            planned.held, planned.blends)
     _check_metrics(planned.full, planned.task, moves, timed, traj)
     return traj
 

@@ -31,6 +31,7 @@ from singplan.task.schema import (
     MAX_FILE_BYTES,
     MAX_JOINTS,
     MAX_KEY_CHARS,
+    BLEND_MM,
     MAX_MOVES,
     MAX_NAME_CHARS,
     MAX_PATH_CHARS,
@@ -314,7 +315,11 @@ def _moves(value: Any) -> tuple[Move, ...]:
         raise TaskError("moves", "the list is empty; give at least one move")
     if len(value) > MAX_MOVES:
         raise TaskError("moves", f"{len(value)} moves is over the cap of {MAX_MOVES}")
-    return tuple(_move(f"moves[{i}]", m) for i, m in enumerate(value))
+    moves = tuple(_move(f"moves[{i}]", m) for i, m in enumerate(value))
+    if moves[-1].blend_mm > 0:
+        raise TaskError(f"moves[{len(moves) - 1}].{moves[-1].kind}.blend_mm",
+                        "the last move ends the task at rest: it has no corner to fly by")
+    return moves
 
 
 def _move(where: str, value: Any) -> Move:
@@ -328,21 +333,23 @@ def _move(where: str, value: Any) -> Move:
     spec = value[kind]
     _check_mapping(where, spec)
     if kind == "ptp":
-        _check_keys(where, spec, required=("to",), optional=("velocity_scale", "config"))
+        _check_keys(where, spec, required=("to",), optional=("velocity_scale", "config", "blend_mm"))
     else:
         _check_keys(where, spec, required=("to", *(("via",) if kind == "circ" else ())),
-                    optional=("speed", "config", "weave"))
+                    optional=("speed", "config", "weave", "blend_mm"))
     config = _config(f"{where}.config", spec["config"]) if spec.get("config") is not None else "auto"
+    blend = _number(f"{where}.blend_mm", spec["blend_mm"], BLEND_MM) if spec.get("blend_mm") is not None else 0.0
     to = spec["to"]
     _check_mapping(f"{where}.to", to)
     if kind == "ptp" and "joints_deg" in to:
         _check_keys(f"{where}.to", to, required=("joints_deg",))
         return Move(kind, to_joints_deg=_joints(f"{where}.to.joints_deg", to["joints_deg"]),
-                    velocity_scale=_scale(f"{where}.velocity_scale", spec.get("velocity_scale", 1.0)), config=config)
+                    velocity_scale=_scale(f"{where}.velocity_scale", spec.get("velocity_scale", 1.0)), config=config,
+                    blend_mm=blend)
     target = _pose(f"{where}.to", to)
     if kind == "ptp":
         return Move(kind, to=target, velocity_scale=_scale(f"{where}.velocity_scale", spec.get("velocity_scale", 1.0)),
-                    config=config)
+                    config=config, blend_mm=blend)
     speed = _number(f"{where}.speed", spec.get("speed", DEFAULT_SPEED_M_S), SPEED_M_S)
     via = None
     if kind == "circ":
@@ -351,7 +358,8 @@ def _move(where: str, value: Any) -> Move:
         _check_keys(f"{where}.via", via_spec, required=("xyz",))
         via = check_vector(f"{where}.via.xyz", via_spec["xyz"], 3, COORDINATE_M)
     weave = _weave(f"{where}.weave", spec["weave"]) if spec.get("weave") is not None else None
-    return Move(kind, to=target, via_xyz=via, speed_m_s=speed, config=config, weave=weave)  # type: ignore[arg-type]
+    return Move(kind, to=target, via_xyz=via, speed_m_s=speed, config=config, weave=weave,  # type: ignore[arg-type]
+                blend_mm=blend)
 
 
 def _weave(where: str, value: Any) -> Weave:

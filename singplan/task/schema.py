@@ -28,6 +28,7 @@ singularity.zone.shoulder_mm           0.001 .. 1000        mm
 output.period                          0.0001 .. 1          s
 weave.amplitude_mm                     0.001 .. 1000        mm
 weave.wavelength_mm                    0.1 .. 100000        mm
+blend_mm                               0 .. 10000           mm (0: the move ends at rest)
 =====================================  ===================  ==========================
 
 Names (robot, tip) are at most :data:`MAX_NAME_CHARS` characters without control
@@ -86,6 +87,7 @@ ZONE_SHOULDER_MM = Range(1e-3, 1000.0, "mm")
 PERIOD_S = Range(1e-4, 1.0, "s")
 WEAVE_AMPLITUDE_MM = Range(1e-3, 1000.0, "mm")
 WEAVE_WAVELENGTH_MM = Range(0.1, 1e5, "mm")
+BLEND_MM = Range(0.0, 1e4, "mm")
 WEAVE_PATTERNS = ("sine", "triangle")
 MAX_COORDINATE_M = COORDINATE_M.high
 MAX_SPEED_M_S = SPEED_M_S.high
@@ -124,6 +126,7 @@ class Move:
     velocity_scale: float = 1.0  # PTP fraction of the joint speed limits
     config: str = "auto"  # "auto" | "keep" | a label like "F U N"
     weave: Weave | None = None  # LIN / CIRC only
+    blend_mm: float = 0.0  # fly-by radius around the move's end point; 0: the move ends at rest
 
 
 @dataclass(frozen=True)
@@ -241,6 +244,8 @@ def _move_mapping(move: Move) -> dict[str, Any]:
     spec["config"] = move.config
     if move.weave is not None:
         spec["weave"] = move.weave.to_mapping()
+    if move.blend_mm > 0:
+        spec["blend_mm"] = move.blend_mm
     return {move.kind: spec}
 
 

@@ -1,0 +1,214 @@
+"""Moves joined by fly-by corners, as one path for one timing pass, and the timed chain split
+back into its moves.
+
+A chain is move a's path up to its corner, the corner's blend, move a+1's path from the end
+of that blend to its own corner, ... (:mod:`singplan.planning.blending`). Its parameter ``w``
+in [0, 1] is shared out so the joint path is C1 at every seam: a blend's ramps start and end
+with slope 2 in v, so a blend gets ``2 (1 - u_leave)`` times the share per unit u of the move
+before it, and the move after it gets the blend's share over ``2 u_join`` per unit u. The TCP
+speed cap follows each piece's programmed speed through the chain's clock (time at programmed
+speed). Velocity limits are those of the slowest move of the chain (a PTP's ``velocity_scale``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from singplan.planning.blending import Blend
+from singplan.planning.jointmap import JointMap
+from singplan.planning.records import PlannedMove
+from singplan.planning.timing import MoveLimits, TimedMove, sample_ratios
+
+
+@dataclass(frozen=True)
+class Piece:
+    """A stretch of a chain: part of a move's joint map, or a whole blend."""
+
+    jmap: JointMap
+    x0: float  # the stretch of the map's own parameter
+    x1: float
+    w0: float  # its share of the chain's parameter
+    w1: float
+    move: int
+    blend: Blend | None  # the corner this piece flies (None: the move's own path)
+    clock0_s: float  # the chain's clock at the piece's start
+    clock_rate: float  # seconds at programmed speed per unit x (moves); unused for blends
+
+    def x_of(self, w: np.ndarray) -> np.ndarray:
+        return self.x0 + (w - self.w0) / (self.w1 - self.w0) * (self.x1 - self.x0)
+
+    def clock(self, x: np.ndarray) -> np.ndarray:
+        if self.blend is None:
+            return self.clock0_s + (x - self.x0) * self.clock_rate
+        b = self.blend
+        if b.speed_m_s is None:
+            return np.full(len(x), self.clock0_s)
+        arc = np.interp(x, np.linspace(0.0, 1.0, len(b.arc_m)), b.arc_m)
+        return self.clock0_s + arc / b.speed_m_s
+
+    @property
+    def clock1_s(self) -> float:
+        return float(self.clock(np.array([self.x1]))[0])
+
+
+class ChainMap(JointMap):
+    """The joint path of a chain over w in [0, 1], evaluated piece by piece."""
+
+    def __init__(self, pieces: list[Piece]) -> None:
+        super().__init__(pieces[0].jmap.robot, None, [])
+        self.pieces = pieces
+
+    @property
+    def straight(self) -> bool:
+        return False
+
+    def piece_at(self, w: np.ndarray) -> np.ndarray:
+        """Index of the piece each w (N,) falls in."""
+        ends = np.array([p.w1 for p in self.pieces[:-1]])
+        return np.searchsorted(ends, w, side="left")
+
+    def evaluate(self, u: np.ndarray) -> np.ndarray:
+        w = np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0)
+        out = np.empty((len(w), self.robot.n_joints))
+        which = self.piece_at(w)
+        for k in np.unique(which):
+            mask = which == k
+            piece = self.pieces[int(k)]
+            out[mask] = piece.jmap.evaluate(piece.x_of(w[mask]))
+        return out
+
+    def reference(self) -> tuple[np.ndarray, np.ndarray]:
+        ws, qs = [], []
+        for n, p in enumerate(self.pieces):
+            x, q = p.jmap.reference()
+            inside = (x > p.x0) & (x < p.x1)
+            x = np.concatenate([[p.x0], x[inside], [p.x1]])
+            q = np.concatenate([p.jmap.evaluate(np.array([p.x0])), q[inside], p.jmap.evaluate(np.array([p.x1]))])
+            w = p.w0 + (x - p.x0) / (p.x1 - p.x0) * (p.w1 - p.w0)
+            first = 0 if n == 0 else 1  # neighbours share their end point
+            ws.append(w[first:])
+            qs.append(q[first:])
+        w, q = np.concatenate(ws), np.concatenate(qs)
+        keep = np.concatenate([[True], np.diff(w) > 1e-12])
+        return w[keep], q[keep]
+
+    def clock(self, u: np.ndarray) -> np.ndarray:
+        """The chain's TCP clock (N,) [s] at parameters u (N,)."""
+        w = np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0)
+        out = np.empty(len(w))
+        which = self.piece_at(w)
+        for k in np.unique(which):
+            mask = which == k
+            piece = self.pieces[int(k)]
+            out[mask] = piece.clock(piece.x_of(w[mask]))
+        return out
+
+
+def chains(planned: list[PlannedMove], blends: dict[int, Blend]) -> list[list[int]]:
+    """The moves grouped into chains: runs joined by flown corners (a single move is a chain of one)."""
+    out: list[list[int]] = [[0]]
+    for i in range(1, len(planned)):
+        b = blends.get(i - 1)
+        if b is not None and b.jmap is not None:
+            out[-1].append(i)
+        else:
+            out.append([i])
+    return out
+
+
+def chain_map(members: list[PlannedMove], blends: dict[int, Blend]) -> ChainMap:
+    """The chain of ``members`` (consecutive moves, each but the last flying its corner)."""
+    pieces: list[Piece] = []
+    w, rate, clock = 0.0, 1.0, 0.0  # rate: the chain's parameter per unit of the current move's u
+    u_from = 0.0
+    for n, pm in enumerate(members):
+        b = blends.get(pm.index) if n + 1 < len(members) else None
+        u_to = b.u_leave if b is not None else 1.0
+        move = Piece(pm.jmap, u_from, u_to, w, w + rate * (u_to - u_from), pm.index, None, clock, _clock_rate(pm))
+        pieces.append(move)
+        w, clock = move.w1, move.clock1_s
+        if b is None or b.jmap is None:
+            break
+        width = 2.0 * (1.0 - b.u_leave) * rate  # the ramps' slope 2 in v continues the move's slope
+        corner = Piece(b.jmap, 0.0, 1.0, w, w + width, pm.index, b, clock, 0.0)
+        pieces.append(corner)
+        w, clock = corner.w1, corner.clock1_s
+        rate, u_from = width / (2.0 * b.u_join), b.u_join
+    return ChainMap([_scaled(p, 1.0 / w) for p in pieces])
+
+
+def _scaled(p: Piece, factor: float) -> Piece:
+    return replace(p, w0=p.w0 * factor, w1=p.w1 * factor)
+
+
+def _clock_rate(pm: PlannedMove) -> float:
+    lim = pm.limits
+    return lim.length_m / lim.tcp_speed_m_s if lim.tcp_speed_m_s and lim.length_m > 0 else 0.0
+
+
+def chain_limits(members: list[PlannedMove], chain: ChainMap) -> MoveLimits:
+    """The chain's limits: the slowest member's joint velocities, the fastest TCP speed as the clock's reference."""
+    first = members[0].limits
+    speeds = [pm.limits.tcp_speed_m_s for pm in members if pm.limits.tcp_speed_m_s]
+    velocity = np.min(np.array([pm.limits.velocity_rad_s for pm in members]), axis=0)
+    length = sum(pm.limits.length_m for pm in members)
+    return replace(first, velocity_rad_s=velocity, length_m=length, tcp_speed_m_s=max(speeds) if speeds else None,
+                   quintic=False, clock=chain.clock)
+
+
+def split(chain: ChainMap, timed: TimedMove, limits: MoveLimits, period_s: float) -> list[TimedMove]:
+    """The timed chain as one TimedMove per move: each runs to the end of the corner it flies
+    (its ``blend_from`` marks where that corner starts); neighbours share that sample."""
+    w = timed.u
+    starts: dict[int, int] = {}
+    ends: dict[int, int] = {}
+    blend_from: dict[int, int] = {}
+    u = np.empty(len(w))
+    for p in chain.pieces:
+        inside = (w >= p.w0 - 1e-15) & (w <= p.w1 + 1e-15)
+        if p.blend is None:
+            u[inside] = p.x_of(w[inside])
+            starts.setdefault(p.move, int(np.argmax(inside)))
+            ends[p.move] = int(len(w) - 1 - np.argmax(inside[::-1]))
+        else:
+            strictly = (w > p.w0) & (w < p.w1)
+            u[strictly] = 1.0
+            blend_from[p.move] = int(np.flatnonzero(w <= p.w0)[-1])
+    moves = sorted(starts)
+    for n, m in enumerate(moves[:-1]):  # a move runs until the next one's first sample on its path
+        ends[m] = starts[moves[n + 1]]
+    total = timed.optimal_duration_s if timed.optimal_duration_s is not None else timed.duration_s
+    out = []
+    for m in moves:
+        a, b = starts[m], ends[m]
+        q = timed.q[a:b + 1]
+        uu = u[a:b + 1].copy()
+        if m in blend_from:
+            uu[blend_from[m] - a + 1:] = 1.0
+        else:
+            uu[-1] = min(uu[-1], 1.0)
+        speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
+        duration = (b - a) * period_s
+        share = duration * total / timed.duration_s if timed.duration_s > 0 else duration
+        out.append(TimedMove(uu, q, duration, speed, accel, timed.torque_ratio, timed.jerk_ratio,
+                             share if timed.optimal_duration_s is not None else None,
+                             blend_from[m] - a if m in blend_from else None))
+    return out
+
+
+def describe_chain_point(chain: ChainMap, members: list[PlannedMove], w: float) -> tuple[int, str]:
+    """The move and the point of it (or of its corner) at chain parameter w, for messages."""
+    p = chain.pieces[int(chain.piece_at(np.array([w]))[0])]
+    x = float(p.x_of(np.array([w]))[0])
+    if p.blend is not None:
+        return p.move, f"{x:.3f} of the fly-by corner after move {p.move} (radius {p.blend.radius_m * 1e3:.3f} mm)"
+    pm = next(m for m in members if m.index == p.move)
+    return p.move, pm.describe(x)
+
+
+def is_finite_chain(chain: ChainMap) -> bool:
+    """Every piece has a positive share of the parameter (a degenerate corner would divide by zero)."""
+    return all(p.w1 > p.w0 and math.isfinite(p.w1) for p in chain.pieces)

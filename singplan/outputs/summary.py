@@ -19,6 +19,10 @@ def summary(traj: Trajectory, task: Task) -> str:
         lines.append(f"  move {i} {move.kind:4s} {t0:8.3f} .. {t1:8.3f} s  {what:16s} "
                      f"{segs[0].config_before} -> {segs[-1].config_after}")
         for s in segs:
+            if s.kind == "blend":
+                d = s.details
+                reduced = f" ({d['reduced']})" if "reduced" in d else ""
+                lines.append(f"      fly-by {s.t0:.3f} .. {s.t1:.3f} s: radius {d['radius_mm']:g} mm{reduced}")
             if s.kind != "crossing":
                 continue
             d = s.details
@@ -44,6 +48,9 @@ def summary(traj: Trajectory, task: Task) -> str:
         law = "quintic PTP law, " if task.limits.ptp_time_law == "quintic" else ""
         lines.append(f"jerk: {jerk}{law}{m['jerk_time_lost_s']:.3f} s longer than the acceleration-limited "
                      f"{m['acceleration_limited_duration_s']:.3f} s")
+    stopped = [b for b in m.get("blends", []) if not b["flown"]]
+    for b in stopped:
+        lines.append(f"fly-by after move {b['move']} ({b['requested_mm']:g} mm asked): {b['reduced']}")
     if "max_stopping_distance_mm" in m:
         lines.append(f"stopping distance: up to {m['max_stopping_distance_mm']:.3f} mm at "
                      f"t = {m['max_stopping_distance_at_s']:.3f} s (every joint braking at its acceleration limit)")

@@ -3,19 +3,22 @@
 Where move i asks for ``blend_mm: r``, the robot leaves move i's path where the TCP comes
 within r of its end point (``u_leave``) and joins move i+1's path where the TCP is r past it
 (``u_join``). Between the two it follows the superposition of both motions, as controllers
-blend: the rest of move i with a decelerating ramp ``alpha(v) = 1 - (1 - v)^2`` and the start
-of move i+1 with an accelerating ramp ``beta(v) = v^2``, v in [0, 1]:
+blend: the rest of move i with a decelerating ramp alpha(v) and the start of move i+1 with an
+accelerating ramp beta(v) = 1 - alpha(1 - v), v in [0, 1]:
 
     X(v) = X_i(alpha(v)) (+) X_c^-1 (+) X_j(beta(v))
 
 (positions added as offsets from the corner, orientations composed as rotations relative to
-the corner's). Both ramps sum to at most 1 (``(1 - v)^2 + v^2 <= 1``), so along straight
-lines the TCP stays inside the sphere of radius r and the orientation no further from the
-corner's than at the ends (the checker's rules); other geometry is verified sample by sample
-and the radius shrinks until it holds. The ramps' slopes at the seams (2 and 2) make the
-joint path C1 once each piece gets its share of the chain's parameter (:class:`ChainMap`),
-so one timing pass runs through the corner without stopping: the braking of move i and the
-start of move i+1 overlap inside the sphere, which is where a fly-by saves its time.
+the corner's). ``alpha(v) = 2 v - 2 v^3 + v^4`` is the quartic with alpha' = 2 at the start,
+alpha' = 0 at the end and alpha'' = 0 at both: with the chain's shares of its parameter
+(:mod:`singplan.planning.chain`) the joint path is C2 at the seams, so neither the acceleration
+nor (with a jerk limit) the jerk jumps where the corner begins or ends. alpha is concave, so
+beta <= alpha and the weights of the two offsets, (1 - alpha) + beta, never exceed 1: along
+straight lines the TCP stays inside the sphere of radius r and the orientation no further from
+the corner's than at the ends (the checker's rules); other geometry is verified sample by
+sample and the radius shrinks until it holds. One timing pass runs through the corner without
+stopping: the braking of move i and the start of move i+1 overlap inside the sphere, which is
+where a fly-by saves its time.
 
 Between two LIN / CIRC moves the superposed pose is tracked by exact IK (the orientation is
 kept); with a PTP on either side the joints themselves are superposed. The radius is at most
@@ -48,7 +51,8 @@ _OWN_PATH = 0.05  # the least part of a move's parameter left on its own path be
 
 def ramps(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The superposition ramps (alpha, beta) at blend parameters v (N,)."""
-    return 1.0 - (1.0 - v) ** 2, v**2
+    w = 1.0 - v
+    return 2.0 * v - 2.0 * v**3 + v**4, 1.0 - (2.0 * w - 2.0 * w**3 + w**4)
 
 
 @dataclass(frozen=True)
@@ -179,6 +183,12 @@ def blend_corner(robot: Robot, move: int, requested_m: float, incoming: Side, ou
         which = move if incoming.cap_m <= outgoing.cap_m else move + 1
         radius, note = cap, f"reduced to half of move {which}'s length ({2 * cap * 1e3:.3f} mm)"
     corner = robot.tcp_positions(outgoing.jmap.evaluate(np.array([0.0])))[0]
+    if u_floor > 0:  # the fly-by into the incoming move takes its start: keep some of its own path
+        room = float(np.linalg.norm(robot.tcp_positions(incoming.jmap.evaluate(np.array([u_floor + _OWN_PATH])))[0]
+                                    - corner))
+        if room < radius:
+            radius, note = room * 0.999, (f"reduced to {room * 0.999e3:.3f} mm: the fly-by into move {move} "
+                                          f"leaves it no more room")
     for _ in range(_SHRINK_STEPS):
         if radius <= 1e-6:
             break

@@ -1,0 +1,251 @@
+"""Fly-by corners (``blend_mm``): task rules, the blend geometry, the chain's C1 seams, timing
+through the corner, reporting of reduced radii, and the independent checker on several arms."""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from singplan.cli import main
+from singplan.errors import TaskError
+from singplan.planning.blending import ramps
+from singplan.planning.chain import chain_map
+from singplan.planning.planner import plan_moves
+from singplan.results.plan import plan, trajectory_of
+from singplan.results.trajectory import Trajectory, save
+from singplan.task.load import parse_task
+
+from .shared import PROGRAMS, require, run_checker
+
+UR5_START = [-41.296046003, -78.35196501, 113.017645809, -124.665680799, -90.0, -41.296046003]  # TCP 0.45 -0.25 0.28
+DOWN = [-180.0, 0.0, -90.0]
+
+
+def _polyline(points: list[list[float]], blend_mm: float | list[float], speed: float = 0.5,
+              **limits: Any) -> dict[str, Any]:
+    """A UR5 task of LINs at constant orientation through ``points`` [m], each corner blended."""
+    radii = blend_mm if isinstance(blend_mm, list) else [blend_mm] * (len(points) - 1)
+    moves = []
+    for k, p in enumerate(points):
+        spec: dict[str, Any] = {"to": {"xyz": p, "rpy_deg": DOWN}, "speed": speed}
+        if k < len(points) - 1 and radii[k]:
+            spec["blend_mm"] = radii[k]
+        moves.append({"lin": spec})
+    return {"robot": "ur5", "tool": {"xyz": [0, 0, 0.1], "rpy_deg": [0, 0, 0]}, "start": {"joints_deg": UR5_START},
+            "moves": moves, "singularity": {"method": "auto"},
+            "limits": {"velocity_scale": 1.0, "acceleration": 5.0, **limits}, "output": {"period": 0.004}}
+
+
+def _corner(traj: Trajectory, move: int) -> np.ndarray:
+    """The programmed end point of a LIN move [m]."""
+    return np.asarray(traj.task["moves"][move]["lin"]["to"]["xyz"], dtype=float)
+
+
+def _tcp(traj: Trajectory, ks: range) -> np.ndarray:
+    from singplan.kinematics.robot import load_robot
+    import pinocchio as pin
+
+    robot = load_robot(traj.robot, tool=pin.SE3(np.eye(3), np.asarray(traj.tool["xyz"], dtype=float)))
+    return robot.tcp_positions(traj.q[ks.start:ks.stop])
+
+
+def _stop_to_stop(doc: dict[str, Any]) -> dict[str, Any]:
+    flat = copy.deepcopy(doc)
+    for move in flat["moves"]:
+        next(iter(move.values())).pop("blend_mm", None)
+    return flat
+
+
+# --- task rules ----------------------------------------------------------------------------------
+
+def test_a_negative_radius_is_bad_input_naming_the_move() -> None:
+    doc = _polyline([[0.45, -0.25, 0.20], [0.45, -0.15, 0.20], [0.40, -0.15, 0.20]], [10, -20])
+    with pytest.raises(TaskError, match=r"moves\[1\]\.lin\.blend_mm: must be at least 0 mm, got -20"):
+        parse_task(doc)
+
+
+def test_a_radius_on_the_last_move_is_bad_input() -> None:
+    doc = _polyline([[0.45, -0.25, 0.20], [0.45, -0.15, 0.20]], 10)
+    doc["moves"][1]["lin"]["blend_mm"] = 5
+    with pytest.raises(TaskError, match=r"moves\[1\]\.lin\.blend_mm: the last move ends the task at rest"):
+        parse_task(doc)
+
+
+def test_the_public_negative_blend_exits_2_naming_moves_2(capsys: pytest.CaptureFixture[str]) -> None:
+    require(PROGRAMS)
+    assert main(["plan", str(PROGRAMS / "bad__blend_negative.yaml"), "-o", "/nonexistent/never"]) == 2
+    assert "moves[2].lin.blend_mm" in capsys.readouterr().err.strip().splitlines()[-1]
+
+
+def test_blend_mm_round_trips_through_the_validated_mapping() -> None:
+    doc = _polyline([[0.45, -0.25, 0.20], [0.45, -0.15, 0.20], [0.40, -0.15, 0.20]], [10, 0])
+    task = parse_task(doc)
+    assert [m.blend_mm for m in task.moves] == [10.0, 0.0, 0.0]
+    assert parse_task(task.to_mapping()) == task
+
+
+# --- geometry and seams --------------------------------------------------------------------------
+
+@given(st.floats(0.0, 1.0), st.floats(0.0, math.pi))
+def test_superposed_straight_lines_stay_inside_the_sphere(v: float, angle: float) -> None:
+    """|-(1 - alpha) a + beta b| <= r for unit a, b at any angle: the ramps sum to at most 1."""
+    alpha, beta = ramps(np.array([v]))
+    a, b = np.array([1.0, 0.0, 0.0]), np.array([math.cos(angle), math.sin(angle), 0.0])
+    offset = -(1.0 - alpha[0]) * a + beta[0] * b  # from the corner, radius 1
+    assert np.linalg.norm(offset) <= 1.0 + 1e-12
+
+
+def test_the_chain_is_c1_across_every_seam() -> None:
+    """Joint slopes dq/dw just before and just after each seam agree (finite differences)."""
+    doc = _polyline([[0.45, -0.25, 0.20], [0.45, -0.17, 0.22], [0.40, -0.12, 0.22]], 20)
+    planned = plan_moves(parse_task(doc))
+    blends = {b.move: b for b in planned.blends}
+    chain = chain_map(list(planned.moves), blends)
+    h = 1e-7
+    for piece in chain.pieces[:-1]:
+        w = piece.w1
+        before = (chain.evaluate(np.array([w - h]))[0] - chain.evaluate(np.array([w - 2 * h]))[0]) / h
+        after = (chain.evaluate(np.array([w + 2 * h]))[0] - chain.evaluate(np.array([w + h]))[0]) / h
+        scale = max(float(np.max(np.abs(before))), 1e-9)
+        assert float(np.max(np.abs(after - before))) <= 1e-3 * scale, (w, before, after)
+
+
+# --- planned fly-by ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("turn_deg", [30.0, 90.0, 150.0])
+def test_a_blended_corner_stays_in_its_sphere_keeps_moving_and_saves_time(turn_deg: float) -> None:
+    a = np.array([0.45, -0.25, 0.20])
+    corner = a + np.array([0.0, 0.08, 0.0])
+    turn = math.radians(turn_deg)
+    b = corner + 0.08 * np.array([-math.sin(turn), math.cos(turn), 0.0])
+    doc = _polyline([corner.tolist(), b.tolist()], 20)
+    doc["start"] = {"pose": {"xyz": a.tolist(), "rpy_deg": DOWN}}
+    traj = plan(parse_task(doc))
+    blend = [s for s in traj.segments if s.kind == "blend"]
+    assert len(blend) == 1 and blend[0].move == 0 and blend[0].details["radius_mm"] == 20.0
+    k0, k1 = round(blend[0].t0 / traj.period), round(blend[0].t1 / traj.period)
+    assert k1 - k0 >= 2
+    far = np.linalg.norm(_tcp(traj, range(k0 + 1, k1)) - corner, axis=1)
+    assert float(far.max()) <= 0.020 + 1e-6
+    speed = np.linalg.norm(np.diff(_tcp(traj, range(k0, k1 + 1)), axis=0), axis=1) / traj.period
+    assert float(speed.min()) > 0.05  # it flies by: no stop at the corner
+    flat = plan(parse_task(_stop_to_stop(doc)))
+    assert traj.duration_s < flat.duration_s
+
+
+def test_a_radius_too_large_for_its_moves_is_reduced_and_reported() -> None:
+    doc = _polyline([[0.45, -0.19, 0.20], [0.40, -0.19, 0.20], [0.40, -0.09, 0.20]], 500)
+    doc["start"] = {"pose": {"xyz": [0.45, -0.25, 0.20], "rpy_deg": DOWN}}
+    traj = plan(parse_task(doc))
+    first, second = traj.metrics["blends"]
+    assert first["radius_mm"] == pytest.approx(25.0, abs=1e-6)  # half of move 1's 50 mm
+    assert "half of move 1" in first["reduced"] and first["flown"]
+    # move 1 keeps 5 % of itself between its two corners: 0.45 x 50 mm is left for the second
+    assert second["radius_mm"] == pytest.approx(22.5 * 0.999, abs=1e-6) and "no more room" in second["reduced"]
+    seg = next(s for s in traj.segments if s.kind == "blend" and s.move == 0)
+    assert seg.details["requested_mm"] == 500 and "reduced" in seg.details
+
+
+def test_fly_by_with_a_jerk_limit_keeps_every_jerk_and_passes_the_checker(tmp_path: Path) -> None:
+    doc = _polyline([[0.45, -0.19, 0.25], [0.45, -0.09, 0.28], [0.44, 0.01, 0.28]], 10, jerk=500.0)
+    doc["start"] = {"joints_deg": UR5_START}
+    traj = plan(parse_task(doc))
+    assert traj.metrics["max_joint_jerk_ratio"] <= 1.0
+    assert [s.kind for s in traj.segments].count("blend") == 2
+    _check(tmp_path, doc, traj)
+
+
+@pytest.mark.parametrize("kinds", [("ptp", "lin"), ("lin", "ptp"), ("ptp", "ptp"), ("circ", "lin")])
+def test_every_pair_of_move_kinds_flies_by(tmp_path: Path, kinds: tuple[str, str]) -> None:
+    targets = [[0.45, -0.15, 0.22], [0.38, -0.10, 0.22]]
+    moves = []
+    for kind, xyz in zip(kinds, targets, strict=True):
+        spec: dict[str, Any] = {"to": {"xyz": xyz, "rpy_deg": DOWN}}
+        if kind == "circ":
+            spec["via"] = {"xyz": [0.47, -0.20, 0.22]}
+        if kind != "ptp":
+            spec["speed"] = 0.5
+        moves.append({kind: spec})
+    next(iter(moves[0].values()))["blend_mm"] = 20
+    doc = _polyline([[0, 0, 0]], 0)
+    doc.update(moves=moves, start={"pose": {"xyz": [0.45, -0.25, 0.22], "rpy_deg": DOWN}})
+    traj = plan(parse_task(doc))
+    assert [s.kind for s in traj.segments if s.move == 0][-1] == "blend"
+    flat = plan(parse_task(_stop_to_stop(doc)))
+    assert traj.duration_s < flat.duration_s
+    _check(tmp_path, doc, traj)
+
+
+@pytest.mark.parametrize("name", ["abb_irb2400__flyby_pick_place", "fanuc_lrmate200id__flyby_seam_lin_circ_lin",
+                                  "kuka_kr6_r900_2__flyby_corner_near_wrist", "ur5__flyby_palletise"])
+def test_the_public_fly_by_programs_pass_and_beat_stop_to_stop_by_20_percent(tmp_path: Path, name: str) -> None:
+    require(PROGRAMS)
+    expect = yaml.safe_load((PROGRAMS / "expect.yaml").read_text())[name]
+    task = PROGRAMS / f"{name}.yaml"
+    assert main(["plan", str(task), "-o", str(tmp_path), "--no-report", "--no-replay", "--quiet"]) == 0
+    run = run_checker(task, tmp_path)
+    assert run.returncode == 0 and "PASS" in run.stdout, run.stdout + run.stderr
+    duration = float(yaml.safe_load((tmp_path / "trajectory.json").read_text())["metrics"]["duration_s"])
+    assert duration <= expect["max_duration_s"]
+
+
+def test_a_corner_next_to_a_null_space_pause_is_stopped_at_with_the_reason() -> None:
+    require(PROGRAMS)
+    doc = yaml.safe_load((PROGRAMS / "kuka_kr6_r900_2__nullspace_wrist_exact_hit.yaml").read_text())
+    last = doc["moves"][-1]
+    back = copy.deepcopy(last)
+    spec = next(iter(back.values()))
+    spec["to"]["xyz"][2] += 0.05
+    next(iter(last.values()))["blend_mm"] = 10
+    doc["moves"].append(back)
+    traj = plan(parse_task(doc))
+    note = traj.metrics["blends"][0]
+    assert not note["flown"] and "pauses on its path" in note["reduced"]
+    assert not any(s.kind == "blend" for s in traj.segments)
+    assert any("pause_s" in s.details for s in traj.segments)
+
+
+def test_the_example_pick_and_place_flies_by_and_saves_a_fifth(tmp_path: Path) -> None:
+    example = Path(__file__).resolve().parents[1] / "examples" / "flyby_pick_place.yaml"
+    doc = yaml.safe_load(example.read_text())
+    planned = plan_moves(parse_task(doc))
+    assert all(b.jmap is not None and b.radius_m == pytest.approx(0.040) for b in planned.blends)
+    traj = trajectory_of(planned)
+    flat = plan(parse_task(_stop_to_stop(doc)))
+    assert traj.duration_s <= 0.8 * flat.duration_s
+    _check(tmp_path, doc, traj)
+
+
+@pytest.mark.soak
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.lists(st.tuples(st.floats(-0.06, 0.06), st.floats(-0.06, 0.06), st.sampled_from([0, 5, 10, 30])),
+                min_size=2, max_size=4))
+def test_random_blended_polylines_plan_pass_and_never_lose_time(tmp_path: Path,
+                                                                steps: list[tuple[float, float, int]]) -> None:
+    p = np.array([0.45, -0.25, 0.28])
+    points, radii = [], []
+    for dx, dy, r in steps:
+        p = p + np.array([dx, dy, 0.0]) + np.array([0.0, 0.0, 0.01])
+        points.append(p.round(4).tolist())
+        radii.append(r)
+    doc = _polyline(points, radii[:-1] + [0])
+    traj = plan(parse_task(doc))
+    flat = plan(parse_task(_stop_to_stop(doc)))
+    assert traj.duration_s <= flat.duration_s + traj.period
+    _check(tmp_path / str(abs(hash(str(steps)))), doc, traj)
+
+
+def _check(tmp_path: Path, doc: dict[str, Any], traj: Trajectory) -> None:
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    task_file = tmp_path / "task.yaml"
+    task_file.write_text(yaml.safe_dump(doc))
+    run = run_checker(task_file, save(traj, tmp_path / "out"))
+    assert run.returncode == 0, run.stdout + run.stderr

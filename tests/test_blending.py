@@ -217,7 +217,7 @@ def test_the_example_pick_and_place_flies_by_and_saves_a_fifth(tmp_path: Path) -
     example = Path(__file__).resolve().parents[1] / "examples" / "flyby_pick_place.yaml"
     doc = yaml.safe_load(example.read_text())
     planned = plan_moves(parse_task(doc))
-    assert all(b.jmap is not None and b.radius_m == pytest.approx(0.040) for b in planned.blends)
+    assert all(b.jmap is not None and b.radius_m == pytest.approx(0.050) for b in planned.blends)
     traj = trajectory_of(planned)
     flat = plan(parse_task(_stop_to_stop(doc)))
     assert traj.duration_s <= 0.8 * flat.duration_s

@@ -33,7 +33,8 @@ MARK = "bench_flyby"
 
 def programs(shared: Path) -> dict[str, dict[str, Any]]:
     """name -> task mapping of every fly-by program found."""
-    paths = sorted((shared / "scenarios_programs").glob("*flyby*.yaml")) + sorted((HERE.parent / "examples").glob("flyby_*.yaml"))
+    paths = [*sorted((shared / "scenarios_programs").glob("*flyby*.yaml")),
+             *sorted((HERE.parent / "examples").glob("flyby_*.yaml"))]
     return {p.stem: yaml.safe_load(p.read_text()) for p in paths}
 
 
@@ -70,7 +71,7 @@ def _cell(result: tuple[float, float, bool] | str, base: tuple[float, float, boo
 
 
 def table(rows: list[dict[str, Any]], jerk: float) -> str:
-    lines = [f"### Fly-by programs: cycle time [s] (gain against stopping at every point; checker PASS unless marked)",
+    lines = ["### Fly-by programs: cycle time [s] (gain against stopping at every point; checker PASS unless marked)",
              "", f"Machine: {machine()}; Python {platform.python_version()}, pin {version('pin')}, "
              f"toppra {version('toppra')}, numpy {version('numpy')}.", "",
              f"| program | moves | stop-to-stop | blended | stop-to-stop, jerk {jerk:g} | blended, jerk {jerk:g} "

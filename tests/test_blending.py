@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
@@ -16,6 +17,7 @@ from hypothesis import strategies as st
 
 from singplan.cli import main
 from singplan.errors import TaskError
+from singplan.kinematics.robot import load_robot
 from singplan.planning.blending import ramps
 from singplan.planning.chain import chain_map
 from singplan.planning.planner import plan_moves
@@ -50,9 +52,6 @@ def _corner(traj: Trajectory, move: int) -> np.ndarray:
 
 
 def _tcp(traj: Trajectory, ks: range) -> np.ndarray:
-    from singplan.kinematics.robot import load_robot
-    import pinocchio as pin
-
     robot = load_robot(traj.robot, tool=pin.SE3(np.eye(3), np.asarray(traj.tool["xyz"], dtype=float)))
     return robot.tcp_positions(traj.q[ks.start:ks.stop])
 
@@ -236,7 +235,7 @@ def test_random_blended_polylines_plan_pass_and_never_lose_time(tmp_path: Path,
         p = p + np.array([dx, dy, 0.0]) + np.array([0.0, 0.0, 0.01])
         points.append(p.round(4).tolist())
         radii.append(r)
-    doc = _polyline(points, radii[:-1] + [0])
+    doc = _polyline(points, [*radii[:-1], 0])
     traj = plan(parse_task(doc))
     flat = plan(parse_task(_stop_to_stop(doc)))
     assert traj.duration_s <= flat.duration_s + traj.period

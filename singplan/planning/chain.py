@@ -12,7 +12,6 @@ speed). Velocity limits are those of the slowest move of the chain (a PTP's ``ve
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -208,7 +207,3 @@ def describe_chain_point(chain: ChainMap, members: list[PlannedMove], w: float) 
     pm = next(m for m in members if m.index == p.move)
     return p.move, pm.describe(x)
 
-
-def is_finite_chain(chain: ChainMap) -> bool:
-    """Every piece has a positive share of the parameter (a degenerate corner would divide by zero)."""
-    return all(p.w1 > p.w0 and math.isfinite(p.w1) for p in chain.pieces)

@@ -23,6 +23,7 @@ from singplan.kinematics.robot import Robot
 from singplan.task.schema import (
     ACCELERATION_RAD_S2,
     ANGLE_DEG,
+    BLEND_MM,
     COORDINATE_M,
     DEFAULT_SPEED_M_S,
     JERK_RAD_S3,
@@ -31,7 +32,6 @@ from singplan.task.schema import (
     MAX_FILE_BYTES,
     MAX_JOINTS,
     MAX_KEY_CHARS,
-    BLEND_MM,
     MAX_MOVES,
     MAX_NAME_CHARS,
     MAX_PATH_CHARS,

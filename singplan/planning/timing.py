@@ -201,7 +201,8 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tup
     # so the coordinate keeps the size of an arc length
     clock = limits.tcp_clock(u)
     ref = limits.tcp_speed_m_s or 1.0
-    path = ta.SplineInterpolator(u, np.hstack([q - q[0], (clock * ref if clock is not None else u)[:, None]]) / length)
+    extra = clock * ref if clock is not None else u * length  # no cap: a coordinate of the move's size
+    path = ta.SplineInterpolator(u, np.hstack([q - q[0], extra[:, None]]) / length)  # from 0: no digits lost
     vmax = np.append(limits.velocity_rad_s * scale_v, ref * scale_v if clock is not None else _UNLIMITED)
     vmax_1 = np.minimum(vmax * tau / length, _UNLIMITED)
     amax_1 = np.append(amax * tau**2 / length, _UNLIMITED)

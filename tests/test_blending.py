@@ -249,3 +249,18 @@ def _check(tmp_path: Path, doc: dict[str, Any], traj: Trajectory) -> None:
     task_file.write_text(yaml.safe_dump(doc))
     run = run_checker(task_file, save(traj, tmp_path / "out"))
     assert run.returncode == 0, run.stdout + run.stderr
+
+
+@pytest.mark.parametrize("example, hold", [("so100_lin", True), ("panda_redundancy", False),
+                                           pytest.param("panda_redundancy", True, marks=pytest.mark.soak)])
+def test_five_and_seven_axis_arms_fly_by(tmp_path: Path, example: str, hold: bool) -> None:
+    """Reduced-order and redundant arms: the corners flown, checked, and no slower than stopping."""
+    doc = yaml.safe_load((Path(__file__).resolve().parents[1] / "examples" / f"{example}.yaml").read_text())
+    if not hold:
+        doc.pop("redundancy")  # minimum-norm joint velocity: the corner ends on the next move's joints
+    for move in doc["moves"][:-1]:
+        next(iter(move.values()))["blend_mm"] = 10
+    traj = plan(parse_task(doc))
+    assert all(b["flown"] for b in traj.metrics["blends"])
+    assert traj.duration_s < plan(parse_task(_stop_to_stop(doc))).duration_s
+    _check(tmp_path, doc, traj)

@@ -210,12 +210,10 @@ def _built(robot: Robot, move: int, requested_m: float, radius_m: float, note: s
     """The blend at one radius, or None and what went wrong."""
     if incoming.cartesian and outgoing.cartesian:
         poses = superposed_poses(robot, incoming.jmap, outgoing.jmap, u_leave, u_join)
-        q_start = incoming.jmap.evaluate(np.array([u_leave]))[0]
-        q_end = outgoing.jmap.evaluate(np.array([u_join]))[0]
-        tracked = track(robot, poses, np.linspace(0.0, 1.0, _CHECK_POINTS), q_start)
-        if tracked.gap_index >= 0 or float(np.max(np.abs(tracked.q[-1] - q_end))) > _SAME_BRANCH_RAD:
+        joints = SuperposedJoints(robot, incoming.jmap, outgoing.jmap, u_leave, u_join)
+        jmap = _pose_kept(robot, poses, joints)
+        if jmap is None:
             return None, "no continuous joint motion follows it (a singular point or a branch change inside)"
-        jmap: JointMap = JointMap(robot, poses, [JointPart("track", tracked.u, tracked.q)])
         speeds = [s for s in (incoming.speed_m_s, outgoing.speed_m_s) if s is not None]
         speed = max(speeds) if speeds else None
     else:
@@ -227,6 +225,26 @@ def _built(robot: Robot, move: int, requested_m: float, radius_m: float, note: s
         return None, failure
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(robot.tcp_positions(q), axis=0), axis=1))])
     return Blend(move, requested_m, radius_m, note, u_leave, u_join, jmap, float(arc[-1]), speed, arc), ""
+
+
+def _pose_kept(robot: Robot, poses: Callable[[np.ndarray], np.ndarray], joints: SuperposedJoints) -> JointMap | None:
+    """The superposed pose followed by IK from the blend's start to the next move's joints (None: not continuously).
+
+    A six-joint arm tracks the pose along one IK branch; a redundant arm (no branch to follow) takes
+    the superposed joints as its reference, each corrected to the pose, so the corner ends on the
+    joints the next move starts from, whatever its null-space motion.
+    """
+    v = np.linspace(0.0, 1.0, _CHECK_POINTS)
+    q_start, q_end = joints.evaluate(np.array([0.0, 1.0]))
+    if robot.n_joints > 6:
+        jmap = JointMap(robot, poses, [JointPart("track", v, joints.evaluate(v))])
+        q = jmap.evaluate(np.linspace(0.0, 1.0, 4 * _CHECK_POINTS))
+        jumps = float(np.max(np.abs(np.diff(q, axis=0)))) > math.radians(1.0)
+        return None if jumps else JointMap(robot, poses, [JointPart("track", v, jmap.evaluate(v))])
+    tracked = track(robot, poses, v, q_start)
+    if tracked.gap_index >= 0 or float(np.max(np.abs(tracked.q[-1] - q_end))) > _SAME_BRANCH_RAD:
+        return None
+    return JointMap(robot, poses, [JointPart("track", tracked.u, tracked.q)])
 
 
 def _violation(robot: Robot, q: np.ndarray, T_corner: pin.SE3, radius_m: float) -> str:

@@ -7,7 +7,8 @@ in [0, 1] is shared out so the joint path is C1 at every seam: a blend's ramps s
 with slope 2 in v, so a blend gets ``2 (1 - u_leave)`` times the share per unit u of the move
 before it, and the move after it gets the blend's share over ``2 u_join`` per unit u. The TCP
 speed cap follows each piece's programmed speed through the chain's clock (time at programmed
-speed). Velocity limits are those of the slowest move of the chain (a PTP's ``velocity_scale``).
+speed), and each move keeps its own joint speed limits (a PTP's ``velocity_scale``); a corner
+takes the lower of its two moves'.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ class Piece:
     blend: Blend | None  # the corner this piece flies (None: the move's own path)
     clock0_s: float  # the chain's clock at the piece's start
     clock_rate: float  # seconds at programmed speed per unit x (moves); unused for blends
+    velocity_rad_s: np.ndarray  # (n,) the joint speed limits along the piece
 
     def x_of(self, w: np.ndarray) -> np.ndarray:
         return self.x0 + (w - self.w0) / (self.w1 - self.w0) * (self.x1 - self.x0)
@@ -94,6 +96,13 @@ class ChainMap(JointMap):
         keep = np.concatenate([[True], np.diff(w) > 1e-12])
         return w[keep], q[keep]
 
+    def velocities(self, u: np.ndarray) -> np.ndarray:
+        """Joint speed limits (N, n) [rad/s] at parameters u (N,): each move's own; a corner the
+        lower of its two moves'."""
+        w = np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0)
+        table = np.array([p.velocity_rad_s for p in self.pieces])
+        return table[self.piece_at(w)]
+
     def clock(self, u: np.ndarray) -> np.ndarray:
         """The chain's TCP clock (N,) [s] at parameters u (N,)."""
         w = np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0)
@@ -126,13 +135,15 @@ def chain_map(members: list[PlannedMove], blends: dict[int, Blend]) -> ChainMap:
     for n, pm in enumerate(members):
         b = blends.get(pm.index) if n + 1 < len(members) else None
         u_to = b.u_leave if b is not None else 1.0
-        move = Piece(pm.jmap, u_from, u_to, w, w + rate * (u_to - u_from), pm.index, None, clock, _clock_rate(pm))
+        move = Piece(pm.jmap, u_from, u_to, w, w + rate * (u_to - u_from), pm.index, None, clock, _clock_rate(pm),
+                     pm.limits.velocity_rad_s)
         pieces.append(move)
         w, clock = move.w1, move.clock1_s
         if b is None or b.jmap is None:
             break
         width = 2.0 * (1.0 - b.u_leave) * rate  # the ramps' slope 2 in v continues the move's slope
-        corner = Piece(b.jmap, 0.0, 1.0, w, w + width, pm.index, b, clock, 0.0)
+        slower = np.minimum(pm.limits.velocity_rad_s, members[n + 1].limits.velocity_rad_s)
+        corner = Piece(b.jmap, 0.0, 1.0, w, w + width, pm.index, b, clock, 0.0, slower)
         pieces.append(corner)
         w, clock = corner.w1, corner.clock1_s
         rate, u_from = width / (2.0 * b.u_join), b.u_join
@@ -149,13 +160,14 @@ def _clock_rate(pm: PlannedMove) -> float:
 
 
 def chain_limits(members: list[PlannedMove], chain: ChainMap) -> MoveLimits:
-    """The chain's limits: the slowest member's joint velocities, the fastest TCP speed as the clock's reference."""
+    """The chain's limits: each member's joint speed limits along its stretch, the TCP clock with the
+    fastest programmed speed as its reference."""
     first = members[0].limits
     speeds = [pm.limits.tcp_speed_m_s for pm in members if pm.limits.tcp_speed_m_s]
-    velocity = np.min(np.array([pm.limits.velocity_rad_s for pm in members]), axis=0)
+    velocity = np.max(np.array([pm.limits.velocity_rad_s for pm in members]), axis=0)
     length = sum(pm.limits.length_m for pm in members)
     return replace(first, velocity_rad_s=velocity, length_m=length, tcp_speed_m_s=max(speeds) if speeds else None,
-                   quintic=False, clock=chain.clock)
+                   quintic=False, clock=chain.clock, velocity_at=chain.velocities)
 
 
 def split(chain: ChainMap, timed: TimedMove, limits: MoveLimits, period_s: float) -> list[TimedMove]:
@@ -189,7 +201,7 @@ def split(chain: ChainMap, timed: TimedMove, limits: MoveLimits, period_s: float
             uu[blend_from[m] - a + 1:] = 1.0
         else:
             uu[-1] = min(uu[-1], 1.0)
-        speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
+        speed, accel = sample_ratios(q, period_s, limits.step_velocities(w[a:b + 1]), limits.acceleration_rad_s2)
         duration = (b - a) * period_s
         share = duration * total / timed.duration_s if timed.duration_s > 0 else duration
         out.append(TimedMove(uu, q, duration, speed, accel, timed.torque_ratio, timed.jerk_ratio,

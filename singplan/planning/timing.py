@@ -59,6 +59,7 @@ _MAX_STRETCH = 100.0  # a law that needs more is given up (exit 3), before it co
 _WINDOW_FACTORS = (0.5, 1.0, 2.0, 4.0, 8.0)
 _S_CURVE_JERKS = (1.0, 0.5, 0.25)
 TimeLaw = QuinticLaw | SmoothedLaw | SCurveLaw  # S-curve candidates: path jerk x these (curved joint maps need less)
+_CLOCK_STEP = 1e-7  # half-width of the difference that gives a chain clock's rate
 _DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
 
@@ -120,6 +121,17 @@ class MoveLimits:
     # moves joined by fly-by corners: the time [s] the TCP needs at the programmed speeds to reach
     # each path parameter (N,) -> (N,); None: u * length_m / tcp_speed_m_s
     clock: Callable[[np.ndarray], np.ndarray] | None = None
+    # moves joined by fly-by corners: each move's own joint speed limits, (N,) u -> (N, n); None:
+    # velocity_rad_s everywhere (which is then the largest of them)
+    velocity_at: Callable[[np.ndarray], np.ndarray] | None = None
+
+    def velocities(self, u: np.ndarray) -> np.ndarray:
+        """Joint speed limits [rad/s] at parameters u (N,): (N, n), or (n,) where they do not vary."""
+        return self.velocity_at(u) if self.velocity_at is not None else self.velocity_rad_s
+
+    def step_velocities(self, u: np.ndarray) -> np.ndarray:
+        """Joint speed limits of the steps between samples at u (K + 1,): (K, n) or (n,)."""
+        return self.velocities(0.5 * (u[:-1] + u[1:])) if self.velocity_at is not None else self.velocity_rad_s
 
     def tcp_clock(self, u: np.ndarray) -> np.ndarray | None:
         """The time [s] the TCP needs at its programmed speed to reach each u (N,); None: no TCP speed cap."""
@@ -199,14 +211,16 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tup
     tau = math.sqrt(length / float(np.min(amax)))
     # the TCP's clock (time at programmed speed, whose rate is capped at 1) times a reference speed,
     # so the coordinate keeps the size of an arc length
-    clock = limits.tcp_clock(u)
+    # (a chain's clock kinks where its moves' speeds change, which a spline would ring at: there the
+    # coordinate is u itself and the clock's rate caps its speed in the varying bounds)
+    clock = limits.tcp_clock(u) if limits.velocity_at is None else None
     ref = limits.tcp_speed_m_s or 1.0
     extra = clock * ref if clock is not None else u * length  # no cap: a coordinate of the move's size
     path = ta.SplineInterpolator(u, np.hstack([q - q[0], extra[:, None]]) / length)  # from 0: no digits lost
     vmax = np.append(limits.velocity_rad_s * scale_v, ref * scale_v if clock is not None else _UNLIMITED)
     vmax_1 = np.minimum(vmax * tau / length, _UNLIMITED)
     amax_1 = np.append(amax * tau**2 / length, _UNLIMITED)
-    constraints = [ta_constraint.JointVelocityConstraint(np.stack([-vmax_1, vmax_1], axis=1)),
+    constraints = [_velocity_constraint(limits, vmax_1, scale_v * tau / length, scale_v * tau),
                    ta_constraint.JointAccelerationConstraint(np.stack([-amax_1, amax_1], axis=1))]
     if limits.torque is not None:
         constraints.append(_torque_constraint(limits.torque, q[0], length, tau, scale_t))
@@ -224,6 +238,25 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tup
                           f"limits cannot hold the path there{where})")
     sd = np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0) / tau  # du/dt in real time
     return _Profile(np.asarray(data.gridpoints, dtype=float), sd)
+
+
+def _velocity_constraint(limits: MoveLimits, vmax_1: np.ndarray, factor: float,
+                         clock_factor: float) -> ta_constraint.LinearConstraint:
+    """TOPP-RA's joint speed constraint on the dimensionless path (``vmax_1``: joints and the TCP
+    clock). Along a chain of moves it varies: each move's own joint limits (x ``factor``), and the
+    last coordinate (u itself) capped at ``clock_factor`` over the clock's rate du -> dclock."""
+    if limits.velocity_at is None:
+        return ta_constraint.JointVelocityConstraint(np.stack([-vmax_1, vmax_1], axis=1))
+    velocity_at = limits.velocity_at
+
+    def bounds(u: float) -> np.ndarray:
+        clock = limits.tcp_clock(np.array([u - _CLOCK_STEP, u, u + _CLOCK_STEP]))
+        rate = float(np.max(np.diff(clock))) / _CLOCK_STEP if clock is not None else 0.0  # the faster side of a kink
+        v = np.minimum(np.append(velocity_at(np.array([u]))[0] * factor, clock_factor / max(rate, 1e-300)),
+                       _UNLIMITED)
+        return np.stack([-v, v], axis=1)
+
+    return ta_constraint.JointVelocityConstraintVarying(bounds)
 
 
 def _torque_constraint(limit: TorqueLimit, q0: np.ndarray, length: float, tau_s: float,
@@ -373,7 +406,7 @@ def _optimal(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: in
         profile = _toppra_profile(u_ref, q_ref, limits, (scale_v, scale_a, scale_t), move_index)
         u, duration = _sample(profile, period_s, move_index, max_samples)
         q = jmap.evaluate(u)
-        speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
+        speed, accel = sample_ratios(q, period_s, limits.step_velocities(u), limits.acceleration_rad_s2)
         torque, torque_at = move_torque_ratio(limits.torque, q, period_s) if limits.torque else (0.0, 0)
         tcp = _tcp_ratio(u, limits, period_s)
         worst_v = max(speed, tcp) / _SPEED_MARGIN
@@ -456,7 +489,7 @@ def _stretched(evaluate: Callable[[np.ndarray], np.ndarray], limits: MoveLimits,
 
 def _measured(u: np.ndarray, q: np.ndarray, limits: MoveLimits, period_s: float) -> tuple[TimedMove, float]:
     """The samples as a TimedMove, and the time stretch they need (<= 1: every limit kept)."""
-    speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
+    speed, accel = sample_ratios(q, period_s, limits.step_velocities(u), limits.acceleration_rad_s2)
     torque = move_torque_ratio(limits.torque, q, period_s)[0] if limits.torque else 0.0
     jerk = jerk_ratio(q, period_s, limits.jerk_rad_s3) if limits.jerk_rad_s3 is not None else 0.0
     accel_like = max(accel / _ACCEL_MARGIN, end_step_ratio(q, period_s, limits.acceleration_rad_s2))

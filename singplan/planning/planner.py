@@ -124,11 +124,17 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
 
 def _time_chains(planned: list[PlannedMove], timed: list[TimedMove], blends: dict[int, Blend], period_s: float,
                  allowance: int) -> list[TimedMove]:
-    """Moves joined by flown corners timed in one pass each (the others keep their timing)."""
+    """Moves joined by flown corners timed in one pass each (the others keep their timing).
+
+    A chain that ends later than its moves stopping at every corner (a jerk limit's uniform
+    stretch can cost more than the corners save) keeps the stop-to-stop timing; its corners are
+    then reported as not flown, with both durations (``blends`` is updated in place).
+    """
     out: list[TimedMove] = []
     for group in chains(planned, blends):
+        alone = [timed[i] for i in group]
         if len(group) == 1:
-            out.append(timed[group[0]])
+            out.extend(alone)
             continue
         members = [planned[i] for i in group]
         cmap = chain_map(members, blends)
@@ -138,7 +144,16 @@ def _time_chains(planned: list[PlannedMove], timed: list[TimedMove], blends: dic
         except TimingError as exc:
             move, where = describe_chain_point(cmap, members, exc.u)
             raise TimingError(move, exc.u, exc.reason, kind=planned[move].kind, where=where) from exc
-        out.extend(split(cmap, tm, limits, period_s))
+        stop_s = sum(t.duration_s for t in alone)
+        if tm.duration_s <= stop_s:
+            out.extend(split(cmap, tm, limits, period_s))
+            continue
+        out.extend(alone)
+        why = " (the jerk limit's uniform slowing spans the whole chain)" if limits.jerk_rad_s3 is not None else ""
+        for i in group[:-1]:
+            blends[i] = Blend(i, blends[i].requested_m, 0.0, f"not flown by: moves {group[0]}-{group[-1]} flown "
+                                                            f"through take {tm.duration_s:.3f} s, stopping at "
+                                                            f"every corner {stop_s:.3f} s{why}")
     return out
 
 

@@ -223,6 +223,9 @@ def build_task(d: Draws) -> dict[str, Any]:
         q_next = _step(d, robot, q)
         moves.append(_move(d, robot, q, q_next))
         q = q_next
+    for move in moves[:-1]:  # fly-by corners between some moves
+        if d.chance(0.3):
+            next(iter(move.values()))["blend_mm"] = _log_uniform(d, 1.0, 100.0)
     task["moves"] = moves
     task["singularity"] = _singularity(d)
     limits = _limits(d, robot.n_joints)

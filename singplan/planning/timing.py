@@ -59,7 +59,7 @@ _MAX_STRETCH = 100.0  # a law that needs more is given up (exit 3), before it co
 _WINDOW_FACTORS = (0.5, 1.0, 2.0, 4.0, 8.0)
 _S_CURVE_JERKS = (1.0, 0.5, 0.25)
 TimeLaw = QuinticLaw | SmoothedLaw | SCurveLaw  # S-curve candidates: path jerk x these (curved joint maps need less)
-_CLOCK_STEP = 1e-7  # half-width of the difference that gives a chain clock's rate
+_CLOCK_SUBSTEPS = 8  # differences per grid interval that find a chain clock's largest rate
 _DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
 
 
@@ -193,7 +193,7 @@ def path_scale(q: np.ndarray, limits: MoveLimits) -> float:
     return max(travel, limits.length_m)
 
 
-def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tuple[float, float, float],
+def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tuple[float, float, float, float],
                     move_index: int) -> _Profile:
     """TOPP-RA on the move made dimensionless.
 
@@ -203,9 +203,9 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tup
     the move's size L and time by ``tau = sqrt(L / a)``, the time the slowest-accelerating joint
     needs to cover L: derivatives, path speeds and the duration are then all of order one
     whatever the size of the move, and the result is exact in the original units. ``scale``
-    multiplies the velocity, acceleration and torque limits (the tightening passes).
+    multiplies the joint velocity, TCP speed, acceleration and torque limits (the tightening passes).
     """
-    scale_v, scale_a, scale_t = scale
+    scale_v, scale_c, scale_a, scale_t = scale
     length = path_scale(q, limits)
     amax = limits.acceleration_rad_s2 * scale_a
     tau = math.sqrt(length / float(np.min(amax)))
@@ -217,14 +217,15 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tup
     ref = limits.tcp_speed_m_s or 1.0
     extra = clock * ref if clock is not None else u * length  # no cap: a coordinate of the move's size
     path = ta.SplineInterpolator(u, np.hstack([q - q[0], extra[:, None]]) / length)  # from 0: no digits lost
-    vmax = np.append(limits.velocity_rad_s * scale_v, ref * scale_v if clock is not None else _UNLIMITED)
+    vmax = np.append(limits.velocity_rad_s * scale_v, ref * scale_c if clock is not None else _UNLIMITED)
     vmax_1 = np.minimum(vmax * tau / length, _UNLIMITED)
     amax_1 = np.append(amax * tau**2 / length, _UNLIMITED)
-    constraints = [_velocity_constraint(limits, vmax_1, scale_v * tau / length, scale_v * tau),
+    grid = _grid(u)
+    constraints = [_velocity_constraint(limits, vmax_1, scale_v * tau / length, scale_c * tau, grid),
                    ta_constraint.JointAccelerationConstraint(np.stack([-amax_1, amax_1], axis=1))]
     if limits.torque is not None:
         constraints.append(_torque_constraint(limits.torque, q[0], length, tau, scale_t))
-    instance = ta_algo.TOPPRA(constraints, path, gridpoints=_grid(u))
+    instance = ta_algo.TOPPRA(constraints, path, gridpoints=grid)
     instance.compute_parameterization(0.0, 0.0)
     data = instance.problem_data
     if data.return_code != ta_algo.ParameterizationReturnCode.Ok or data.sd_vec is None:
@@ -240,23 +241,39 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tup
     return _Profile(np.asarray(data.gridpoints, dtype=float), sd)
 
 
-def _velocity_constraint(limits: MoveLimits, vmax_1: np.ndarray, factor: float,
-                         clock_factor: float) -> ta_constraint.LinearConstraint:
+def _velocity_constraint(limits: MoveLimits, vmax_1: np.ndarray, factor: float, clock_factor: float,
+                         grid: np.ndarray) -> ta_constraint.LinearConstraint:
     """TOPP-RA's joint speed constraint on the dimensionless path (``vmax_1``: joints and the TCP
     clock). Along a chain of moves it varies: each move's own joint limits (x ``factor``), and the
-    last coordinate (u itself) capped at ``clock_factor`` over the clock's rate du -> dclock."""
+    last coordinate (u itself) capped at ``clock_factor`` over the clock's rate du -> dclock, the
+    largest rate on the grid intervals either side of each grid point (TOPP-RA holds a bound at its
+    grid points only; where the rate varies between them, as in a corner of woven moves, the
+    point's own rate would let the TCP run over its speed)."""
     if limits.velocity_at is None:
         return ta_constraint.JointVelocityConstraint(np.stack([-vmax_1, vmax_1], axis=1))
     velocity_at = limits.velocity_at
+    rate = _clock_rates(limits, grid)
 
     def bounds(u: float) -> np.ndarray:
-        clock = limits.tcp_clock(np.array([u - _CLOCK_STEP, u, u + _CLOCK_STEP]))
-        rate = float(np.max(np.diff(clock))) / _CLOCK_STEP if clock is not None else 0.0  # the faster side of a kink
-        v = np.minimum(np.append(velocity_at(np.array([u]))[0] * factor, clock_factor / max(rate, 1e-300)),
+        k = min(int(np.searchsorted(grid, u)), len(grid) - 1)
+        k = k - 1 if k > 0 and u - grid[k - 1] < grid[k] - u else k
+        v = np.minimum(np.append(velocity_at(np.array([u]))[0] * factor, clock_factor / max(rate[k], 1e-300)),
                        _UNLIMITED)
         return np.stack([-v, v], axis=1)
 
     return ta_constraint.JointVelocityConstraintVarying(bounds)
+
+
+def _clock_rates(limits: MoveLimits, grid: np.ndarray) -> np.ndarray:
+    """The largest rate d clock / du (G,) on the intervals next to each grid point (G,); 0 without a TCP cap."""
+    sub = np.linspace(0.0, 1.0, _CLOCK_SUBSTEPS + 1)
+    width = np.diff(grid)
+    points = grid[:-1, None] + width[:, None] * sub[None, :]  # (G - 1, S + 1)
+    clock = limits.tcp_clock(points.ravel())
+    if clock is None:
+        return np.zeros(len(grid))
+    slopes = np.max(np.diff(clock.reshape(points.shape), axis=1), axis=1) * _CLOCK_SUBSTEPS / width  # (G - 1,)
+    return np.maximum(np.append(slopes, slopes[-1]), np.insert(slopes, 0, slopes[0]))
 
 
 def _torque_constraint(limit: TorqueLimit, q0: np.ndarray, length: float, tau_s: float,
@@ -401,30 +418,32 @@ def _s_curves(profile: _Profile, limits: MoveLimits) -> list[SCurveLaw]:
 def _optimal(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int, max_samples: int,
              u_ref: np.ndarray, q_ref: np.ndarray) -> tuple[TimedMove, _Profile]:
     """The acceleration-limited samples (TOPP-RA, tightened until the samples keep the limits) and their profile."""
-    scale_v = scale_a = scale_t = 1.0
+    # separate scales: on a chain of moves a TCP-speed slip on one move must not slow a PTP's joints
+    scale_v = scale_c = scale_a = scale_t = 1.0
     for _ in range(_TIGHTEN_PASSES):
-        profile = _toppra_profile(u_ref, q_ref, limits, (scale_v, scale_a, scale_t), move_index)
+        profile = _toppra_profile(u_ref, q_ref, limits, (scale_v, scale_c, scale_a, scale_t), move_index)
         u, duration = _sample(profile, period_s, move_index, max_samples)
         q = jmap.evaluate(u)
         speed, accel = sample_ratios(q, period_s, limits.step_velocities(u), limits.acceleration_rad_s2)
         torque, torque_at = move_torque_ratio(limits.torque, q, period_s) if limits.torque else (0.0, 0)
-        tcp = _tcp_ratio(u, limits, period_s)
-        worst_v = max(speed, tcp) / _SPEED_MARGIN
+        worst_c = _tcp_ratio(u, limits, period_s) / _SPEED_MARGIN
+        worst_v = speed / _SPEED_MARGIN
         worst_a = max(accel / _ACCEL_MARGIN,
                       end_step_ratio(q, period_s, limits.acceleration_rad_s2))  # may reach its bound exactly
         worst_t = torque / _TORQUE_MARGIN
-        if worst_v <= 1.0 and worst_a <= 1.0 and worst_t <= 1.0:
+        if worst_v <= 1.0 and worst_c <= 1.0 and worst_a <= 1.0 and worst_t <= 1.0:
             return TimedMove(u, q, duration, speed, accel, torque), profile
-        if worst_v > _DISCONTINUOUS or worst_a > _DISCONTINUOUS:
+        if max(worst_v, worst_c) > _DISCONTINUOUS or worst_a > _DISCONTINUOUS:
             break  # not a grid effect: the joint map jumps somewhere; tightening cannot help
-        logger.debug("move %d: samples at x%.4f speed, x%.4f accel, x%.4f torque; tightening", move_index, speed,
-                     accel, torque)
-        scale_v *= min(1.0, 1.0 / worst_v) * (0.998 if worst_v > 1.0 else 1.0)
-        scale_a *= min(1.0, 1.0 / worst_a) * (0.995 if worst_a > 1.0 else 1.0)
+        logger.debug("move %d: samples at x%.4f speed, x%.4f TCP speed, x%.4f accel, x%.4f torque; tightening",
+                     move_index, speed, worst_c * _SPEED_MARGIN, accel, torque)
+        scale_v *= 0.998 / worst_v if worst_v > 1.0 else 1.0
+        scale_c *= 0.998 / worst_c if worst_c > 1.0 else 1.0
+        scale_a *= 0.995 / worst_a if worst_a > 1.0 else 1.0
         if worst_t > 1.0:
             scale_t *= 0.995 / worst_t
     ends = end_step_ratio(q, period_s, limits.acceleration_rad_s2)
-    worst_k = (torque_at if worst_t > max(worst_v, worst_a)
+    worst_k = (torque_at if worst_t > max(worst_v, worst_c, worst_a)
                else worst_sample(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2))
     raise TimingError(move_index, float(u[worst_k]),
                       f"could not keep the joint limits on the output samples (speed x{speed:.3f}, "

@@ -85,7 +85,8 @@ def measure_program(repeat: int) -> dict[str, float]:
     return {"samples": len(traj.t), "segments": len(traj.segments),
             "crossings": sum(s.kind == "crossing" for s in traj.segments), "planning_s": planning_s,
             "import_s": import_s, "report_s": report_s, "replay_s": replay_s, "both_s": both_s,
-            "report_mb": len(pages["report.html"].encode()) / 1e6, "replay_mb": len(pages["replay.html"].encode()) / 1e6}
+            "report_mb": len(pages["report.html"].encode()) / 1e6,
+            "replay_mb": len(pages["replay.html"].encode()) / 1e6}
 
 
 def _pages(traj: Trajectory, robot: Robot, report: bool, replay: bool) -> dict[str, str]:

@@ -73,7 +73,12 @@ class Stretch:
 
     @property
     def colour(self) -> int:
-        return SEGMENT_COLOURS.get(self.kind, OTHER_COLOUR)
+        return kind_colour(self.kind)
+
+
+def kind_colour(kind: str) -> int:
+    """The colour (0xRRGGBB) of a stretch kind; black for a kind this version does not know."""
+    return SEGMENT_COLOURS.get(kind, OTHER_COLOUR)
 
 
 def sample_range(traj: Trajectory, seg: Segment) -> tuple[int, int]:

@@ -41,16 +41,23 @@ from singplan.errors import InputError, RobotModelError
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot, bundled_robots, load_robot
 from singplan.outputs.choices import DEFAULT_HOST
-from singplan.planning.pieces import move_piece
-from singplan.planning.weave import drawing_count, woven_moves
+from singplan.outputs.timeline import (
+    Stretch,
+    TcpTrack,
+    display_kind,
+    kind_colour,
+    sample_range,
+    tcp_track,
+    timeline,
+)
+from singplan.planning.path import CartesianPiece, make_circ, make_lin
+from singplan.planning.weave import drawing_count, woven, woven_moves
 from singplan.results.files import check_output_file, text_writer, write_file
 from singplan.results.trajectory import Segment, Trajectory, load
-from singplan.task.load import parse_task
+from singplan.task.schema import Weave
 
 _SERVER_START_S = 60.0  # longest wait for the live server to report its address
 ANIMATION_STEP_S = 0.02  # animation keyframes at most this often; the browser interpolates between them
-SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575,
-                   "weave": 0x00897B}  # the segments of a woven move, but its crossings
 # What the page holds is bounded whatever the number of samples (a million samples would be
 # hundreds of MB of page and a minute of building): a time grid of at most so many points, more
 # where the joints move fast (no joint turns more than the turn between two kept samples, so a
@@ -111,10 +118,11 @@ class TcpPath:
         return self.xyz[i]
 
 
-def tcp_path(traj: Trajectory, robot: Robot) -> TcpPath:
-    """The TCP path at the samples the page shows (:func:`kept_samples` at the path's density)."""
+def tcp_path(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -> TcpPath:
+    """The TCP path at the samples the page shows (:func:`kept_samples` at the path's density),
+    picked from ``track`` when given (FK already done for every sample)."""
     index = kept_samples(traj, 1, _PATH_POINTS, _PATH_TURN_RAD)
-    return TcpPath(index, robot.tcp_positions(traj.q[index]))
+    return TcpPath(index, robot.tcp_positions(traj.q[index]) if track is None else track.xyz[index])
 
 
 def kept_samples(traj: Trajectory, min_stride: int, grid_points: int, turn_rad: float) -> np.ndarray:
@@ -128,7 +136,7 @@ def kept_samples(traj: Trajectory, min_stride: int, grid_points: int, turn_rad: 
     travel = _joint_travel(traj.q)  # (K,) [rad], non-decreasing
     turn = max(turn_rad, float(travel[-1]) / grid_points)
     marks = np.searchsorted(travel, np.arange(turn, travel[-1], turn))  # first sample past each mark
-    bounds = [k for seg in traj.segments for k in (*_sample_range(traj, seg), _midpoint(traj, seg))]
+    bounds = [k for seg in traj.segments for k in (*sample_range(traj, seg), _midpoint(traj, seg))]
     keep = np.concatenate([np.arange(0, last + 1, stride), marks, np.clip(bounds, 0, last), [last]])
     return np.unique(keep.astype(np.int64))
 
@@ -148,18 +156,18 @@ _CHUNK = 65_536  # samples differenced at once (a few MB of temporaries)
 
 
 def _midpoint(traj: Trajectory, seg: Segment) -> int:
-    k0, k1 = _sample_range(traj, seg)
+    k0, k1 = sample_range(traj, seg)
     return (k0 + k1) // 2
 
 
-def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath, programmed: np.ndarray,
+def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Stretch],
            speed: float = 1.0, loop: bool = False, play: bool = False) -> None:
     """Send the replay scene to ``vis``: robot, paths, crossing markers and the animation."""
     viz, full = _robot_visuals(vis, robot)
     viz.display(full(traj.q[0]))
     vis["/Grid"].set_property("visible", False)  # the robot's base axes show the ground frame
-    vis["paths/programmed"].set_object(_line(programmed, 0x9E9E9E, 1.0))
-    _draw_segments(vis, traj, tcp)
+    vis["paths/programmed"].set_object(_line(programmed_path(traj, robot, tcp), 0x9E9E9E, 1.0))
+    _draw_segments(vis, traj, tcp, stretches)
     # a frame is a sample: keyframes at any kept sample, the exact joint values there
     animation = meshcat.animation.Animation(default_framerate=speed / traj.period)
     step = max(1, round(ANIMATION_STEP_S / traj.period))
@@ -193,19 +201,22 @@ def _robot_visuals(vis: meshcat.Visualizer, robot: Robot) -> tuple[MeshcatVisual
     return viz, _full_configuration(model, robot)
 
 
-def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath) -> None:
-    """The executed TCP path by segment kind (a line plus dots), and a marker at each crossing."""
-    woven = woven_moves(traj.task)
-    for n, seg in enumerate(traj.segments):
-        k0, k1 = _sample_range(traj, seg)
-        colour = _colour(seg, woven)
-        path = tcp.between(k0, k1)
-        vis[f"paths/executed/{n:03d}_{seg.kind}"].set_object(_line(path, colour, 3.0))
+def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath, stretches: list[Stretch]) -> None:
+    """The executed TCP path by stretch kind (a line plus dots), and a marker at each crossing."""
+    split = {s.segment for s in stretches} - {s.segment for s in stretches if (s.k0, s.k1) == sample_range(
+        traj, traj.segments[s.segment])}
+    for j, stretch in enumerate(stretches):
+        seg = traj.segments[stretch.segment]
+        name = f"{stretch.segment:03d}_{seg.kind}" + (f"_{j}_{stretch.kind}" if stretch.segment in split else "")
+        path = tcp.between(stretch.k0, stretch.k1)
+        vis[f"paths/executed/{name}"].set_object(_line(path, stretch.colour, 3.0))
         # browsers draw lines one pixel wide: dots make the executed path readable at a glance
         points = np.asarray(path[::_DOT_EVERY], dtype=np.float32).T  # (3, M)
+        colour = stretch.colour
         rgb = np.array([(colour >> 16) & 255, (colour >> 8) & 255, colour & 255], dtype=np.float32)[:, None] / 255
         dots = mg.PointsGeometry(points, color=np.repeat(rgb, points.shape[1], axis=1))
-        vis[f"paths/dots/{n:03d}_{seg.kind}"].set_object(mg.Points(dots, mg.PointsMaterial(size=0.006)))
+        vis[f"paths/dots/{name}"].set_object(mg.Points(dots, mg.PointsMaterial(size=0.006)))
+    for n, seg in enumerate(traj.segments):
         if seg.kind == "crossing":
             marker = vis[f"crossings/{n:03d}_{seg.singularity}_{seg.method}"]
             marker.set_object(mg.Sphere(0.012), mg.MeshLambertMaterial(color=0xF4B400, opacity=0.8))
@@ -213,10 +224,6 @@ def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath) -> N
 
 
 _LOOP_REPETITIONS = 1_000_000  # meshcat's "loop": repeat the clip this many times
-
-
-def _sample_range(traj: Trajectory, seg: Segment) -> tuple[int, int]:
-    return round(seg.t0 / traj.period), round(seg.t1 / traj.period)
 
 
 def _full_configuration(model: pin.Model, robot: Robot) -> Any:
@@ -233,30 +240,60 @@ def _full_configuration(model: pin.Model, robot: Robot) -> Any:
 
 
 def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
-    """Points (M, 3) [m] of the programmed path: LIN/CIRC geometry from the task; PTP as executed."""
-    task = parse_task(traj.task)
+    """Points (M, 3) [m] of the programmed path: each LIN / CIRC (woven if it weaves) from the
+    task mapping's targets, as the planner built it from the same numbers; a PTP as executed."""
     points = []
     T = robot.fk(traj.q[0])
-    for i, move in enumerate(task.moves):
+    for i, move in enumerate(traj.task["moves"]):
+        (kind, spec), = move.items()
         segs = [s for s in traj.segments if s.move == i]
-        k0, k1 = round(segs[0].t0 / traj.period), round(segs[-1].t1 / traj.period)
-        if move.kind == "ptp":
-            points.append(tcp.between(k0, k1))
-            T = robot.fk(traj.q[k1])
+        if kind == "ptp":
+            if segs:
+                points.append(tcp.between(sample_range(traj, segs[0])[0], sample_range(traj, segs[-1])[1]))
+            T = _ptp_target(spec, T, robot)
             continue
-        piece = move_piece(i, move, T)
+        piece = _piece(kind, spec, T)
         points.append(piece.positions(np.linspace(0.0, 1.0, drawing_count(piece))))
         T = piece.T_end
-    return np.concatenate(points)
+    return np.concatenate(points) if points else tcp.xyz[:1]
 
 
-def replay_html(traj: Trajectory, robot: Robot) -> str:
-    """The replay page, a self-contained HTML document (the template and assets of :func:`viewer_dir`)."""
-    tcp = tcp_path(traj, robot)
+def _target(spec: dict[str, Any], T_start: pin.SE3) -> pin.SE3:
+    """A move's Cartesian target from its ``to``: orientation held from ``T_start`` without ``rpy_deg``."""
+    to = spec["to"]
+    rotation = rpy_deg_to_rotation(np.asarray(to["rpy_deg"], dtype=float)) if to.get("rpy_deg") is not None \
+        else T_start.rotation
+    return pin.SE3(rotation, np.asarray(to["xyz"], dtype=float))
+
+
+def _ptp_target(spec: dict[str, Any], T_start: pin.SE3, robot: Robot) -> pin.SE3:
+    to = spec["to"]
+    if to.get("joints_deg") is not None:
+        return robot.fk(np.radians(np.asarray(to["joints_deg"], dtype=float)))
+    return _target(spec, T_start)
+
+
+def _piece(kind: str, spec: dict[str, Any], T_start: pin.SE3) -> CartesianPiece:
+    """A LIN / CIRC of the validated task mapping, with its weave (the same geometry the planner used)."""
+    field = f"moves.{kind}"
+    target = _target(spec, T_start)
+    piece = make_lin(T_start, target, field) if kind == "lin" else \
+        make_circ(T_start, np.asarray(spec["via"]["xyz"], dtype=float), target, field)
+    weave = spec.get("weave")
+    return piece if not weave else woven(piece, Weave(str(weave["pattern"]), float(weave["amplitude_mm"]),
+                                                      float(weave["wavelength_mm"])), field)
+
+
+def replay_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -> str:
+    """The replay page, a self-contained HTML document (the template and assets of :func:`viewer_dir`);
+    ``track`` is the trajectory's TCP track if already computed (the report's)."""
+    track = track if track is not None else tcp_track(traj, robot)
+    tcp = tcp_path(traj, robot, track)
+    stretches = timeline(traj, track)
     recorder = _Recorder()
-    _scene(meshcat.Visualizer(window=recorder), traj, robot, tcp, programmed_path(traj, robot, tcp))
+    _scene(meshcat.Visualizer(window=recorder), traj, robot, tcp, stretches)
     assets = viewer_dir()
-    data = _page_data(traj, robot, tcp)
+    data = _page_data(traj, robot, tcp, stretches)
     data["commands"] = [base64.b64encode(_packed(c)).decode("ascii") for c in recorder.commands]
     title = escape(f"singplan replay: {traj.robot}, {traj.duration_s:.3f} s")
     fills = {"__TITLE__": title, "__CSS__": (assets / "replay.css").read_text(),
@@ -277,12 +314,13 @@ def _meshcat_bundle() -> str:
     return (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text()
 
 
-def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath) -> dict[str, Any]:
-    """What replay.js shows besides the scene: segments, crossing labels, speed strip, camera."""
+def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Stretch] | None = None) -> dict[str, Any]:
+    """What replay.js shows besides the scene: segments, crossing labels, speed strip, camera, legend."""
     segments, labels = [], []
     woven = woven_moves(traj.task)
-    for seg in traj.segments:
-        title, detail = _describe(seg)
+    pauses = {s.segment: s for s in stretches or () if s.kind == "pause"}
+    for n, seg in enumerate(traj.segments):
+        title, detail = _describe(seg, pauses.get(n))
         title += " (woven)" if seg.move in woven and seg.kind != "crossing" else ""
         crossing = seg.kind == "crossing"
         t_jump = traj.t[_midpoint(traj, seg)] if crossing else seg.t0
@@ -300,7 +338,11 @@ def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath) -> dict[str, Any]:
     points = np.vstack([tcp.xyz, np.zeros((1, 3))])  # the path and the robot's base
     lo, hi = points.min(axis=0), points.max(axis=0)
     radius = max(0.3, 0.5 * float(np.linalg.norm(hi - lo)))
-    return {"duration": traj.duration_s, "colours": SEGMENT_COLOURS, "segments": segments, "labels": labels,
+    bands = [{"kind": s.kind, "t0": s.t0, "t1": s.t1, "colour": s.colour} for s in stretches] if stretches else \
+        [{"kind": display_kind(seg, woven), "t0": seg.t0, "t1": seg.t1, "colour": _colour(seg, woven)}
+         for seg in traj.segments]
+    return {"duration": traj.duration_s, "colours": {b["kind"]: b["colour"] for b in bands},
+            "segments": segments, "labels": labels, "bands": bands,
             "speed": {"t": np.round(traj.t[keep], 4).tolist(), "ratio": np.round(ratio[keep], 4).tolist()},
             "frame": {"center": (0.5 * (lo + hi)).tolist(), "distance": 2.2 * radius,
                       "direction": _VIEW_DIRECTION.tolist()}}
@@ -308,8 +350,7 @@ def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath) -> dict[str, Any]:
 
 def _colour(seg: Segment, woven: frozenset[int]) -> int:
     """A segment's colour: its kind's, or the weave's for a woven move's segments other than crossings."""
-    kind = "weave" if seg.move in woven and seg.kind != "crossing" else seg.kind
-    return SEGMENT_COLOURS.get(kind, 0)
+    return kind_colour(display_kind(seg, woven))
 
 
 def _extremes(values: np.ndarray, count: int) -> np.ndarray:
@@ -322,16 +363,20 @@ def _extremes(values: np.ndarray, count: int) -> np.ndarray:
                       for pick in (np.argmin, np.argmax)])
 
 
-def _describe(seg: Segment) -> tuple[str, str]:
+def _describe(seg: Segment, pause: Stretch | None = None) -> tuple[str, str]:
     """A segment's list entry: a title and a line of figures."""
     span = f"t {seg.t0:.3f}-{seg.t1:.3f} s, {seg.config_before}"
     if seg.kind != "crossing":
-        return f"move {seg.move}: {seg.kind}", span + ("" if seg.config_after == seg.config_before
-                                                       else f" -> {seg.config_after}")
+        what = "fly-by blend" if seg.kind == "blend" else seg.kind
+        return f"move {seg.move}: {what}", span + ("" if seg.config_after == seg.config_before
+                                                   else f" -> {seg.config_after}")
     d = seg.details
     title = f"move {seg.move}: {seg.singularity} crossing, {seg.method}, {seg.config_before} -> {seg.config_after}"
     detail = (f"t {seg.t0:.3f}-{seg.t1:.3f} s; deviation {d.get('max_position_error_mm', 0.0):.4f} mm / "
               f"{d.get('max_orientation_error_deg', 0.0):.3f} deg; time lost {d.get('time_lost_s', 0.0):.3f} s")
+    if "pause_s" in d:
+        at = f" at t {pause.t0:.3f}-{pause.t1:.3f} s" if pause is not None else ""
+        detail += f"; TCP paused {float(d['pause_s']):.3f} s{at} while the aligned joints turn"
     return title, detail
 
 
@@ -413,8 +458,8 @@ def serve_replay(traj: Trajectory, robot: Robot, speed: float = 1.0, loop: bool 
         with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its URL; the caller decides
             vis = meshcat.Visualizer(zmq_url=command_url)
         live = LiveReplay(vis.url(), host, vis, server)
-        tcp = tcp_path(traj, robot)
-        _scene(vis, traj, robot, tcp, programmed_path(traj, robot, tcp), speed=speed, loop=loop, play=True)
+        track = tcp_track(traj, robot)
+        _scene(vis, traj, robot, tcp_path(traj, robot, track), timeline(traj, track), speed=speed, loop=loop, play=True)
     except BaseException:
         _stop(server)
         raise

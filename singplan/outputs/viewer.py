@@ -1,13 +1,14 @@
 """Replay a trajectory in the browser: a self-contained HTML page, or a live meshcat server.
 
-The scene is the same in both: the robot's visual geometry through Pinocchio's
-MeshcatVisualizer, the programmed and executed TCP paths, markers at the crossings, and an
-animation of every link at the trajectory's real timing. For the page, no server is started:
-a recorder stands in for meshcat's ZMQ window and keeps the commands, and the template in
-:func:`viewer_dir` inlines meshcat's viewer bundle, replays them in order and adds the legend,
-the segment list, the crossing labels and the joint-speed strip, so it works offline in any
-current browser. :func:`serve_replay` sends the same commands to a meshcat server listening
-on loopback only, unless another address is asked for (:mod:`singplan.outputs.meshcat_server`).
+The scene is the same in both: the robot's visual geometry (:mod:`singplan.outputs.scene`), the
+programmed and executed TCP paths coloured by stretch kind (:mod:`singplan.outputs.timeline`),
+markers at the crossings, and an animation of every link at the trajectory's real timing. For
+the page, no server is started: a recorder stands in for meshcat's ZMQ window and keeps the
+commands, and the template in :func:`viewer_dir` inlines meshcat's viewer bundle, replays them
+in order and adds the legend, the segment list, the crossing labels and the joint-speed strip,
+so it works offline in any current browser. :func:`serve_replay` sends the same commands to a
+meshcat server listening on loopback only, unless another address is asked for
+(:mod:`singplan.outputs.meshcat_server`).
 """
 
 from __future__ import annotations
@@ -29,18 +30,17 @@ from pathlib import Path
 from typing import Any
 
 import meshcat
-import meshcat.animation
 import meshcat.geometry as mg
 import meshcat.transformations as mtf
 import numpy as np
 import pinocchio as pin
 import umsgpack
-from pinocchio.visualize import MeshcatVisualizer
 
-from singplan.errors import InputError, RobotModelError
+from singplan.errors import InputError
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot, bundled_robots, load_robot
 from singplan.outputs.choices import DEFAULT_HOST
+from singplan.outputs.scene import ROOT, AnimationCommand, RobotScene
 from singplan.outputs.timeline import (
     Stretch,
     TcpTrack,
@@ -83,10 +83,10 @@ class _Recorder:
     """Stands in for meshcat's ZMQ window: keeps the lowered commands instead of sending them."""
 
     def __init__(self) -> None:
-        self.commands: list[dict[str, Any]] = []
+        self.commands: list[dict[str, Any] | bytes] = []
 
     def send(self, command: Any) -> None:
-        self.commands.append(command.lower())
+        self.commands.append(command.packed() if isinstance(command, AnimationCommand) else command.lower())
 
 
 def _line(points: np.ndarray, colour: int, width: float = 2.0) -> mg.Line:
@@ -163,42 +163,21 @@ def _midpoint(traj: Trajectory, seg: Segment) -> int:
 def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Stretch],
            speed: float = 1.0, loop: bool = False, play: bool = False) -> None:
     """Send the replay scene to ``vis``: robot, paths, crossing markers and the animation."""
-    viz, full = _robot_visuals(vis, robot)
-    viz.display(full(traj.q[0]))
+    scene = RobotScene.of(robot)
+    shown = scene.send(vis, traj.q[0])
     vis["/Grid"].set_property("visible", False)  # the robot's base axes show the ground frame
     vis["paths/programmed"].set_object(_line(programmed_path(traj, robot, tcp), 0x9E9E9E, 1.0))
     _draw_segments(vis, traj, tcp, stretches)
-    # a frame is a sample: keyframes at any kept sample, the exact joint values there
-    animation = meshcat.animation.Animation(default_framerate=speed / traj.period)
+    # a frame is a sample: keyframes at kept samples, the exact joint values there
     step = max(1, round(ANIMATION_STEP_S / traj.period))
-    for k in kept_samples(traj, step, _KEYFRAMES, _KEYFRAME_TURN_RAD).tolist():
-        with animation.at_frame(vis, k) as frame:
-            viz.viewer = frame
-            viz.display(full(traj.q[k]))
-    viz.viewer = vis
-    _drop_still_clips(animation)
-    vis.set_animation(animation, play=play, repetitions=_LOOP_REPETITIONS if loop else 1)
-
-
-def _drop_still_clips(animation: meshcat.animation.Animation) -> None:
-    """Remove the clips of nodes that never move (the base): the scene already shows them there."""
-    for path, clip in list(animation.clips.items()):
-        if all(all(v == track.values[0] for v in track.values) for track in clip.tracks.values()):
-            del animation.clips[path]
-
-
-def _robot_visuals(vis: meshcat.Visualizer, robot: Robot) -> tuple[MeshcatVisualizer, Any]:
-    """Pinocchio's meshcat visualiser of the robot's URDF visuals, and the chain -> model q map."""
-    # package:// meshes resolve against every folder above the URDF (example-robot-data's layout)
-    package_dirs = [str(p) for p in robot.urdf_path.parents]
-    try:
-        model, collision, visual = pin.buildModelsFromUrdf(str(robot.urdf_path), package_dirs=package_dirs)
-    except ValueError as exc:
-        raise RobotModelError(str(robot.urdf_path), f"cannot load its visual geometry for the replay ({exc})") from None
-    viz = MeshcatVisualizer(model, collision, visual)
-    viz.initViewer(viewer=vis)
-    viz.loadViewerModel(rootNodeName="robot")
-    return viz, _full_configuration(model, robot)
+    frames = kept_samples(traj, step, _KEYFRAMES, _KEYFRAME_TURN_RAD)
+    xyz, quat = scene.poses(traj.q[frames])
+    # nodes that never move (the base) are left out: the scene already shows them there
+    moving = [g for g, name in enumerate(scene.names) if name in shown
+              and not (np.all(xyz[:, g] == xyz[0, g]) and np.all(quat[:, g] == quat[0, g]))]
+    paths = tuple(vis[f"{ROOT}/{scene.names[g]}"].path.lower() for g in moving)
+    vis.window.send(AnimationCommand(paths, frames.astype(float), xyz[:, moving], quat[:, moving], speed / traj.period,
+                                     play, _LOOP_REPETITIONS if loop else 1))
 
 
 def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath, stretches: list[Stretch]) -> None:
@@ -224,19 +203,6 @@ def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath, stre
 
 
 _LOOP_REPETITIONS = 1_000_000  # meshcat's "loop": repeat the clip this many times
-
-
-def _full_configuration(model: pin.Model, robot: Robot) -> Any:
-    """Map the chain's joint values into the full URDF model (extra joints at neutral)."""
-    neutral = pin.neutral(model)
-    index = [model.joints[model.getJointId(name)].idx_q for name in robot.joint_names]
-
-    def full(q: np.ndarray) -> np.ndarray:
-        out = neutral.copy()
-        out[index] = q
-        return out
-
-    return full
 
 
 def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
@@ -303,11 +269,10 @@ def replay_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -
     return re.sub(r"__(TITLE|CSS|MESHCAT|DATA|JS)__", lambda m: fills[m.group(0)], template)  # values not rescanned
 
 
-def _packed(command: dict[str, Any]) -> bytes:
-    """A command as meshcat's viewer reads it; the animation's keyframes in single precision
-    (0.1 um at 1 m, 1e-7 of a quaternion) take a third less of the page than doubles."""
-    precision = "single" if command["type"] == "set_animation" else "double"
-    return bytes(umsgpack.packb(command, force_float_precision=precision))
+def _packed(command: dict[str, Any] | bytes) -> bytes:
+    """A command as meshcat's viewer reads it (the animation comes packed, its keyframes in
+    single precision: a third less of the page than doubles)."""
+    return command if isinstance(command, bytes) else bytes(umsgpack.packb(command, force_float_precision="double"))
 
 
 def _meshcat_bundle() -> str:

@@ -25,7 +25,7 @@ from singplan.outputs.svgplot import Panel, envelope, figure_svg
 from singplan.outputs.timeline import Stretch, TcpTrack, tcp_track, timeline
 from singplan.results.trajectory import Trajectory
 
-_PLOT_BUCKETS = 2000  # a curve longer than two points a bucket is drawn as its min/max envelope
+_PLOT_BUCKETS = 1000  # a curve longer than two points a bucket is drawn as its min/max envelope (> 1 a pixel)
 _SHADED = {"crossing": 0.18, "weave": 0.10, "blend": 0.16, "pause": 0.30}  # stretch kinds shaded on time plots
 _LEGEND = {"path": "path", "pre": "before a zone", "crossing": "crossing", "post": "after a zone", "ptp": "PTP",
            "blend": "fly-by blend", "weave": "woven move", "pause": "null-space pause (TCP still)"}

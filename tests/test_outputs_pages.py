@@ -9,6 +9,7 @@ by holding the joints still for 50 samples inside the crossing.
 
 from __future__ import annotations
 
+import itertools
 import json
 import re
 import subprocess
@@ -30,7 +31,7 @@ from singplan.outputs.svgplot import Panel, envelope, figure_svg, nice_ticks
 from singplan.outputs.timeline import SEGMENT_COLOURS, pause_window, tcp_track, timeline
 from singplan.outputs.viewer import programmed_path, replay_html, robot_of, tcp_path
 from singplan.results.plan import plan
-from singplan.results.trajectory import Segment, Trajectory
+from singplan.results.trajectory import Trajectory
 
 ROOT = Path(__file__).resolve().parents[1]
 HOLD = 50  # samples of the synthetic null-space pause
@@ -100,7 +101,7 @@ def test_timeline_colours_blends_pauses_and_tiles_the_trajectory(demo: Trajector
     pause = stretches[2]
     assert (pause.k0, pause.k1) == (k, k + HOLD)  # exactly the held samples
     assert pause.t1 - pause.t0 == pytest.approx(HOLD * traj.period, abs=1e-12)
-    assert all(a.k1 == b.k0 for a, b in zip(stretches, stretches[1:], strict=False))  # no gap, no overlap
+    assert all(a.k1 == b.k0 for a, b in itertools.pairwise(stretches))  # no gap, no overlap
     assert stretches[0].k0 == 0 and stretches[-1].k1 == len(traj.t) - 1
     assert {s.colour for s in stretches if s.kind in ("blend", "pause")} == {SEGMENT_COLOURS["blend"],
                                                                               SEGMENT_COLOURS["pause"]}
@@ -184,7 +185,7 @@ def test_envelope_keeps_every_peak_and_bounds_the_points() -> None:
     y = rng.normal(size=100_000)
     y[31_337] = 50.0
     y[77_777] = -40.0
-    x, e = envelope(np.arange(len(y)), y, 500)
+    _, e = envelope(np.arange(len(y)), y, 500)
     assert len(e) == 1000 and e.max() == 50.0 and e.min() == -40.0
     assert envelope(np.arange(10), np.arange(10.0), 500)[1].tolist() == list(range(10))
 

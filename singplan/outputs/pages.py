@@ -24,7 +24,8 @@ def build_pages(traj: Trajectory, robot: Robot, report: bool, replay: bool) -> t
 
     The TCP track (forward kinematics of every sample) is computed once and shared by both pages.
     """
-    pages, skipped = {}, {}
+    pages: dict[str, str] = {}
+    skipped: dict[str, str] = {}
     wanted = [name for name, asked in (("report.html", report), ("replay.html", replay)) if asked]
     if not wanted:
         return pages, skipped

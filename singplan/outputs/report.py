@@ -50,10 +50,10 @@ def _curve(panel: Panel, x: np.ndarray, y: np.ndarray, **style: Any) -> None:
     panel.curve(*envelope(x, y, _PLOT_BUCKETS), **style)
 
 
-def _shaded(stretches: list[Stretch], **labels: str) -> Callable[[], Panel]:
+def _shaded(stretches: list[Stretch]) -> Callable[[], Panel]:
     """A factory of panels with the timeline's shading (crossings, blends, pauses, weave)."""
     def make() -> Panel:
-        panel = Panel(**labels)
+        panel = Panel()
         for s in stretches:
             if s.kind in _SHADED:
                 panel.span(s.t0, s.t1, _hex(s.colour), _SHADED[s.kind])

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from html import escape
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf")
 LIMIT_COLOUR = "#d62728"
@@ -106,57 +107,76 @@ def _limits(values: list[np.ndarray]) -> tuple[float, float]:
     return lo - margin, hi + margin
 
 
+@dataclass(frozen=True)
+class _Frame:
+    """A panel's plot area [px] and the data ranges it shows."""
+
+    left: float
+    right: float
+    top: float
+    bottom: float
+    x: tuple[float, float]
+    y: tuple[float, float]
+
+    def px(self, x: ArrayLike) -> np.ndarray:
+        scale = (self.right - self.left) / (self.x[1] - self.x[0])
+        return self.left + (np.asarray(x, dtype=float) - self.x[0]) * scale
+
+    def py(self, y: ArrayLike) -> np.ndarray:
+        scale = (self.bottom - self.top) / (self.y[1] - self.y[0])
+        return self.bottom - (np.asarray(y, dtype=float) - self.y[0]) * scale
+
+
 def _panel_svg(p: Panel, x0: float, y0: float, w: float, h: float, clip: str) -> list[str]:
     """SVG elements of a panel in the box (x0, y0, w, h) [px]; ``clip`` names its clip path (unique in the page)."""
     top_pad = _MARGIN["top"] + (_MARGIN["top_axis"] if p.top else 0)
-    left, right, top, bottom = x0 + _MARGIN["left"], x0 + w - _MARGIN["right"], y0 + top_pad, y0 + h - _MARGIN["bottom"]
-    xlo, xhi = _limits([c.x for c in p.curves])
-    ylo, yhi = _limits([c.y for c in p.curves] + [np.array([y for y, *_ in p.hlines])])
-
-    def px(x: np.ndarray) -> np.ndarray:
-        return left + (np.asarray(x, dtype=float) - xlo) / (xhi - xlo) * (right - left)
-
-    def py(y: np.ndarray) -> np.ndarray:
-        return bottom - (np.asarray(y, dtype=float) - ylo) / (yhi - ylo) * (bottom - top)
-
-    out = [f'<clipPath id="{clip}"><rect x="{left:.1f}" y="{top:.1f}" width="{right - left:.1f}" '
-           f'height="{bottom - top:.1f}"/></clipPath>', f'<g clip-path="url(#{clip})">']
-    for a, b, colour, opacity in p.spans:
-        xa, xb = px(np.array([max(a, xlo), min(b, xhi)]))
-        if xb > xa:
-            out.append(f'<path d="M{xa:.1f} {top:.1f}H{xb:.1f}V{bottom:.1f}H{xa:.1f}Z" fill="{colour}" '
-                       f'fill-opacity="{opacity}"/>')
-    for y, colour, dashed, a, b in p.hlines:
-        xa, xb = px(np.array([xlo if a is None else a, xhi if b is None else b]))
-        dash = ' stroke-dasharray="5 3"' if dashed else ""
-        out.append(f'<path d="M{xa:.1f} {float(py(y)):.1f}H{xb:.1f}" stroke="{colour}" stroke-width="0.9"{dash}/>')
-    for c in p.curves:
-        out.append(f'<path d="{_polyline(px(c.x), py(c.y))}" fill="none" stroke="{c.colour}" '
-                   f'stroke-width="{c.width}" stroke-linejoin="round"/>')
-    for x, y, text, colour in p.points:
-        cx, cy = float(px(x)), float(py(y))
-        out.append(f'<path d="M{cx - 3:.1f} {cy:.1f}a3 3 0 1 0 6 0a3 3 0 1 0 -6 0Z" fill="{colour}"/>')
-        anchor = "end" if cx > right - 80 else "start"
-        out.append(_text(cx + (-6 if anchor == "end" else 6), cy + 12, text, 10, anchor))
-    out.append("</g>")
-    out.append(f'<path d="M{left:.1f} {top:.1f}H{right:.1f}V{bottom:.1f}H{left:.1f}Z" fill="none" stroke="#333" '
-               'stroke-width="0.8"/>')
-    out += _x_ticks(nice_ticks(xlo, xhi), px, bottom, 1)
-    out += _y_ticks(nice_ticks(ylo, yhi, 5), py, left)
+    f = _Frame(x0 + _MARGIN["left"], x0 + w - _MARGIN["right"], y0 + top_pad, y0 + h - _MARGIN["bottom"],
+               _limits([c.x for c in p.curves]),
+               _limits([c.y for c in p.curves] + [np.array([line[0] for line in p.hlines])]))
+    out = [f'<clipPath id="{clip}"><rect x="{f.left:.1f}" y="{f.top:.1f}" width="{f.right - f.left:.1f}" '
+           f'height="{f.bottom - f.top:.1f}"/></clipPath>', f'<g clip-path="url(#{clip})">', *_data(p, f), "</g>"]
+    out.append(f'<path d="M{f.left:.1f} {f.top:.1f}H{f.right:.1f}V{f.bottom:.1f}H{f.left:.1f}Z" fill="none" '
+               'stroke="#333" stroke-width="0.8"/>')
+    out += _x_ticks(nice_ticks(*f.x), f.px, f.bottom, 1)
+    out += _y_ticks(nice_ticks(*f.y, 5), f.py, f.left)
+    centre = 0.5 * (f.left + f.right)
     if p.top:
         label, to_top, from_top = p.top
-        ends = to_top(np.array([xlo, xhi]))
-        ticks = nice_ticks(float(ends[0]), float(ends[1]))
-        out += _x_ticks(ticks, lambda v: px(from_top(v)), top, -1)
-        out.append(_text(0.5 * (left + right), top - 20, label, 10))
-    out.append(_text(0.5 * (left + right), y0 + top_pad - (34 if p.top else 8), p.title, 11))
-    out.append(_text(0.5 * (left + right), bottom + 30, p.xlabel, 10))
+        ends = to_top(np.array(f.x))
+        out += _x_ticks(nice_ticks(float(ends[0]), float(ends[1])), lambda v: f.px(from_top(np.asarray(v))), f.top, -1)
+        out.append(_text(centre, f.top - 20, label, 10))
+    out.append(_text(centre, y0 + top_pad - (34 if p.top else 8), p.title, 11))
+    out.append(_text(centre, f.bottom + 30, p.xlabel, 10))
     if p.ylabel:
-        cy = 0.5 * (top + bottom)
+        cy = 0.5 * (f.top + f.bottom)
         out.append(f'<text x="{x0 + 12:.1f}" y="{cy:.1f}" transform="rotate(-90 {x0 + 12:.1f} {cy:.1f})" '
                    f'text-anchor="middle" font-size="10" style="{_FONT}">{escape(p.ylabel)}</text>')
     if p.legend:
-        out += _legend(p, left + 6, top + 6)
+        out += _legend(p, f.left + 6, f.top + 6)
+    return out
+
+
+def _data(p: Panel, f: _Frame) -> list[str]:
+    """The panel's spans, limit lines, curves and marked points, in that order (later on top)."""
+    out = []
+    for a, b, colour, opacity in p.spans:
+        xa, xb = f.px([max(a, f.x[0]), min(b, f.x[1])])
+        if xb > xa:
+            out.append(f'<path d="M{xa:.1f} {f.top:.1f}H{xb:.1f}V{f.bottom:.1f}H{xa:.1f}Z" fill="{colour}" '
+                       f'fill-opacity="{opacity}"/>')
+    for level, colour, dashed, start, end in p.hlines:
+        xa, xb = f.px([f.x[0] if start is None else start, f.x[1] if end is None else end])
+        dash = ' stroke-dasharray="5 3"' if dashed else ""
+        out.append(f'<path d="M{xa:.1f} {float(f.py(level)):.1f}H{xb:.1f}" stroke="{colour}" '
+                   f'stroke-width="0.9"{dash}/>')
+    for c in p.curves:
+        out.append(f'<path d="{_polyline(f.px(c.x), f.py(c.y))}" fill="none" stroke="{c.colour}" '
+                   f'stroke-width="{c.width}" stroke-linejoin="round"/>')
+    for x, y, text, colour in p.points:
+        cx, cy = float(f.px(x)), float(f.py(y))
+        out.append(f'<path d="M{cx - 3:.1f} {cy:.1f}a3 3 0 1 0 6 0a3 3 0 1 0 -6 0Z" fill="{colour}"/>')
+        anchor = "end" if cx > f.right - 80 else "start"
+        out.append(_text(cx + (-6 if anchor == "end" else 6), cy + 12, text, 10, anchor))
     return out
 
 
@@ -171,7 +191,7 @@ def _polyline(xs: np.ndarray, ys: np.ndarray) -> str:
     return f"M{flat[0][0]:g} {flat[0][1]:g}" + "".join(f"L{x:g} {y:g}" for x, y in flat[1:])
 
 
-def _x_ticks(ticks: np.ndarray, px: Callable[[np.ndarray], np.ndarray], y: float, side: int) -> list[str]:
+def _x_ticks(ticks: np.ndarray, px: Callable[[ArrayLike], np.ndarray], y: float, side: int) -> list[str]:
     """Ticks on a horizontal axis at height y: pointing down (side 1, labels below) or up (-1, above)."""
     out = []
     for value, x in zip(ticks.tolist(), np.atleast_1d(px(ticks)).tolist(), strict=True):
@@ -182,7 +202,7 @@ def _x_ticks(ticks: np.ndarray, px: Callable[[np.ndarray], np.ndarray], y: float
     return out
 
 
-def _y_ticks(ticks: np.ndarray, py: Callable[[np.ndarray], np.ndarray], x: float) -> list[str]:
+def _y_ticks(ticks: np.ndarray, py: Callable[[ArrayLike], np.ndarray], x: float) -> list[str]:
     out = []
     for value, y in zip(ticks.tolist(), np.atleast_1d(py(ticks)).tolist(), strict=True):
         out.append(f'<path d="M{x:.1f} {y:.1f}h-4" stroke="#333" stroke-width="0.8"/>')

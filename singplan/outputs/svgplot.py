@@ -24,6 +24,7 @@ _PX_PER_INCH = 96  # panel heights are given in inches, as the report's layout w
 _WIDTH_PX = 960
 _MARGIN = {"left": 58, "right": 14, "top": 24, "bottom": 34, "top_axis": 30}
 _FONT = "font-family:system-ui,sans-serif"
+_MIN_LABEL_GAP_PX = 36  # tick labels of a horizontal axis at least this far apart
 
 
 @dataclass
@@ -192,13 +193,17 @@ def _polyline(xs: np.ndarray, ys: np.ndarray) -> str:
 
 
 def _x_ticks(ticks: np.ndarray, px: Callable[[ArrayLike], np.ndarray], y: float, side: int) -> list[str]:
-    """Ticks on a horizontal axis at height y: pointing down (side 1, labels below) or up (-1, above)."""
-    out = []
+    """Ticks on a horizontal axis at height y: pointing down (side 1, labels below) or up (-1, above).
+    A label that would overlap the previous one is left out (a path-length axis crowds where the
+    TCP moves fast); its tick stays."""
+    out, last = [], -math.inf
     for value, x in zip(ticks.tolist(), np.atleast_1d(px(ticks)).tolist(), strict=True):
         if not math.isfinite(x):
             continue
         out.append(f'<path d="M{x:.1f} {y:.1f}v{4 * side}" stroke="#333" stroke-width="0.8"/>')
-        out.append(_text(x, y + (14 if side > 0 else -7), _label(value), 9))
+        if x - last >= _MIN_LABEL_GAP_PX:
+            out.append(_text(x, y + (14 if side > 0 else -7), _label(value), 9))
+            last = x
     return out
 
 

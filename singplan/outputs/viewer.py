@@ -24,6 +24,7 @@ import re
 import socket
 import subprocess
 import sys
+from collections import Counter
 from dataclasses import dataclass
 from html import escape
 from pathlib import Path
@@ -182,11 +183,10 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath
 
 def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath, stretches: list[Stretch]) -> None:
     """The executed TCP path by stretch kind (a line plus dots), and a marker at each crossing."""
-    split = {s.segment for s in stretches} - {s.segment for s in stretches if (s.k0, s.k1) == sample_range(
-        traj, traj.segments[s.segment])}
+    parts = Counter(s.segment for s in stretches)  # a segment split around a null-space pause has three
     for j, stretch in enumerate(stretches):
         seg = traj.segments[stretch.segment]
-        name = f"{stretch.segment:03d}_{seg.kind}" + (f"_{j}_{stretch.kind}" if stretch.segment in split else "")
+        name = f"{stretch.segment:03d}_{seg.kind}" + (f"_{j}_{stretch.kind}" if parts[stretch.segment] > 1 else "")
         path = tcp.between(stretch.k0, stretch.k1)
         vis[f"paths/executed/{name}"].set_object(_line(path, stretch.colour, 3.0))
         # browsers draw lines one pixel wide: dots make the executed path readable at a glance

@@ -31,7 +31,7 @@ from singplan.outputs.svgplot import Panel, envelope, figure_svg, nice_ticks
 from singplan.outputs.timeline import SEGMENT_COLOURS, pause_window, tcp_track, timeline
 from singplan.outputs.viewer import programmed_path, replay_html, robot_of, tcp_path
 from singplan.results.plan import plan
-from singplan.results.trajectory import Trajectory
+from singplan.results.trajectory import Segment, Trajectory
 
 ROOT = Path(__file__).resolve().parents[1]
 HOLD = 50  # samples of the synthetic null-space pause
@@ -250,3 +250,24 @@ def test_packed_animation_is_the_lowered_command_in_single_precision(count: int)
             values = np.array([key["value"] for key in track_got["keys"]])
             assert np.array_equal(times, [key["time"] for key in track_want["keys"]])
             assert np.allclose(values, [key["value"] for key in track_want["keys"]], rtol=1e-7, atol=1e-7)
+
+
+def test_thousands_of_blends_keep_the_report_bounded(demo: Trajectory, robot: Robot) -> None:
+    """A program of thousands of fly-by corners: the shading and the timeline strip merge spans
+    closer than a plot bucket instead of drawing one element a corner in every plot."""
+    factor = 20
+    long = replace(demo, t=np.arange(len(demo.t) * factor) * demo.period / factor,
+                   period=demo.period / factor, q=np.repeat(demo.q, factor, axis=0),
+                   samples={k: np.repeat(v, factor, axis=0) for k, v in demo.samples.items()})
+    edges = long.t[::4]
+    kinds = ["path", "blend"] * len(edges)
+    long = replace(long, segments=tuple(Segment(0, kinds[i], float(a), float(b), "F U N", "F U N")
+                                        for i, (a, b) in enumerate(itertools.pairwise(edges))))
+    assert len(long.segments) > 2000
+    page = report_html(long, robot)
+    blend = f"#{SEGMENT_COLOURS['blend']:06x}"
+    for key, svg in re.findall(r'<figure id="plot-(\w+)">(<svg.*?</svg>)', page, re.S):
+        panels = svg.count("<clipPath")
+        assert svg.count(f'fill="{blend}"') <= panels * 1001, key
+    strip = re.search(r'<div id="timeline".*?</div>', page, re.S)
+    assert strip is not None and strip.group(0).count("<i ") <= 2 * 1001

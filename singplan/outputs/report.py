@@ -22,7 +22,7 @@ import numpy as np
 from singplan.kinematics.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.kinematics.robot import Robot
 from singplan.outputs.svgplot import Panel, envelope, figure_svg
-from singplan.outputs.timeline import Stretch, TcpTrack, tcp_track, timeline
+from singplan.outputs.timeline import Stretch, TcpTrack, segments_by_move, tcp_track, timeline
 from singplan.results.trajectory import Trajectory
 
 _PLOT_BUCKETS = 1000  # a curve longer than two points a bucket is drawn as its min/max envelope (> 1 a pixel)
@@ -50,15 +50,32 @@ def _curve(panel: Panel, x: np.ndarray, y: np.ndarray, **style: Any) -> None:
     panel.curve(*envelope(x, y, _PLOT_BUCKETS), **style)
 
 
-def _shaded(stretches: list[Stretch]) -> Callable[[], Panel]:
+def _shaded(stretches: list[Stretch], duration_s: float) -> Callable[[], Panel]:
     """A factory of panels with the timeline's shading (crossings, blends, pauses, weave)."""
+    spans = [(t0, t1, _hex(s.colour), _SHADED[s.kind]) for s in {s.kind: s for s in stretches}.values()
+             if s.kind in _SHADED for t0, t1 in _covered(stretches, s.kind, duration_s)]
+
     def make() -> Panel:
         panel = Panel()
-        for s in stretches:
-            if s.kind in _SHADED:
-                panel.span(s.t0, s.t1, _hex(s.colour), _SHADED[s.kind])
+        for span in spans:
+            panel.span(*span)
         return panel
     return make
+
+
+def _covered(stretches: list[Stretch], kind: str, duration_s: float) -> list[tuple[float, float]]:
+    """The time spans [s] of a kind, at most one a plot bucket: spans closer than a bucket (a
+    program of thousands of fly-by corners) are merged, so the page stays bounded."""
+    bucket = max(duration_s, 1e-9) / _PLOT_BUCKETS
+    out: list[tuple[float, float]] = []
+    for s in stretches:
+        if s.kind != kind:
+            continue
+        if out and s.t0 - out[-1][1] < bucket:
+            out[-1] = (out[-1][0], max(out[-1][1], s.t1))
+        else:
+            out.append((s.t0, s.t1))
+    return out
 
 
 def _path_length_axis(traj: Trajectory, s_mm: np.ndarray) -> Any:
@@ -147,9 +164,10 @@ def _tcp_speed(traj: Trajectory, step_m: np.ndarray, shaded: Callable[[], Panel]
         panel = shaded()
         panel.xlabel, panel.ylabel = "t [s]", "[m/s]"
         _curve(panel, traj.t[1:], step_m / traj.period, label="TCP speed")
+        by_move = segments_by_move(traj)
         for i, move in enumerate(traj.task["moves"]):
             kind, spec = next(iter(move.items()))
-            segs = [s for s in traj.segments if s.move == i]
+            segs = by_move.get(i)
             if kind != "ptp" and segs:
                 panel.hline(spec["speed"], x0=segs[0].t0, x1=segs[-1].t1)
         return [panel]
@@ -170,12 +188,14 @@ def _stopping(traj: Trajectory, shaded: Callable[[], Panel]) -> _Draw:
 
 
 def _timeline(traj: Trajectory, stretches: list[Stretch]) -> str:
-    """A strip of the stretches coloured by kind (each names itself on hover) and their legend."""
+    """A strip of the stretches coloured by kind (each names itself on hover; at most one a plot
+    bucket per kind) and their legend."""
     scale = 100.0 / max(traj.duration_s, traj.period)
-    strip = "".join(f'<i style="left:{s.t0 * scale:.3f}%;width:{max(0.05, (s.t1 - s.t0) * scale):.3f}%;'
-                    f'background:{_hex(s.colour)}" title="move {traj.segments[s.segment].move}: '
-                    f'{html.escape(_LEGEND.get(s.kind, s.kind))}, t {s.t0:.3f}-{s.t1:.3f} s"></i>' for s in stretches)
     kinds = {s.kind: s.colour for s in stretches}  # in order of first appearance
+    strip = "".join(f'<i style="left:{t0 * scale:.3f}%;width:{max(0.05, (t1 - t0) * scale):.3f}%;'
+                    f'background:{_hex(colour)}" title="{html.escape(_LEGEND.get(kind, kind))}, '
+                    f't {t0:.3f}-{t1:.3f} s"></i>'
+                    for kind, colour in kinds.items() for t0, t1 in _covered(stretches, kind, traj.duration_s))
     legend = "".join(f'<span><i style="background:{_hex(colour)}"></i>{html.escape(_LEGEND.get(kind, kind))}</span>'
                      for kind, colour in kinds.items())
     return (f'<div id="timeline" class="timeline">{strip}</div>'
@@ -190,10 +210,12 @@ def _table(header: list[str], rows: list[list[Any]]) -> str:
 
 def _tables(traj: Trajectory) -> str:
     moves = []
+    by_move = segments_by_move(traj)
     for i, move in enumerate(traj.task["moves"]):
         kind = next(iter(move))
-        segs = [s for s in traj.segments if s.move == i]
-        moves.append([i, kind, f"{segs[0].t0:.3f}", f"{segs[-1].t1:.3f}", segs[0].config_before, segs[-1].config_after])
+        segs = by_move.get(i)
+        moves.append([i, kind, f"{segs[0].t0:.3f}", f"{segs[-1].t1:.3f}", segs[0].config_before, segs[-1].config_after]
+                     if segs else [i, kind, "-", "-", "-", "-"])
     crossings = [[s.move, s.singularity, s.method, f"{s.t0:.3f} .. {s.t1:.3f}",
                   f"{s.config_before} -> {s.config_after}", f"{s.details.get('max_position_error_mm', 0.0):.4f}",
                   f"{s.details.get('max_orientation_error_deg', 0.0):.4f}", f"{s.details.get('time_lost_s', 0.0):.3f}"]
@@ -219,7 +241,7 @@ def report_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -
     """The whole report page as one string; ``track`` is the trajectory's TCP track if already computed."""
     track = track if track is not None else tcp_track(traj, robot)
     stretches = timeline(traj, track)
-    shaded = _shaded(stretches)
+    shaded = _shaded(stretches, traj.duration_s)
     sing = traj.task.get("singularity", {})
     zone = sing.get("zone", {})
     vmax = robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", 1.0))

@@ -87,6 +87,14 @@ def sample_range(traj: Trajectory, seg: Segment) -> tuple[int, int]:
     return min(last, max(0, round(seg.t0 / traj.period))), min(last, max(0, round(seg.t1 / traj.period)))
 
 
+def segments_by_move(traj: Trajectory) -> dict[int, list[Segment]]:
+    """Each move's segments in time order (a move of a record without segments maps to none)."""
+    out: dict[int, list[Segment]] = {}
+    for seg in traj.segments:
+        out.setdefault(seg.move, []).append(seg)
+    return out
+
+
 def display_kind(seg: Segment, woven: frozenset[int]) -> str:
     """A segment's colour kind: its own, or "weave" for a woven move's segments other than crossings."""
     return "weave" if seg.move in woven and seg.kind not in ("crossing", "blend") else seg.kind

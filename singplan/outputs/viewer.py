@@ -48,6 +48,7 @@ from singplan.outputs.timeline import (
     display_kind,
     kind_colour,
     sample_range,
+    segments_by_move,
     tcp_track,
     timeline,
 )
@@ -210,9 +211,10 @@ def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
     task mapping's targets, as the planner built it from the same numbers; a PTP as executed."""
     points = []
     T = robot.fk(traj.q[0])
+    by_move = segments_by_move(traj)
     for i, move in enumerate(traj.task["moves"]):
         (kind, spec), = move.items()
-        segs = [s for s in traj.segments if s.move == i]
+        segs = by_move.get(i)
         if kind == "ptp":
             if segs:
                 points.append(tcp.between(sample_range(traj, segs[0])[0], sample_range(traj, segs[-1])[1]))

@@ -255,7 +255,8 @@ def test_the_weave_seam_example_plans_and_its_triangle_corners_keep_the_accelera
 
 def test_report_and_replay_show_the_weave_and_the_stopping_distance() -> None:
     from singplan.outputs.report import report_html
-    from singplan.outputs.viewer import SEGMENT_COLOURS, _page_data, programmed_path, robot_of, tcp_path
+    from singplan.outputs.timeline import SEGMENT_COLOURS
+    from singplan.outputs.viewer import _page_data, programmed_path, robot_of, tcp_path
 
     # a triangle corner sits on the singular point: this failed (acceleration x7) without corner samples
     doc = _demo_with_weave("exact", {"pattern": "triangle", "amplitude_mm": 3.0, "wavelength_mm": 20.0})

@@ -15,6 +15,9 @@
   animator.pause();
 
   const hex = (colour) => "#" + colour.toString(16).padStart(6, "0");
+  // stretches also shaded above the band: where the robot leaves the plain path or the TCP waits
+  const SHADED = { crossing: "rgba(244, 180, 0, 0.18)", blend: "rgba(229, 57, 53, 0.15)",
+    pause: "rgba(141, 110, 99, 0.3)" };
   const toThree = (xyz) => viewer.scene.localToWorld(new THREE.Vector3(xyz[0], xyz[1], xyz[2]));
 
   function currentTime() {
@@ -91,12 +94,12 @@
     const top = Math.max(1.1, ...s.ratio) * 1.05;
     const x = (t) => (t / data.duration) * width;
     const y = (r) => height - 14 - (r / top) * (height - 20);
-    for (const seg of data.segments) {  // segment kinds as a band under the curve
-      ctx.fillStyle = hex(seg.colour);
-      ctx.fillRect(x(seg.t0), height - 8, Math.max(1, x(seg.t1) - x(seg.t0)), 8);
-      if (seg.kind === "crossing") {
-        ctx.fillStyle = "rgba(244, 180, 0, 0.18)";
-        ctx.fillRect(x(seg.t0), 0, x(seg.t1) - x(seg.t0), height - 8);
+    for (const band of data.bands) {  // stretch kinds (segments, null-space pauses) as a band under the curve
+      ctx.fillStyle = hex(band.colour);
+      ctx.fillRect(x(band.t0), height - 8, Math.max(1, x(band.t1) - x(band.t0)), 8);
+      if (band.kind in SHADED) {
+        ctx.fillStyle = SHADED[band.kind];
+        ctx.fillRect(x(band.t0), 0, x(band.t1) - x(band.t0), height - 8);
       }
     }
     ctx.strokeStyle = "#c62828";

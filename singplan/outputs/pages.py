@@ -3,9 +3,10 @@
 A page that cannot be built (e.g. a visual mesh is missing) is a warning: the plan stands,
 the trajectory files are written, and the caller says which page was left out and why.
 
-Each page's module is imported when that page is built: the report needs matplotlib and the
-replay meshcat (with Pinocchio's visualisers and trimesh), together about 1.5 s of start-up
-that a plan written without pages does not pay. That is for start-up time, not an import cycle.
+The replay's module is imported when that page is built: it needs meshcat with Pinocchio's
+visualisers and trimesh, about 1 s of start-up that a plan written without it does not pay
+(the report's module is light but follows the same rule). That is for start-up time, not an
+import cycle.
 """
 
 from __future__ import annotations
@@ -14,23 +15,37 @@ from collections.abc import Callable
 
 from singplan.errors import SingplanError
 from singplan.kinematics.robot import Robot
+from singplan.outputs.timeline import TcpTrack, tcp_track
 from singplan.results.trajectory import Trajectory
 
 
 def build_pages(traj: Trajectory, robot: Robot, report: bool, replay: bool) -> tuple[dict[str, str], dict[str, str]]:
-    """The pages asked for ({file name: html}) and why any could not be built ({file name: reason})."""
-    pages, skipped = {}, {}
-    for name, wanted in (("report.html", report), ("replay.html", replay)):
-        if not wanted:
-            continue
+    """The pages asked for ({file name: html}) and why any could not be built ({file name: reason}).
+
+    The TCP track (forward kinematics of every sample) is computed once and shared by both pages.
+    """
+    pages: dict[str, str] = {}
+    skipped: dict[str, str] = {}
+    wanted = [name for name, asked in (("report.html", report), ("replay.html", replay)) if asked]
+    if not wanted:
+        return pages, skipped
+    try:
+        track = tcp_track(traj, robot)
+    except Exception as exc:  # no page then, but the trajectory stands
+        return {}, dict.fromkeys(wanted, _reason(exc))
+    for name in wanted:
         try:
-            pages[name] = _builder(name)(traj, robot)
+            pages[name] = _builder(name)(traj, robot, track)
         except Exception as exc:  # a page that cannot be built loses that page only, never the trajectory
-            skipped[name] = str(exc) if isinstance(exc, SingplanError) else f"{type(exc).__name__}: {exc}"
+            skipped[name] = _reason(exc)
     return pages, skipped
 
 
-def _builder(name: str) -> Callable[[Trajectory, Robot], str]:
+def _reason(exc: Exception) -> str:
+    return str(exc) if isinstance(exc, SingplanError) else f"{type(exc).__name__}: {exc}"
+
+
+def _builder(name: str) -> Callable[[Trajectory, Robot, TcpTrack], str]:
     if name == "report.html":
         from singplan.outputs.report import report_html
 

@@ -1,198 +1,205 @@
 """A self-contained HTML report of a trajectory: the summary tables and the curves people look at.
 
-Plots (matplotlib, embedded as SVG, so the page needs no network and no other file): joint
-positions with their limits, joint speed against the limit, the signed singular distances
-with the detection thresholds, the position and orientation deviation from the programmed
-path with the tolerances, the TCP speed against the programmed speed, and for a robot with
-dynamics the joint torques against their limits, and the stopping distance. Crossing segments
-(and woven moves, in another colour) are shaded on every time plot.
+A timeline strip of the segments by kind, then plots (SVG written by :mod:`singplan.outputs.svgplot`,
+so the page needs no network and no other file): joint positions with their limits, joint speed against
+the limit, the signed singular distances with the detection thresholds, the position and
+orientation deviation from the programmed path with the tolerances, the TCP speed against the
+programmed speed, the stopping distance, and for a robot with dynamics the joint torques against
+their limits. Crossings, fly-by blends, null-space pauses and woven moves are shaded on every
+time plot in the timeline's colours. The TCP positions come from the shared
+:class:`singplan.outputs.timeline.TcpTrack` (forward kinematics once for report and replay).
 """
 
 from __future__ import annotations
 
 import html
-import io
 import math
 from collections.abc import Callable
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")  # no display: render to files only
-import matplotlib.pyplot as plt
 import numpy as np
-from numpy.typing import ArrayLike
 
 from singplan.kinematics.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.kinematics.robot import Robot
-from singplan.planning.weave import woven_moves
+from singplan.outputs.svgplot import Panel, envelope, figure_svg
+from singplan.outputs.timeline import Stretch, TcpTrack, segments_by_move, tcp_track, timeline
 from singplan.results.trajectory import Trajectory
 
-_PLOT_BUCKETS = 2000  # a curve longer than two points a bucket is drawn as its min/max envelope
+_PLOT_BUCKETS = 1000  # a curve longer than two points a bucket is drawn as its min/max envelope (> 1 a pixel)
+_SHADED = {"crossing": 0.18, "weave": 0.10, "blend": 0.16, "pause": 0.30}  # stretch kinds shaded on time plots
+_LEGEND = {"path": "path", "pre": "before a zone", "crossing": "crossing", "post": "after a zone", "ptp": "PTP",
+           "blend": "fly-by blend", "weave": "woven move", "pause": "null-space pause (TCP still)"}
 
 _STYLE = """body{font-family:system-ui,sans-serif;margin:2em;max-width:1100px;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}
 th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}h2{margin-top:1.6em}
-figure{margin:0 0 1.5em}figcaption{color:#555;font-size:0.9em}"""
+figure{margin:0 0 1.5em}figcaption{color:#555;font-size:0.9em}
+.legend span{margin-right:1.2em;font-size:0.9em}
+.legend i{display:inline-block;width:1em;height:0.8em;margin-right:0.3em}
+.timeline{position:relative;height:18px;background:#eee;margin-top:0.5em}
+.timeline i{position:absolute;top:0;bottom:0}"""
+
+_Draw = Callable[[], list[Panel]]
 
 
-def _svg(draw: Callable[[plt.Figure], None], height: float = 3.0) -> str:
-    fig = plt.figure(figsize=(10, height))
-    try:
-        draw(fig)
-        fig.tight_layout()
-        buffer = io.StringIO()
-        fig.savefig(buffer, format="svg")
-    finally:
-        plt.close(fig)
-    text = buffer.getvalue()
-    return text[text.index("<svg"):]
+def _hex(colour: int) -> str:
+    return f"#{colour:06x}"
 
 
-def _envelope(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The curve to draw: y itself, or for long series the min and max of each of
-    ``_PLOT_BUCKETS`` buckets, so that an SVG of a million samples stays small and no peak
-    (a speed or deviation spike) is lost."""
-    if len(y) <= 2 * _PLOT_BUCKETS:
-        return x, y
-    starts = np.linspace(0, len(y), _PLOT_BUCKETS + 1).astype(int)[:-1]
-    low, high = np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts)
-    return np.repeat(x[starts], 2), np.column_stack([low, high]).ravel()
+def _curve(panel: Panel, x: np.ndarray, y: np.ndarray, **style: Any) -> None:
+    panel.curve(*envelope(x, y, _PLOT_BUCKETS), **style)
 
 
-def _shade(ax: Any, traj: Trajectory) -> None:
-    woven = woven_moves(traj.task)
-    for s in traj.segments:
-        if s.kind == "crossing":
-            ax.axvspan(s.t0, s.t1, color="#f4b400", alpha=0.18, lw=0)
-        elif s.move in woven:
-            ax.axvspan(s.t0, s.t1, color="#00897b", alpha=0.10, lw=0)
+def _shaded(stretches: list[Stretch], duration_s: float) -> Callable[[], Panel]:
+    """A factory of panels with the timeline's shading (crossings, blends, pauses, weave)."""
+    spans = [(t0, t1, _hex(s.colour), _SHADED[s.kind]) for s in {s.kind: s for s in stretches}.values()
+             if s.kind in _SHADED for t0, t1 in _covered(stretches, s.kind, duration_s)]
+
+    def make() -> Panel:
+        panel = Panel()
+        for span in spans:
+            panel.span(*span)
+        return panel
+    return make
 
 
-def _joints(traj: Trajectory, robot: Robot) -> Callable[[plt.Figure], None]:
-    def draw(fig: plt.Figure) -> None:
-        n = len(traj.joint_names)
-        for j in range(n):
-            ax = fig.add_subplot(2, math.ceil(n / 2), j + 1)
-            _shade(ax, traj)
-            ax.plot(*_envelope(traj.t, np.degrees(traj.q[:, j])), lw=1.2)
-            for limit in (robot.lower_rad[j], robot.upper_rad[j]):
-                ax.axhline(math.degrees(limit), color="r", ls="--", lw=0.8)
-            ax.set_title(traj.joint_names[j], fontsize=9)
-            ax.tick_params(labelsize=7)
-    return draw
+def _covered(stretches: list[Stretch], kind: str, duration_s: float) -> list[tuple[float, float]]:
+    """The time spans [s] of a kind, at most one a plot bucket: spans closer than a bucket (a
+    program of thousands of fly-by corners) are merged, so the page stays bounded."""
+    bucket = max(duration_s, 1e-9) / _PLOT_BUCKETS
+    out: list[tuple[float, float]] = []
+    for s in stretches:
+        if s.kind != kind:
+            continue
+        if out and s.t0 - out[-1][1] < bucket:
+            out[-1] = (out[-1][0], max(out[-1][1], s.t1))
+        else:
+            out.append((s.t0, s.t1))
+    return out
 
 
-def _speed_ratio(traj: Trajectory, vmax: np.ndarray) -> Callable[[plt.Figure], None]:
-    def draw(fig: plt.Figure) -> None:
-        ax = fig.add_subplot(1, 1, 1)
-        _shade(ax, traj)
+def _path_length_axis(traj: Trajectory, s_mm: np.ndarray) -> Any:
+    """A top axis in path length [mm] (the TCP distance travelled since t = 0), for :attr:`Panel.top`."""
+    return "path length [mm]", lambda t: np.interp(t, traj.t, s_mm), lambda s: np.interp(s, s_mm, traj.t)
+
+
+def _joints(traj: Trajectory, robot: Robot, shaded: Callable[[], Panel]) -> _Draw:
+    def draw() -> list[Panel]:
+        panels = []
         for j, name in enumerate(traj.joint_names):
-            ratio = np.abs(np.diff(traj.q[:, j])) / traj.period / vmax[j]
-            ax.plot(*_envelope(traj.t[1:], ratio), lw=1, label=name)
-        ax.axhline(1.0, color="r", ls="--", lw=0.8)
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel("|qd| / limit")
-        ax.legend(fontsize=7, ncol=len(traj.joint_names))
+            panel = shaded()
+            panel.title = name
+            _curve(panel, traj.t, np.degrees(traj.q[:, j]))
+            for limit in (robot.lower_rad[j], robot.upper_rad[j]):
+                panel.hline(math.degrees(limit))
+            panels.append(panel)
+        return panels
     return draw
 
 
-def _torque_ratio(traj: Trajectory, robot: Robot, scale: float) -> Callable[[plt.Figure], None]:
+def _speed_ratio(traj: Trajectory, vmax: np.ndarray, shaded: Callable[[], Panel]) -> _Draw:
+    def draw() -> list[Panel]:
+        panel = shaded()
+        panel.xlabel, panel.ylabel, panel.legend = "t [s]", "|qd| / limit", True
+        for j, name in enumerate(traj.joint_names):
+            _curve(panel, traj.t[1:], np.abs(np.diff(traj.q[:, j])) / traj.period / vmax[j], label=name, width=1.0)
+        panel.hline(1.0)
+        return [panel]
+    return draw
+
+
+def _torque_ratio(traj: Trajectory, robot: Robot, scale: float, shaded: Callable[[], Panel]) -> _Draw:
     _, ratios = trajectory_torques(robot, traj.q, traj.period, effort_limits_nm(robot) * scale, series=True)
     assert ratios is not None
 
-    def draw(fig: plt.Figure) -> None:
-        ax = fig.add_subplot(1, 1, 1)
-        _shade(ax, traj)
+    def draw() -> list[Panel]:
+        panel = shaded()
+        panel.xlabel, panel.ylabel, panel.legend = "t [s]", "|tau| / limit", True
         for j, name in enumerate(traj.joint_names):
-            ax.plot(*_envelope(traj.t, ratios[:, j]), lw=1, label=name)
-        ax.axhline(1.0, color="r", ls="--", lw=0.8)
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel("|tau| / limit")
-        ax.legend(fontsize=7, ncol=len(traj.joint_names))
+            _curve(panel, traj.t, ratios[:, j], label=name, width=1.0)
+        panel.hline(1.0)
+        return [panel]
     return draw
 
 
-def _path_length_axis(ax: plt.Axes, traj: Trajectory, s_mm: np.ndarray) -> None:
-    """A top axis in path length [mm]: the TCP distance travelled since t = 0."""
-    def to_length(t: ArrayLike) -> ArrayLike:
-        return np.interp(np.asarray(t, dtype=float), traj.t, s_mm)
-
-    def to_time(s: ArrayLike) -> ArrayLike:
-        return np.interp(np.asarray(s, dtype=float), s_mm, traj.t)
-
-    top = ax.secondary_xaxis("top", functions=(to_length, to_time))
-    top.set_xlabel("path length [mm]", fontsize=8)
-    top.tick_params(labelsize=7)
-
-
-def _distances(traj: Trajectory, thresholds: list[float], s_mm: np.ndarray) -> Callable[[plt.Figure], None]:
+def _distances(traj: Trajectory, thresholds: list[float], s_mm: np.ndarray, shaded: Callable[[], Panel]) -> _Draw:
     d = traj.samples["distances"]
     series = [("wrist [deg]", np.degrees(d[:, 0]), thresholds[0]), ("shoulder [mm]", d[:, 1] * 1e3, thresholds[1]),
               ("elbow [deg]", np.degrees(d[:, 2]), thresholds[2])]
 
-    def draw(fig: plt.Figure) -> None:
-        for k, (label, values, thr) in enumerate(series):
-            ax = fig.add_subplot(1, 3, k + 1)
-            _shade(ax, traj)
-            ax.plot(*_envelope(traj.t, values), lw=1.2)
+    def draw() -> list[Panel]:
+        panels = []
+        for label, values, thr in series:
+            panel = shaded()
+            panel.title, panel.xlabel = label, "t [s]"
+            panel.top = _path_length_axis(traj, s_mm)
+            _curve(panel, traj.t, values)
             for sign in (-1, 1):
-                ax.axhline(sign * thr, color="r", ls="--", lw=0.8)
-            ax.axhline(0, color="k", lw=0.5)
-            ax.set_title(label, fontsize=9)
-            ax.set_xlabel("t [s]", fontsize=8)
-            _path_length_axis(ax, traj, s_mm)
+                panel.hline(sign * thr)
+            panel.hline(0.0, colour="#000000", dashed=False)
+            panels.append(panel)
+        return panels
     return draw
 
 
-def _deviation(traj: Trajectory, pos_tol_mm: float, ori_tol_deg: float,
-               s_mm: np.ndarray) -> Callable[[plt.Figure], None]:
-    def draw(fig: plt.Figure) -> None:
-        for k, (label, values, tol) in enumerate((
+def _deviation(traj: Trajectory, pos_tol_mm: float, ori_tol_deg: float, s_mm: np.ndarray,
+               shaded: Callable[[], Panel]) -> _Draw:
+    def draw() -> list[Panel]:
+        panels = []
+        for label, values, tol in (
                 ("position deviation [mm]", traj.samples["position_error_m"] * 1e3, pos_tol_mm),
-                ("orientation deviation [deg]", np.degrees(traj.samples["orientation_error_rad"]), ori_tol_deg))):
-            ax = fig.add_subplot(1, 2, k + 1)
-            _shade(ax, traj)
-            ax.plot(*_envelope(traj.t, values), lw=1.2)
-            ax.axhline(tol, color="r", ls="--", lw=0.8)
-            ax.set_title(label, fontsize=9)
-            ax.set_xlabel("t [s]", fontsize=8)
-            _path_length_axis(ax, traj, s_mm)
+                ("orientation deviation [deg]", np.degrees(traj.samples["orientation_error_rad"]), ori_tol_deg)):
+            panel = shaded()
+            panel.title, panel.xlabel = label, "t [s]"
+            panel.top = _path_length_axis(traj, s_mm)
+            _curve(panel, traj.t, values)
+            panel.hline(tol)
+            panels.append(panel)
+        return panels
     return draw
 
 
-def _tcp_speed(traj: Trajectory, step_m: np.ndarray) -> Callable[[plt.Figure], None]:
-    speed = step_m / traj.period
-    moves = traj.task["moves"]
-
-    def draw(fig: plt.Figure) -> None:
-        ax = fig.add_subplot(1, 1, 1)
-        _shade(ax, traj)
-        ax.plot(*_envelope(traj.t[1:], speed), lw=1.2, label="TCP speed")
-        for i, move in enumerate(moves):
+def _tcp_speed(traj: Trajectory, step_m: np.ndarray, shaded: Callable[[], Panel]) -> _Draw:
+    def draw() -> list[Panel]:
+        panel = shaded()
+        panel.xlabel, panel.ylabel = "t [s]", "[m/s]"
+        _curve(panel, traj.t[1:], step_m / traj.period, label="TCP speed")
+        by_move = segments_by_move(traj)
+        for i, move in enumerate(traj.task["moves"]):
             kind, spec = next(iter(move.items()))
-            segs = [s for s in traj.segments if s.move == i]
+            segs = by_move.get(i)
             if kind != "ptp" and segs:
-                ax.hlines(spec["speed"], segs[0].t0, segs[-1].t1, colors="r", linestyles="--", lw=0.8)
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel("[m/s]")
+                panel.hline(spec["speed"], x0=segs[0].t0, x1=segs[-1].t1)
+        return [panel]
     return draw
 
 
-def _stopping(traj: Trajectory) -> Callable[[plt.Figure], None]:
+def _stopping(traj: Trajectory, shaded: Callable[[], Panel]) -> _Draw:
     distance_mm = traj.samples["stopping_distance_m"] * 1e3
 
-    def draw(fig: plt.Figure) -> None:
-        ax = fig.add_subplot(1, 1, 1)
-        _shade(ax, traj)
-        ax.plot(*_envelope(traj.t, distance_mm), lw=1.2)
+    def draw() -> list[Panel]:
+        panel = shaded()
+        panel.xlabel, panel.ylabel = "t [s]", "stopping distance [mm]"
+        _curve(panel, traj.t, distance_mm)
         k = int(np.argmax(distance_mm))
-        ax.plot([traj.t[k]], [distance_mm[k]], "o", color="r", ms=4)
-        ax.annotate(f"{distance_mm[k]:.1f} mm", (traj.t[k], distance_mm[k]), textcoords="offset points",
-                    xytext=(6, -10), fontsize=8)
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel("stopping distance [mm]")
+        panel.point(traj.t[k], distance_mm[k], f"{distance_mm[k]:.1f} mm")
+        return [panel]
     return draw
+
+
+def _timeline(traj: Trajectory, stretches: list[Stretch]) -> str:
+    """A strip of the stretches coloured by kind (each names itself on hover; at most one a plot
+    bucket per kind) and their legend."""
+    scale = 100.0 / max(traj.duration_s, traj.period)
+    kinds = {s.kind: s.colour for s in stretches}  # in order of first appearance
+    strip = "".join(f'<i style="left:{t0 * scale:.3f}%;width:{max(0.05, (t1 - t0) * scale):.3f}%;'
+                    f'background:{_hex(colour)}" title="{html.escape(_LEGEND.get(kind, kind))}, '
+                    f't {t0:.3f}-{t1:.3f} s"></i>'
+                    for kind, colour in kinds.items() for t0, t1 in _covered(stretches, kind, traj.duration_s))
+    legend = "".join(f'<span><i style="background:{_hex(colour)}"></i>{html.escape(_LEGEND.get(kind, kind))}</span>'
+                     for kind, colour in kinds.items())
+    return (f'<div id="timeline" class="timeline">{strip}</div>'
+            f'<p class="legend">{legend} (0 - {traj.duration_s:.3f} s)</p>')
 
 
 def _table(header: list[str], rows: list[list[Any]]) -> str:
@@ -203,10 +210,12 @@ def _table(header: list[str], rows: list[list[Any]]) -> str:
 
 def _tables(traj: Trajectory) -> str:
     moves = []
+    by_move = segments_by_move(traj)
     for i, move in enumerate(traj.task["moves"]):
         kind = next(iter(move))
-        segs = [s for s in traj.segments if s.move == i]
-        moves.append([i, kind, f"{segs[0].t0:.3f}", f"{segs[-1].t1:.3f}", segs[0].config_before, segs[-1].config_after])
+        segs = by_move.get(i)
+        moves.append([i, kind, f"{segs[0].t0:.3f}", f"{segs[-1].t1:.3f}", segs[0].config_before, segs[-1].config_after]
+                     if segs else [i, kind, "-", "-", "-", "-"])
     crossings = [[s.move, s.singularity, s.method, f"{s.t0:.3f} .. {s.t1:.3f}",
                   f"{s.config_before} -> {s.config_after}", f"{s.details.get('max_position_error_mm', 0.0):.4f}",
                   f"{s.details.get('max_orientation_error_deg', 0.0):.4f}", f"{s.details.get('time_lost_s', 0.0):.3f}"]
@@ -228,40 +237,44 @@ def _tables(traj: Trajectory) -> str:
             + "<h2>Metrics</h2>" + _table(["metric", "value"], metrics))
 
 
-def report_html(traj: Trajectory, robot: Robot) -> str:
-    """The whole report page as one string."""
+def report_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -> str:
+    """The whole report page as one string; ``track`` is the trajectory's TCP track if already computed."""
+    track = track if track is not None else tcp_track(traj, robot)
+    stretches = timeline(traj, track)
+    shaded = _shaded(stretches, traj.duration_s)
     sing = traj.task.get("singularity", {})
     zone = sing.get("zone", {})
     vmax = robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", 1.0))
-    tcp = robot.tcp_positions(traj.q)  # (K, 3), formed in chunks
-    step_m = np.linalg.norm(np.diff(tcp, axis=0), axis=1)  # (K - 1,)
-    s_mm = np.concatenate([[0.0], np.cumsum(step_m)]) * 1e3  # (K,)
-    distances = [("distances", "Signed singular distances with the detection thresholds, against time (bottom) and "
-                                "path length (top).",
-                   _distances(traj, [zone.get("wrist_deg", 5.0), zone.get("shoulder_mm", 20.0),
-                                     zone.get("elbow_deg", 5.0)], s_mm), 3.3)
-                  ] if "distances" in traj.samples else []  # none for an arm without labels (7 joints)
-    figures = [
-        ("joints", "Joint positions [deg] with their limits (dashed); crossings shaded.", _joints(traj, robot), 4.5),
-        ("speed", "Joint speed as a fraction of its limit.", _speed_ratio(traj, vmax), 3.0),
-        *distances,
+    s_mm = track.length_m * 1e3
+    figures: list[tuple[str, str, _Draw, int, float]] = [
+        ("joints", "Joint positions [deg] with their limits (dashed); crossings shaded.",
+         _joints(traj, robot, shaded), math.ceil(len(traj.joint_names) / 2), 4.5),
+        ("speed", "Joint speed as a fraction of its limit.", _speed_ratio(traj, vmax, shaded), 1, 3.0),
+    ]
+    if "distances" in traj.samples:  # none for an arm without labels (7 joints)
+        figures.append(("distances", "Signed singular distances with the detection thresholds, against time (bottom) "
+                                     "and path length (top).",
+                        _distances(traj, [zone.get("wrist_deg", 5.0), zone.get("shoulder_mm", 20.0),
+                                          zone.get("elbow_deg", 5.0)], s_mm, shaded), 3, 3.3))
+    figures += [
         ("deviation", "Deviation from the programmed path with the tolerances, against time and path length.",
-         _deviation(traj, sing.get("position_tolerance_mm", 0.01), sing.get("orientation_tolerance_deg", 5.0), s_mm),
-         3.3),
-        ("tcp", "TCP speed against the programmed speed (dashed).", _tcp_speed(traj, step_m), 3.0),
+         _deviation(traj, sing.get("position_tolerance_mm", 0.01), sing.get("orientation_tolerance_deg", 5.0), s_mm,
+                    shaded), 2, 3.3),
+        ("tcp", "TCP speed against the programmed speed (dashed).", _tcp_speed(traj, track.step_m, shaded), 1, 3.0),
     ]
     if "stopping_distance_m" in traj.samples:
         figures.append(("stopping", "Stopping distance: how far the TCP would travel if every joint braked now at its "
-                                    "acceleration limit (the worst marked).", _stopping(traj), 3.0))
+                                    "acceleration limit (the worst marked).", _stopping(traj, shaded), 1, 3.0))
     limits = traj.task.get("limits", {})
     if no_dynamics_reason(robot) is None:
         scale = limits.get("torque_scale")
         limit = "effort x torque_scale" if scale is not None else "URDF effort, not enforced: no limits.torque_scale"
         figures.append(("torque", f"Joint torque (inverse dynamics of the samples) as a fraction of its limit "
-                                  f"({limit}).", _torque_ratio(traj, robot, float(scale or 1.0)), 3.0))
-    body = "".join(f'<figure id="plot-{key}">{_svg(draw, h)}<figcaption>{html.escape(cap)}</figcaption></figure>'
-                   for key, cap, draw, h in figures)
+                                  f"({limit}).", _torque_ratio(traj, robot, float(scale or 1.0), shaded), 1, 3.0))
+    body = "".join(f'<figure id="plot-{key}">{figure_svg(key, draw(), columns, h)}'
+                   f"<figcaption>{html.escape(cap)}</figcaption></figure>"
+                   for key, cap, draw, columns, h in figures)
     title = f"singplan report: {traj.robot}, {traj.duration_s:.3f} s"
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
             f"<style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>{_tables(traj)}"
-            f"<h2>Plots</h2>{body}</body></html>")
+            f"<h2>Timeline</h2>{_timeline(traj, stretches)}<h2>Plots</h2>{body}</body></html>")

@@ -1,13 +1,14 @@
 """Replay a trajectory in the browser: a self-contained HTML page, or a live meshcat server.
 
-The scene is the same in both: the robot's visual geometry through Pinocchio's
-MeshcatVisualizer, the programmed and executed TCP paths, markers at the crossings, and an
-animation of every link at the trajectory's real timing. For the page, no server is started:
-a recorder stands in for meshcat's ZMQ window and keeps the commands, and the template in
-:func:`viewer_dir` inlines meshcat's viewer bundle, replays them in order and adds the legend,
-the segment list, the crossing labels and the joint-speed strip, so it works offline in any
-current browser. :func:`serve_replay` sends the same commands to a meshcat server listening
-on loopback only, unless another address is asked for (:mod:`singplan.outputs.meshcat_server`).
+The scene is the same in both: the robot's visual geometry (:mod:`singplan.outputs.scene`), the
+programmed and executed TCP paths coloured by stretch kind (:mod:`singplan.outputs.timeline`),
+markers at the crossings, and an animation of every link at the trajectory's real timing. For
+the page, no server is started: a recorder stands in for meshcat's ZMQ window and keeps the
+commands, and the template in :func:`viewer_dir` inlines meshcat's viewer bundle, replays them
+in order and adds the legend, the segment list, the crossing labels and the joint-speed strip,
+so it works offline in any current browser. :func:`serve_replay` sends the same commands to a
+meshcat server listening on loopback only, unless another address is asked for
+(:mod:`singplan.outputs.meshcat_server`).
 """
 
 from __future__ import annotations
@@ -23,34 +24,42 @@ import re
 import socket
 import subprocess
 import sys
+from collections import Counter
 from dataclasses import dataclass
 from html import escape
 from pathlib import Path
 from typing import Any
 
 import meshcat
-import meshcat.animation
 import meshcat.geometry as mg
 import meshcat.transformations as mtf
 import numpy as np
 import pinocchio as pin
 import umsgpack
-from pinocchio.visualize import MeshcatVisualizer
 
-from singplan.errors import InputError, RobotModelError
+from singplan.errors import InputError
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot, bundled_robots, load_robot
 from singplan.outputs.choices import DEFAULT_HOST
-from singplan.planning.pieces import move_piece
-from singplan.planning.weave import drawing_count, woven_moves
+from singplan.outputs.scene import ROOT, AnimationCommand, RobotScene
+from singplan.outputs.timeline import (
+    Stretch,
+    TcpTrack,
+    display_kind,
+    kind_colour,
+    sample_range,
+    segments_by_move,
+    tcp_track,
+    timeline,
+)
+from singplan.planning.path import CartesianPiece, make_circ, make_lin
+from singplan.planning.weave import drawing_count, woven, woven_moves
 from singplan.results.files import check_output_file, text_writer, write_file
 from singplan.results.trajectory import Segment, Trajectory, load
-from singplan.task.load import parse_task
+from singplan.task.schema import Weave
 
 _SERVER_START_S = 60.0  # longest wait for the live server to report its address
 ANIMATION_STEP_S = 0.02  # animation keyframes at most this often; the browser interpolates between them
-SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575,
-                   "weave": 0x00897B}  # the segments of a woven move, but its crossings
 # What the page holds is bounded whatever the number of samples (a million samples would be
 # hundreds of MB of page and a minute of building): a time grid of at most so many points, more
 # where the joints move fast (no joint turns more than the turn between two kept samples, so a
@@ -76,10 +85,10 @@ class _Recorder:
     """Stands in for meshcat's ZMQ window: keeps the lowered commands instead of sending them."""
 
     def __init__(self) -> None:
-        self.commands: list[dict[str, Any]] = []
+        self.commands: list[dict[str, Any] | bytes] = []
 
     def send(self, command: Any) -> None:
-        self.commands.append(command.lower())
+        self.commands.append(command.packed() if isinstance(command, AnimationCommand) else command.lower())
 
 
 def _line(points: np.ndarray, colour: int, width: float = 2.0) -> mg.Line:
@@ -111,10 +120,11 @@ class TcpPath:
         return self.xyz[i]
 
 
-def tcp_path(traj: Trajectory, robot: Robot) -> TcpPath:
-    """The TCP path at the samples the page shows (:func:`kept_samples` at the path's density)."""
+def tcp_path(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -> TcpPath:
+    """The TCP path at the samples the page shows (:func:`kept_samples` at the path's density),
+    picked from ``track`` when given (FK already done for every sample)."""
     index = kept_samples(traj, 1, _PATH_POINTS, _PATH_TURN_RAD)
-    return TcpPath(index, robot.tcp_positions(traj.q[index]))
+    return TcpPath(index, robot.tcp_positions(traj.q[index]) if track is None else track.xyz[index])
 
 
 def kept_samples(traj: Trajectory, min_stride: int, grid_points: int, turn_rad: float) -> np.ndarray:
@@ -128,7 +138,7 @@ def kept_samples(traj: Trajectory, min_stride: int, grid_points: int, turn_rad: 
     travel = _joint_travel(traj.q)  # (K,) [rad], non-decreasing
     turn = max(turn_rad, float(travel[-1]) / grid_points)
     marks = np.searchsorted(travel, np.arange(turn, travel[-1], turn))  # first sample past each mark
-    bounds = [k for seg in traj.segments for k in (*_sample_range(traj, seg), _midpoint(traj, seg))]
+    bounds = [k for seg in traj.segments for k in (*sample_range(traj, seg), _midpoint(traj, seg))]
     keep = np.concatenate([np.arange(0, last + 1, stride), marks, np.clip(bounds, 0, last), [last]])
     return np.unique(keep.astype(np.int64))
 
@@ -148,64 +158,45 @@ _CHUNK = 65_536  # samples differenced at once (a few MB of temporaries)
 
 
 def _midpoint(traj: Trajectory, seg: Segment) -> int:
-    k0, k1 = _sample_range(traj, seg)
+    k0, k1 = sample_range(traj, seg)
     return (k0 + k1) // 2
 
 
-def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath, programmed: np.ndarray,
+def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Stretch],
            speed: float = 1.0, loop: bool = False, play: bool = False) -> None:
     """Send the replay scene to ``vis``: robot, paths, crossing markers and the animation."""
-    viz, full = _robot_visuals(vis, robot)
-    viz.display(full(traj.q[0]))
+    scene = RobotScene.of(robot)
+    shown = scene.send(vis, traj.q[0])
     vis["/Grid"].set_property("visible", False)  # the robot's base axes show the ground frame
-    vis["paths/programmed"].set_object(_line(programmed, 0x9E9E9E, 1.0))
-    _draw_segments(vis, traj, tcp)
-    # a frame is a sample: keyframes at any kept sample, the exact joint values there
-    animation = meshcat.animation.Animation(default_framerate=speed / traj.period)
+    vis["paths/programmed"].set_object(_line(programmed_path(traj, robot, tcp), 0x9E9E9E, 1.0))
+    _draw_segments(vis, traj, tcp, stretches)
+    # a frame is a sample: keyframes at kept samples, the exact joint values there
     step = max(1, round(ANIMATION_STEP_S / traj.period))
-    for k in kept_samples(traj, step, _KEYFRAMES, _KEYFRAME_TURN_RAD).tolist():
-        with animation.at_frame(vis, k) as frame:
-            viz.viewer = frame
-            viz.display(full(traj.q[k]))
-    viz.viewer = vis
-    _drop_still_clips(animation)
-    vis.set_animation(animation, play=play, repetitions=_LOOP_REPETITIONS if loop else 1)
+    frames = kept_samples(traj, step, _KEYFRAMES, _KEYFRAME_TURN_RAD)
+    xyz, quat = scene.poses(traj.q[frames])
+    # nodes that never move (the base) are left out: the scene already shows them there
+    moving = [g for g, name in enumerate(scene.names) if name in shown
+              and not (np.all(xyz[:, g] == xyz[0, g]) and np.all(quat[:, g] == quat[0, g]))]
+    paths = tuple(vis[f"{ROOT}/{scene.names[g]}"].path.lower() for g in moving)
+    vis.window.send(AnimationCommand(paths, frames.astype(float), xyz[:, moving], quat[:, moving], speed / traj.period,
+                                     play, _LOOP_REPETITIONS if loop else 1))
 
 
-def _drop_still_clips(animation: meshcat.animation.Animation) -> None:
-    """Remove the clips of nodes that never move (the base): the scene already shows them there."""
-    for path, clip in list(animation.clips.items()):
-        if all(all(v == track.values[0] for v in track.values) for track in clip.tracks.values()):
-            del animation.clips[path]
-
-
-def _robot_visuals(vis: meshcat.Visualizer, robot: Robot) -> tuple[MeshcatVisualizer, Any]:
-    """Pinocchio's meshcat visualiser of the robot's URDF visuals, and the chain -> model q map."""
-    # package:// meshes resolve against every folder above the URDF (example-robot-data's layout)
-    package_dirs = [str(p) for p in robot.urdf_path.parents]
-    try:
-        model, collision, visual = pin.buildModelsFromUrdf(str(robot.urdf_path), package_dirs=package_dirs)
-    except ValueError as exc:
-        raise RobotModelError(str(robot.urdf_path), f"cannot load its visual geometry for the replay ({exc})") from None
-    viz = MeshcatVisualizer(model, collision, visual)
-    viz.initViewer(viewer=vis)
-    viz.loadViewerModel(rootNodeName="robot")
-    return viz, _full_configuration(model, robot)
-
-
-def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath) -> None:
-    """The executed TCP path by segment kind (a line plus dots), and a marker at each crossing."""
-    woven = woven_moves(traj.task)
-    for n, seg in enumerate(traj.segments):
-        k0, k1 = _sample_range(traj, seg)
-        colour = _colour(seg, woven)
-        path = tcp.between(k0, k1)
-        vis[f"paths/executed/{n:03d}_{seg.kind}"].set_object(_line(path, colour, 3.0))
+def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath, stretches: list[Stretch]) -> None:
+    """The executed TCP path by stretch kind (a line plus dots), and a marker at each crossing."""
+    parts = Counter(s.segment for s in stretches)  # a segment split around a null-space pause has three
+    for j, stretch in enumerate(stretches):
+        seg = traj.segments[stretch.segment]
+        name = f"{stretch.segment:03d}_{seg.kind}" + (f"_{j}_{stretch.kind}" if parts[stretch.segment] > 1 else "")
+        path = tcp.between(stretch.k0, stretch.k1)
+        vis[f"paths/executed/{name}"].set_object(_line(path, stretch.colour, 3.0))
         # browsers draw lines one pixel wide: dots make the executed path readable at a glance
         points = np.asarray(path[::_DOT_EVERY], dtype=np.float32).T  # (3, M)
+        colour = stretch.colour
         rgb = np.array([(colour >> 16) & 255, (colour >> 8) & 255, colour & 255], dtype=np.float32)[:, None] / 255
         dots = mg.PointsGeometry(points, color=np.repeat(rgb, points.shape[1], axis=1))
-        vis[f"paths/dots/{n:03d}_{seg.kind}"].set_object(mg.Points(dots, mg.PointsMaterial(size=0.006)))
+        vis[f"paths/dots/{name}"].set_object(mg.Points(dots, mg.PointsMaterial(size=0.006)))
+    for n, seg in enumerate(traj.segments):
         if seg.kind == "crossing":
             marker = vis[f"crossings/{n:03d}_{seg.singularity}_{seg.method}"]
             marker.set_object(mg.Sphere(0.012), mg.MeshLambertMaterial(color=0xF4B400, opacity=0.8))
@@ -215,48 +206,62 @@ def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath) -> N
 _LOOP_REPETITIONS = 1_000_000  # meshcat's "loop": repeat the clip this many times
 
 
-def _sample_range(traj: Trajectory, seg: Segment) -> tuple[int, int]:
-    return round(seg.t0 / traj.period), round(seg.t1 / traj.period)
-
-
-def _full_configuration(model: pin.Model, robot: Robot) -> Any:
-    """Map the chain's joint values into the full URDF model (extra joints at neutral)."""
-    neutral = pin.neutral(model)
-    index = [model.joints[model.getJointId(name)].idx_q for name in robot.joint_names]
-
-    def full(q: np.ndarray) -> np.ndarray:
-        out = neutral.copy()
-        out[index] = q
-        return out
-
-    return full
-
-
 def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
-    """Points (M, 3) [m] of the programmed path: LIN/CIRC geometry from the task; PTP as executed."""
-    task = parse_task(traj.task)
+    """Points (M, 3) [m] of the programmed path: each LIN / CIRC (woven if it weaves) from the
+    task mapping's targets, as the planner built it from the same numbers; a PTP as executed."""
     points = []
     T = robot.fk(traj.q[0])
-    for i, move in enumerate(task.moves):
-        segs = [s for s in traj.segments if s.move == i]
-        k0, k1 = round(segs[0].t0 / traj.period), round(segs[-1].t1 / traj.period)
-        if move.kind == "ptp":
-            points.append(tcp.between(k0, k1))
-            T = robot.fk(traj.q[k1])
+    by_move = segments_by_move(traj)
+    for i, move in enumerate(traj.task["moves"]):
+        (kind, spec), = move.items()
+        segs = by_move.get(i)
+        if kind == "ptp":
+            if segs:
+                points.append(tcp.between(sample_range(traj, segs[0])[0], sample_range(traj, segs[-1])[1]))
+            T = _ptp_target(spec, T, robot)
             continue
-        piece = move_piece(i, move, T)
+        piece = _piece(kind, spec, T)
         points.append(piece.positions(np.linspace(0.0, 1.0, drawing_count(piece))))
         T = piece.T_end
-    return np.concatenate(points)
+    return np.concatenate(points) if points else tcp.xyz[:1]
 
 
-def replay_html(traj: Trajectory, robot: Robot) -> str:
-    """The replay page, a self-contained HTML document (the template and assets of :func:`viewer_dir`)."""
-    tcp = tcp_path(traj, robot)
+def _target(spec: dict[str, Any], T_start: pin.SE3) -> pin.SE3:
+    """A move's Cartesian target from its ``to``: orientation held from ``T_start`` without ``rpy_deg``."""
+    to = spec["to"]
+    rotation = rpy_deg_to_rotation(np.asarray(to["rpy_deg"], dtype=float)) if to.get("rpy_deg") is not None \
+        else T_start.rotation
+    return pin.SE3(rotation, np.asarray(to["xyz"], dtype=float))
+
+
+def _ptp_target(spec: dict[str, Any], T_start: pin.SE3, robot: Robot) -> pin.SE3:
+    to = spec["to"]
+    if to.get("joints_deg") is not None:
+        return robot.fk(np.radians(np.asarray(to["joints_deg"], dtype=float)))
+    return _target(spec, T_start)
+
+
+def _piece(kind: str, spec: dict[str, Any], T_start: pin.SE3) -> CartesianPiece:
+    """A LIN / CIRC of the validated task mapping, with its weave (the same geometry the planner used)."""
+    field = f"moves.{kind}"
+    target = _target(spec, T_start)
+    piece = make_lin(T_start, target, field) if kind == "lin" else \
+        make_circ(T_start, np.asarray(spec["via"]["xyz"], dtype=float), target, field)
+    weave = spec.get("weave")
+    return piece if not weave else woven(piece, Weave(str(weave["pattern"]), float(weave["amplitude_mm"]),
+                                                      float(weave["wavelength_mm"])), field)
+
+
+def replay_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -> str:
+    """The replay page, a self-contained HTML document (the template and assets of :func:`viewer_dir`);
+    ``track`` is the trajectory's TCP track if already computed (the report's)."""
+    track = track if track is not None else tcp_track(traj, robot)
+    tcp = tcp_path(traj, robot, track)
+    stretches = timeline(traj, track)
     recorder = _Recorder()
-    _scene(meshcat.Visualizer(window=recorder), traj, robot, tcp, programmed_path(traj, robot, tcp))
+    _scene(meshcat.Visualizer(window=recorder), traj, robot, tcp, stretches)
     assets = viewer_dir()
-    data = _page_data(traj, robot, tcp)
+    data = _page_data(traj, robot, tcp, stretches)
     data["commands"] = [base64.b64encode(_packed(c)).decode("ascii") for c in recorder.commands]
     title = escape(f"singplan replay: {traj.robot}, {traj.duration_s:.3f} s")
     fills = {"__TITLE__": title, "__CSS__": (assets / "replay.css").read_text(),
@@ -266,23 +271,23 @@ def replay_html(traj: Trajectory, robot: Robot) -> str:
     return re.sub(r"__(TITLE|CSS|MESHCAT|DATA|JS)__", lambda m: fills[m.group(0)], template)  # values not rescanned
 
 
-def _packed(command: dict[str, Any]) -> bytes:
-    """A command as meshcat's viewer reads it; the animation's keyframes in single precision
-    (0.1 um at 1 m, 1e-7 of a quaternion) take a third less of the page than doubles."""
-    precision = "single" if command["type"] == "set_animation" else "double"
-    return bytes(umsgpack.packb(command, force_float_precision=precision))
+def _packed(command: dict[str, Any] | bytes) -> bytes:
+    """A command as meshcat's viewer reads it (the animation comes packed, its keyframes in
+    single precision: a third less of the page than doubles)."""
+    return command if isinstance(command, bytes) else bytes(umsgpack.packb(command, force_float_precision="double"))
 
 
 def _meshcat_bundle() -> str:
     return (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text()
 
 
-def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath) -> dict[str, Any]:
-    """What replay.js shows besides the scene: segments, crossing labels, speed strip, camera."""
+def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Stretch] | None = None) -> dict[str, Any]:
+    """What replay.js shows besides the scene: segments, crossing labels, speed strip, camera, legend."""
     segments, labels = [], []
     woven = woven_moves(traj.task)
-    for seg in traj.segments:
-        title, detail = _describe(seg)
+    pauses = {s.segment: s for s in stretches or () if s.kind == "pause"}
+    for n, seg in enumerate(traj.segments):
+        title, detail = _describe(seg, pauses.get(n))
         title += " (woven)" if seg.move in woven and seg.kind != "crossing" else ""
         crossing = seg.kind == "crossing"
         t_jump = traj.t[_midpoint(traj, seg)] if crossing else seg.t0
@@ -300,7 +305,11 @@ def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath) -> dict[str, Any]:
     points = np.vstack([tcp.xyz, np.zeros((1, 3))])  # the path and the robot's base
     lo, hi = points.min(axis=0), points.max(axis=0)
     radius = max(0.3, 0.5 * float(np.linalg.norm(hi - lo)))
-    return {"duration": traj.duration_s, "colours": SEGMENT_COLOURS, "segments": segments, "labels": labels,
+    bands = [{"kind": s.kind, "t0": s.t0, "t1": s.t1, "colour": s.colour} for s in stretches] if stretches else \
+        [{"kind": display_kind(seg, woven), "t0": seg.t0, "t1": seg.t1, "colour": _colour(seg, woven)}
+         for seg in traj.segments]
+    return {"duration": traj.duration_s, "colours": {b["kind"]: b["colour"] for b in bands},
+            "segments": segments, "labels": labels, "bands": bands,
             "speed": {"t": np.round(traj.t[keep], 4).tolist(), "ratio": np.round(ratio[keep], 4).tolist()},
             "frame": {"center": (0.5 * (lo + hi)).tolist(), "distance": 2.2 * radius,
                       "direction": _VIEW_DIRECTION.tolist()}}
@@ -308,8 +317,7 @@ def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath) -> dict[str, Any]:
 
 def _colour(seg: Segment, woven: frozenset[int]) -> int:
     """A segment's colour: its kind's, or the weave's for a woven move's segments other than crossings."""
-    kind = "weave" if seg.move in woven and seg.kind != "crossing" else seg.kind
-    return SEGMENT_COLOURS.get(kind, 0)
+    return kind_colour(display_kind(seg, woven))
 
 
 def _extremes(values: np.ndarray, count: int) -> np.ndarray:
@@ -322,16 +330,20 @@ def _extremes(values: np.ndarray, count: int) -> np.ndarray:
                       for pick in (np.argmin, np.argmax)])
 
 
-def _describe(seg: Segment) -> tuple[str, str]:
+def _describe(seg: Segment, pause: Stretch | None = None) -> tuple[str, str]:
     """A segment's list entry: a title and a line of figures."""
     span = f"t {seg.t0:.3f}-{seg.t1:.3f} s, {seg.config_before}"
     if seg.kind != "crossing":
-        return f"move {seg.move}: {seg.kind}", span + ("" if seg.config_after == seg.config_before
-                                                       else f" -> {seg.config_after}")
+        what = "fly-by blend" if seg.kind == "blend" else seg.kind
+        return f"move {seg.move}: {what}", span + ("" if seg.config_after == seg.config_before
+                                                   else f" -> {seg.config_after}")
     d = seg.details
     title = f"move {seg.move}: {seg.singularity} crossing, {seg.method}, {seg.config_before} -> {seg.config_after}"
     detail = (f"t {seg.t0:.3f}-{seg.t1:.3f} s; deviation {d.get('max_position_error_mm', 0.0):.4f} mm / "
               f"{d.get('max_orientation_error_deg', 0.0):.3f} deg; time lost {d.get('time_lost_s', 0.0):.3f} s")
+    if "pause_s" in d:
+        at = f" at t {pause.t0:.3f}-{pause.t1:.3f} s" if pause is not None else ""
+        detail += f"; TCP paused {float(d['pause_s']):.3f} s{at} while the aligned joints turn"
     return title, detail
 
 
@@ -413,8 +425,8 @@ def serve_replay(traj: Trajectory, robot: Robot, speed: float = 1.0, loop: bool 
         with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its URL; the caller decides
             vis = meshcat.Visualizer(zmq_url=command_url)
         live = LiveReplay(vis.url(), host, vis, server)
-        tcp = tcp_path(traj, robot)
-        _scene(vis, traj, robot, tcp, programmed_path(traj, robot, tcp), speed=speed, loop=loop, play=True)
+        track = tcp_track(traj, robot)
+        _scene(vis, traj, robot, tcp_path(traj, robot, track), timeline(traj, track), speed=speed, loop=loop, play=True)
     except BaseException:
         _stop(server)
         raise

@@ -1,0 +1,125 @@
+"""What report and replay both show, computed once per trajectory: the TCP track and the timeline.
+
+:func:`tcp_track` runs forward kinematics over every sample once (in chunks) and keeps the TCP
+positions, the distance between samples and the path length; the report plots them and the
+replay picks its points from them, so neither redoes FK. :func:`timeline` turns the segments
+into stretches to colour: each segment by its kind ("path", "pre", "crossing", "post", "ptp",
+"blend", or any other kind a newer planner writes), a woven move's segments other than its
+crossings as "weave", and inside a null-space crossing (one with ``pause_s``) the samples at
+which the TCP stands still as "pause". No plotting or viewer module is imported here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from singplan.kinematics.robot import Robot
+from singplan.planning.weave import woven_moves
+from singplan.results.trajectory import Segment, Trajectory
+
+# one colour per stretch kind, for the report's shading and the replay's path and legend
+SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575,
+                   "blend": 0xE53935, "weave": 0x00897B, "pause": 0x8D6E63}
+OTHER_COLOUR = 0x000000  # a segment kind this version does not know
+_STILL_M = 1e-7  # a TCP step below this between two samples counts as standing still (0.1 um)
+
+
+@dataclass(frozen=True)
+class TcpTrack:
+    """The TCP at every sample.
+
+    Attributes:
+        xyz: positions [m] (K, 3) in the base frame.
+        step_m: distance [m] (K - 1,) between consecutive samples.
+        length_m: path length [m] (K,) travelled since t = 0.
+    """
+
+    xyz: np.ndarray
+    step_m: np.ndarray
+    length_m: np.ndarray
+
+
+def tcp_track(traj: Trajectory, robot: Robot) -> TcpTrack:
+    """FK once over every sample (``Robot.tcp_positions`` works in chunks: bounded temporaries)."""
+    xyz = robot.tcp_positions(traj.q)
+    step = np.empty(max(0, len(xyz) - 1))
+    for c in range(0, len(step), _CHUNK):
+        step[c:c + _CHUNK] = np.linalg.norm(np.diff(xyz[c:c + _CHUNK + 1], axis=0), axis=1)
+    return TcpTrack(xyz, step, np.concatenate([[0.0], np.cumsum(step)]))
+
+
+_CHUNK = 65_536  # samples differenced at once (a few MB of temporaries)
+
+
+@dataclass(frozen=True)
+class Stretch:
+    """A coloured stretch of the timeline.
+
+    Attributes:
+        kind: the segment's kind, "weave" for a woven move's segment, or "pause".
+        segment: index of the segment it belongs to.
+        k0, k1: first and last sample (both included).
+        t0, t1: their times [s].
+    """
+
+    kind: str
+    segment: int
+    k0: int
+    k1: int
+    t0: float
+    t1: float
+
+    @property
+    def colour(self) -> int:
+        return kind_colour(self.kind)
+
+
+def kind_colour(kind: str) -> int:
+    """The colour (0xRRGGBB) of a stretch kind; black for a kind this version does not know."""
+    return SEGMENT_COLOURS.get(kind, OTHER_COLOUR)
+
+
+def sample_range(traj: Trajectory, seg: Segment) -> tuple[int, int]:
+    """First and last sample of a segment."""
+    last = len(traj.t) - 1
+    return min(last, max(0, round(seg.t0 / traj.period))), min(last, max(0, round(seg.t1 / traj.period)))
+
+
+def segments_by_move(traj: Trajectory) -> dict[int, list[Segment]]:
+    """Each move's segments in time order (a move of a record without segments maps to none)."""
+    out: dict[int, list[Segment]] = {}
+    for seg in traj.segments:
+        out.setdefault(seg.move, []).append(seg)
+    return out
+
+
+def display_kind(seg: Segment, woven: frozenset[int]) -> str:
+    """A segment's colour kind: its own, or "weave" for a woven move's segments other than crossings."""
+    return "weave" if seg.move in woven and seg.kind not in ("crossing", "blend") else seg.kind
+
+
+def timeline(traj: Trajectory, track: TcpTrack) -> list[Stretch]:
+    """The stretches in time order: one a segment, a null-space crossing split around its pause."""
+    woven = woven_moves(traj.task)
+    out = []
+    for n, seg in enumerate(traj.segments):
+        k0, k1 = sample_range(traj, seg)
+        kind = display_kind(seg, woven)
+        pause = pause_window(track.step_m, k0, k1) if "pause_s" in seg.details else None
+        parts = [(kind, k0, k1)] if pause is None else [(kind, k0, pause[0]), ("pause", *pause), (kind, pause[1], k1)]
+        out += [Stretch(name, n, a, b, float(traj.t[a]), float(traj.t[b])) for name, a, b in parts if b > a]
+    return out
+
+
+def pause_window(step_m: np.ndarray, k0: int, k1: int) -> tuple[int, int] | None:
+    """The longest run of samples in k0..k1 between which the TCP stands still, as (first, last)
+    sample, or None if it never stands still for a step."""
+    still = np.concatenate([[False], step_m[k0:k1] < _STILL_M, [False]])
+    edges = np.flatnonzero(np.diff(still.astype(np.int8)))  # starts and ends of the runs of still steps
+    if len(edges) == 0:
+        return None
+    starts, ends = edges[0::2], edges[1::2]
+    i = int(np.argmax(ends - starts))
+    return k0 + int(starts[i]), k0 + int(ends[i])

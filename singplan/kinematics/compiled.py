@@ -8,7 +8,10 @@ scalar loop costs about what its arithmetic costs.
 Kernels are cached on disk (``cache=True``: next to the modules, or in numba's user cache
 when that folder is read-only; ``NUMBA_CACHE_DIR`` moves it), so only the first run after
 an install pays the compilation, about 10 s on two cores. numba checks a cached kernel
-against its own source file only, so a kernel calls kernels of its own module and no other.
+against its own source file only, so a kernel calls kernels of its own module and, for angle
+wraps and whole-turn shifts, those of :mod:`singplan.kinematics.angles` (the one home of those
+formulas): a change there must come with a cleared cache (delete the ``*.nbi`` / ``*.nbc``
+files, or point ``NUMBA_CACHE_DIR`` at a fresh folder).
 """
 
 from __future__ import annotations

@@ -47,6 +47,7 @@ import pinocchio as pin
 
 from singplan.errors import TaskError
 from singplan.kinematics import reduced
+from singplan.kinematics.angles import wrap
 from singplan.kinematics.compiled import jit
 from singplan.kinematics.geometry import cross3
 from singplan.kinematics.robot import Robot
@@ -307,9 +308,9 @@ def _opw_distances(q: np.ndarray, signs: np.ndarray, offsets: np.ndarray, a1: fl
     for i in range(q.shape[0]):
         t2, t3, t5 = (q[i, 1] * signs[1] - offsets[1], q[i, 2] * signs[2] - offsets[2],
                       q[i, 4] * signs[4] - offsets[4])
-        out[i, 0] = math.pi - (math.pi - t5) % (2.0 * math.pi)
+        out[i, 0] = wrap(t5)
         out[i, 1] = a1 + c2 * math.sin(t2) + k * math.sin(t2 + t3 + psi)
-        out[i, 2] = math.pi - (math.pi - (t3 + psi)) % (2.0 * math.pi)
+        out[i, 2] = wrap(t3 + psi)
     return out
 
 
@@ -328,8 +329,8 @@ def _ur_distances(q: np.ndarray, l2: float, l3: float, d5: float) -> np.ndarray:
     """:func:`distances_batch` of a UR arm: (-q5, shoulder, q3), angles wrapped to (-pi, pi]."""
     out = np.empty((q.shape[0], 3))
     for i in range(q.shape[0]):
-        out[i, 0] = math.pi - (math.pi + q[i, 4]) % (2.0 * math.pi)
+        out[i, 0] = wrap(-q[i, 4])
         q2, q23 = q[i, 1], q[i, 1] + q[i, 2]
         out[i, 1] = l2 * math.cos(q2) + l3 * math.cos(q23) - d5 * math.sin(q23 + q[i, 3])
-        out[i, 2] = math.pi - (math.pi - q[i, 2]) % (2.0 * math.pi)
+        out[i, 2] = wrap(q[i, 2])
     return out

@@ -30,7 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.kinematics import reduced
-from singplan.kinematics.angles import TWO_PI
+from singplan.kinematics.angles import shifted_toward, wrap_to_pi
 from singplan.kinematics.robot import Robot
 
 _HALTON_PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37)
@@ -142,7 +142,7 @@ def into_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarr
     The variant nearest the middle is the one inside the range whenever one exists.
     """
     middle = 0.5 * (lower + upper)
-    return np.clip(q + TWO_PI * np.round((middle - q) / TWO_PI), lower, upper)
+    return np.clip(shifted_toward(q, middle), lower, upper)
 
 
 def solve_lm(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray,
@@ -233,7 +233,7 @@ class _Found:
     def add(self, q: np.ndarray, origin: int) -> bool:
         """Keep ``q``; True when it is a new branch (a redundant arm's nearer point replaces the old)."""
         if self.key is None:
-            if any(np.all(np.abs(_wrap(q - r)) < _SAME_BRANCH_RAD) for r in self.rows):
+            if any(np.all(np.abs(wrap_to_pi(q - r)) < _SAME_BRANCH_RAD) for r in self.rows):
                 return False
             self.rows.append(q)
             self.origins.append(origin)
@@ -248,10 +248,6 @@ class _Found:
         self.origins.append(origin)
         self.keys.append(key)
         return True
-
-
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return a - TWO_PI * np.round(a / TWO_PI)
 
 
 def _distance(q: np.ndarray, seed: np.ndarray) -> float:
@@ -330,7 +326,7 @@ def _nearest_per_label(robot: Robot, T_base_tcp: pin.SE3, found: _Found, seed: n
     origins: list[int] = []
     for _, q, origin in sorted(best.values(), key=lambda item: item[0]):
         # on a label boundary one point carries both labels: keep it once
-        if not any(np.all(np.abs(_wrap(q - r)) < _SAME_BRANCH_RAD) for r in rows):
+        if not any(np.all(np.abs(wrap_to_pi(q - r)) < _SAME_BRANCH_RAD) for r in rows):
             rows.append(q)
             origins.append(origin)
     return rows, origins

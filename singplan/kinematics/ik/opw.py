@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from singplan.kinematics.angles import TWO_PI
+from singplan.kinematics.angles import wrap
 from singplan.kinematics.compiled import jit
 
 # A wrist centre this much [m per m of the arm's size] beyond a reach boundary (the stretched or
@@ -31,13 +31,6 @@ def _safe_acos(x: float, slack: float) -> float:
     if not abs(x) <= 1.0 + slack:  # also NaN
         return math.nan
     return math.acos(min(1.0, max(-1.0, x)))
-
-
-@jit
-def wrap(angle: float) -> float:
-    """An angle [rad] wrapped to (-pi, pi]."""
-    wrapped = angle - TWO_PI * np.rint(angle / TWO_PI)
-    return wrapped + TWO_PI if wrapped <= -math.pi else wrapped
 
 
 @jit

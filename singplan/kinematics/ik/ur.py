@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from singplan.kinematics.angles import nearest_shifted
+from singplan.kinematics.angles import nearest_shifted, wrap
 from singplan.kinematics.compiled import jit
 
 if TYPE_CHECKING:  # robot.py recognises families with this module's solver
@@ -174,7 +174,7 @@ def _branches(T: np.ndarray, a_seed: np.ndarray, d1: float, lateral: float, l2: 
                     row[0], row[1], row[2] = q1, q2, q3
                     row[3], row[4], row[5] = a - math.pi - q2 - q3, q5, q6
                     for j in range(6):
-                        row[j] = math.pi - (math.pi - row[j]) % (2.0 * math.pi)
+                        row[j] = wrap(row[j])
     return out
 
 

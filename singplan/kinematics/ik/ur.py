@@ -192,7 +192,7 @@ def _free_wrist_angle(a_seed: float, x: float, z: float, d5: float, l2: float, l
     if radius * d5 == 0.0:
         return a_seed
     theta = math.atan2(x, z)
-    delta = math.atan2(math.sin(a_seed - theta), math.cos(a_seed - theta))
+    delta = wrap(a_seed - theta)
     c_far = (radius * radius + d5 * d5 - (l2 + l3) ** 2) / (2.0 * d5 * radius)
     c_near = (radius * radius + d5 * d5 - (l2 - l3) ** 2) / (2.0 * d5 * radius)
     c = math.cos(delta)

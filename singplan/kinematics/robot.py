@@ -258,9 +258,9 @@ class Robot:
         return J
 
     def joint_placements(self, q: np.ndarray) -> list[pin.SE3]:
-        """Placements of the joint frames 1..n in the base frame."""
+        """Placements of the joint frames 1..n in the base frame (copies: ``data`` changes on the next call)."""
         pin.forwardKinematics(self.model, self.data, q)
-        return [self.data.oMi[i] for i in range(1, self.model.njoints)]
+        return [self.data.oMi[i].copy() for i in range(1, self.model.njoints)]
 
     def wrist_center(self, q: np.ndarray) -> np.ndarray:
         """Wrist centre [m] in the base frame: the origin of joint 5's frame.

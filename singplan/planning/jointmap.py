@@ -217,11 +217,11 @@ def axis_solve(robot: Robot, q: np.ndarray, T_target: np.ndarray, fixed: int, ex
     def residual(qk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         T = robot.fk(qk)
         M = R_star.T @ T.rotation
-        J = robot.jacobian(qk)
-        rows = np.vstack([J[:3], pin.Jlog3(M) @ T.rotation.T @ J[3:]])
-        return -w * np.concatenate([T.translation - p_star, pin.log3(M)]), rows * w[:, None]
+        J = robot.jacobian(qk)  # a fresh array: its rotation rows become those of log3's error
+        J[3:] = pin.Jlog3(M) @ T.rotation.T @ J[3:]
+        return -w * np.concatenate([T.translation - p_star, pin.log3(M)]), J * w[:, None]
 
-    free = [j for j in range(robot.n_joints) if j != fixed]
+    free = np.arange(robot.n_joints) != fixed
     q = damped_solve(residual, q, free, step_tol=1e-13, iterations=iterations)
     if exact == "position":
         return position_solve(robot, q, p_star)

@@ -88,7 +88,7 @@ def damped_step(J: np.ndarray, err: np.ndarray, damping: float, rcond: float | N
     return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), err)
 
 
-def damped_solve(residual: Residual, q: np.ndarray, joints: slice | list[int], damping: float = 0.0,
+def damped_solve(residual: Residual, q: np.ndarray, joints: slice | list[int] | np.ndarray, damping: float = 0.0,
                  rcond: float | None = None, tol: float = 0.0, step_tol: float = 0.0,
                  max_step: float = math.inf, iterations: int = 30) -> np.ndarray:
     """Joints ``q`` with ``joints`` moved by damped Gauss-Newton until the residual vanishes; the best found.
@@ -99,13 +99,14 @@ def damped_solve(residual: Residual, q: np.ndarray, joints: slice | list[int], d
     under ``tol`` (max norm, before a step), the step under ``step_tol``, or after ``iterations``.
     """
     q = np.array(q, dtype=float)
+    sized = step_tol > 0.0 or max_step < math.inf  # the step's size is needed (not free in a loop of microseconds)
     for _ in range(iterations):
         err, J = residual(q)
-        if float(np.max(np.abs(err))) < tol:
+        if tol > 0.0 and float(np.max(np.abs(err))) < tol:
             break
         step = damped_step(J[:, joints], err, damping, rcond)
-        size = float(np.max(np.abs(step)))
-        q[joints] += step * min(1.0, max_step / max(size, 1e-300))
+        size = float(np.max(np.abs(step))) if sized else 0.0
+        q[joints] += step if size <= max_step else step * (max_step / size)
         if size < step_tol:
             break
     return q

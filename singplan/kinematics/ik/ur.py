@@ -224,9 +224,8 @@ def ur_arm_for_point(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.n
 
 def _tcp_in_joint3(robot: Robot, q: np.ndarray) -> np.ndarray:
     """The TCP in the closed form's joint-3 frame (the URDF's, or its layout's: T_joint3_closed)."""
-    T_base_tcp = robot.fk(q)  # also places joint 3 in robot.data
-    frame3 = robot.data.oMi[3] * pin.SE3(robot.recognition.T_joint3_closed)
-    return np.asarray(frame3.actInv(T_base_tcp.translation))
+    frame3 = robot.joint_placements(q)[2] * pin.SE3(robot.recognition.T_joint3_closed)
+    return np.asarray(frame3.actInv(robot.fk(q).translation))
 
 
 @jit

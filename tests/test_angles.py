@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import hashlib
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from singplan.kinematics import angles, compiled, configuration
 from singplan.kinematics.angles import (
     TWO_PI,
     nearest_row,
@@ -18,6 +21,8 @@ from singplan.kinematics.angles import (
     wrap_deg,
     wrap_to_pi,
 )
+from singplan.kinematics.ik import opw
+from singplan.planning import tracking
 
 
 def test_wrap_to_pi_lands_in_the_half_open_interval_and_keeps_the_angle() -> None:
@@ -73,3 +78,15 @@ def test_wrap_deg_lands_in_the_half_open_interval() -> None:
     a = np.array([-180.0, 180.0, 540.0, -540.0, 0.0, 359.0, -359.0, 1e-20, -1e-20])
     np.testing.assert_allclose(wrap_deg(a), [180.0, 180.0, 180.0, 180.0, 0.0, -1.0, 1.0, 1e-20, -1e-20], atol=1e-12)
     assert wrap_deg(np.array([1e-20]))[0] > 0.0  # the mod form this replaced gave 0 here
+
+
+def test_kernels_are_cached_under_the_digest_of_angles_py() -> None:
+    """numba checks a cached kernel against its own file only: the callers of the angles kernels
+    (here the tracker's loop) are cached under a name that changes with angles.py."""
+    source = Path(compiled.__file__).with_name("angles.py").read_bytes()
+    assert hashlib.sha256(source).hexdigest()[:12] == compiled.SHARED_DIGEST
+    for kernel in (tracking._follow, configuration._opw_distances, opw.branches, nearest_row):
+        assert kernel.py_func.__qualname__.endswith(f"__{compiled.SHARED_DIGEST}")
+    nearest_shifted(np.zeros((1, 1, 6)), np.zeros((1, 6)))  # compiled or loaded: its cache files exist
+    folder = Path(angles._nearest_rows.stats.cache_path)
+    assert list(folder.glob(f"angles._nearest_rows__{compiled.SHARED_DIGEST}-*.nbi"))

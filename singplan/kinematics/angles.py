@@ -2,9 +2,8 @@
 
 Every wrap and every whole-turn shift of the package is written here once: numpy forms for
 arrays, compiled scalar kernels for the per-sample loops of other modules (the OPW and UR
-closed forms, the singular distances, the tracker). numba checks a cached kernel against its
-own source file only (:mod:`singplan.kinematics.compiled`), so a change to a kernel here must
-come with a cleared cache.
+closed forms, the singular distances, the tracker). Those callers' cached kernels are keyed on
+this file's digest too (:mod:`singplan.kinematics.compiled`): a change here compiles them again.
 """
 
 from __future__ import annotations

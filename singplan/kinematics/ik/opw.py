@@ -157,4 +157,4 @@ def arm_for_point(q_opw: np.ndarray, point: np.ndarray, targets: np.ndarray, a1:
 def kernels_cached() -> bool:
     """Whether numba's disk cache already holds singplan's kernels (judged by this module's)."""
     folder = branches.stats.cache_path  # None when numba found no writable cache folder
-    return folder is not None and any(Path(folder).glob("opw.branches-*.nbi"))
+    return folder is not None and any(Path(folder).glob(f"opw.{branches.py_func.__qualname__}-*.nbi"))

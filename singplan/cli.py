@@ -23,7 +23,7 @@ import time
 import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, TextIO
+from typing import TYPE_CHECKING, TextIO, TypedDict
 
 from singplan.errors import InputError, SingplanError
 from singplan.outputs.choices import DEFAULT_FILE_NAMES, DEFAULT_HOST, FORMATS, UR_STEP_S
@@ -77,7 +77,40 @@ def cmd_robots(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     return 0
 
 
-def _info(robot: Robot) -> dict[str, object]:
+class _JointInfo(TypedDict):
+    name: str
+    lower_deg: float
+    upper_deg: float
+    velocity_deg_s: float
+
+
+class _MethodInfo(TypedDict):
+    method: str
+    applies: bool
+    note: str
+
+
+class _Verification(TypedDict):
+    samples: int
+    residual_m: float
+    residual_rad: float
+
+
+class _RobotInfo(TypedDict):
+    """What `singplan info` shows (and writes as JSON with --json)."""
+
+    robot: str
+    urdf: str
+    family: str
+    parameters: dict[str, object] | None
+    verification: _Verification | None
+    not_recognised_as: dict[str, str]
+    tip: str
+    joints: list[_JointInfo]
+    crossing_methods: list[_MethodInfo]
+
+
+def _info(robot: Robot) -> _RobotInfo:
     """What `singplan info` shows: family and its verified parameters, tip, joints, crossing methods."""
     from singplan.kinematics.families import VERIFY_SAMPLES
 
@@ -90,13 +123,13 @@ def _info(robot: Robot) -> dict[str, object]:
                   "sign_corrections": list(p.sign_corrections)}
     elif rec.ur is not None:
         params = dataclasses.asdict(rec.ur)
-    joints = [{"name": name, "lower_deg": math.degrees(lo), "upper_deg": math.degrees(hi),
-               "velocity_deg_s": math.degrees(v)}
-              for name, lo, hi, v in zip(robot.joint_names, robot.lower_rad, robot.upper_rad, robot.velocity_rad_s,
-                                         strict=True)]
+    joints: list[_JointInfo] = [
+        {"name": name, "lower_deg": math.degrees(lo), "upper_deg": math.degrees(hi), "velocity_deg_s": math.degrees(v)}
+        for name, lo, hi, v in zip(robot.joint_names, robot.lower_rad, robot.upper_rad, robot.velocity_rad_s,
+                                   strict=True)]
     how = rec.how()
-    methods = [{"method": m, "applies": not why, "note": why or how.get(m, "")}
-               for m, why in rec.crossing_methods().items()]
+    methods: list[_MethodInfo] = [{"method": m, "applies": not why, "note": why or how.get(m, "")}
+                                  for m, why in rec.crossing_methods().items()]
     return {"robot": robot.name, "urdf": str(robot.urdf_path), "family": rec.family, "parameters": params,
             "verification": {"samples": VERIFY_SAMPLES, "residual_m": rec.residual_m,
                              "residual_rad": rec.residual_rad} if params is not None else None,
@@ -111,20 +144,18 @@ def cmd_info(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         out.write(json.dumps(info, indent=2) + "\n")
         return 0
     out.write(f"{info['robot']}: {info['urdf']}\nfamily: {info['family']}\n")
-    params = info["parameters"]
-    if isinstance(params, dict):
+    params, check = info["parameters"], info["verification"]
+    if params is not None and check is not None:
         out.write("parameters: " + ", ".join(f"{k} {v}" for k, v in params.items()) + "\n")
-        check = info["verification"]
-        assert isinstance(check, dict)
         out.write(f"verified by FK on {check['samples']} random joint values: {check['residual_m']:.2g} m, "
                   f"{check['residual_rad']:.2g} rad\n")
-    for name, why in dict(info["not_recognised_as"]).items():  # type: ignore[call-overload]
+    for name, why in info["not_recognised_as"].items():
         out.write(f"not {name}: {why}\n")
     out.write(f"tip: {info['tip']}\n{'joint':24s} {'lower [deg]':>11s} {'upper [deg]':>11s} {'speed [deg/s]':>13s}\n")
-    for j in info["joints"]:  # type: ignore[attr-defined]
+    for j in info["joints"]:
         out.write(f"{j['name']:24s} {j['lower_deg']:11.2f} {j['upper_deg']:11.2f} {j['velocity_deg_s']:13.2f}\n")
     out.write("crossing methods:\n")
-    for m in info["crossing_methods"]:  # type: ignore[attr-defined]
+    for m in info["crossing_methods"]:
         out.write(f"  {m['method']:12s} {'yes' if m['applies'] else 'no':3s} {m['note']}\n")
     return 0
 

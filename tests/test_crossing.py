@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
+import yaml
 
-from singplan.errors import PlanningError
+from singplan.errors import PlanningError, SingularityError
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import load_robot
 from singplan.planning.crossing.registry import candidates
@@ -137,15 +139,29 @@ def test_axis_seams_at_the_shoulder_are_c1() -> None:
 def test_auto_keeps_exact_tracking_when_the_tolerance_is_tight() -> None:
     doc = _shoulder_near_miss(0.0002)
     doc["singularity"] = {"method": "auto", "position_tolerance_mm": 0.01}
-    with pytest.raises(PlanningError, match="exact"):
-        plan(parse_task(doc))  # exact breaks a joint limit here and axis breaks the tolerance
+    with pytest.raises(PlanningError, match="no method could plan it") as info:
+        plan(parse_task(doc))
+    # exact breaks a joint limit here and axis breaks the tolerance: each says so with its figures
+    text = str(info.value)
+    assert re.search(r"exact: move 0 \(lin\): following the path with the full pose drives joint_5 to 120\.\d+ deg "
+                     r".*outside its limits \[-120\.0, 120\.0\] deg", text), text
+    assert re.search(r"axis: move 0 \(lin\): the crossing in the shoulder zone deviates 0\.2\d* mm / \d\.\d+ deg .*"
+                     r"over the tolerance 0\.01 mm / 5 deg", text), text
 
 
 @pytest.mark.parametrize("method", ["ptp", "dls", "average"])
 def test_baselines_leave_the_path_and_say_so(method: str) -> None:
-    with pytest.raises(PlanningError) as info:
-        plan(NEAR_MISS, method=method)
-    assert "move 0" in str(info.value)
+    """Refused for the deviation itself: an acceleration limit the baselines' abrupt joints can keep
+    leaves the tolerance (0.01 mm / 2 deg) as the only thing they break."""
+    doc = yaml.safe_load(NEAR_MISS.read_text())
+    doc["limits"]["acceleration"] = 1000.0
+    with pytest.raises(SingularityError) as info:
+        plan(parse_task(doc), method=method)
+    found = re.search(r"move 0 \(lin\): the crossing in the wrist zone deviates (\d+\.\d+) mm / (\d+\.\d+) deg "
+                      r"at s = [\d.]+ mm along the path .*, over the tolerance 0\.01 mm / 2 deg", str(info.value))
+    assert found, str(info.value)
+    assert float(found.group(1)) > 0.05  # [mm]: five times the tolerance at least (0.06 to 11 mm)
+    assert (info.value.move, info.value.kind) == (0, "wrist") and info.value.s_m > 0.0
 
 
 def test_summary_names_the_choice_the_runner_up_and_the_time_saved() -> None:

@@ -23,8 +23,9 @@ import yaml
 
 from singplan.cli import main
 from singplan.kinematics.configuration import distances_batch
+from singplan.kinematics.ik.numeric import pose_error
 from singplan.kinematics.robot import bundled_robots, load_robot
-from singplan.planning.crossing.nullspace import _NoSelfMotionError, pose_error, self_motion
+from singplan.planning.crossing.nullspace import _NoSelfMotionError, self_motion
 from singplan.planning.path import rotation_angle
 from singplan.planning.zones import KIND_INDEX
 

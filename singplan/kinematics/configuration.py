@@ -47,6 +47,7 @@ import pinocchio as pin
 
 from singplan.errors import TaskError
 from singplan.kinematics import reduced
+from singplan.kinematics.angles import wrap
 from singplan.kinematics.compiled import jit
 from singplan.kinematics.geometry import cross3
 from singplan.kinematics.robot import Robot
@@ -115,6 +116,15 @@ class _Reference(NamedTuple):
     has_wrist: bool  # axes 4 and 6 both off axis 5: turning joint 5 makes axes 4, 5, 6 coplanar somewhere
 
 
+class _Chain(NamedTuple):
+    """The joints at one configuration, in the base frame."""
+
+    origins: list[np.ndarray]  # joint frames' origins 1..n
+    axes: list[np.ndarray]  # unit joint axes 1..n
+    frame1: pin.SE3  # joint 1's frame
+    frame5: pin.SE3  # joint 5's frame
+
+
 @dataclass(frozen=True)
 class _Frames:
     """Joint origins and axes (base frame) at one configuration."""
@@ -125,12 +135,12 @@ class _Frames:
     forward: np.ndarray
 
 
-def _axes_and_origins(robot: Robot, q: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
+def _chain(robot: Robot, q: np.ndarray) -> _Chain:
     model, data = robot.model, robot.data
     J = pin.computeJointJacobians(model, data, q)  # WORLD frame: columns carry joint axes
     origins = [np.array(data.oMi[i].translation) for i in range(1, model.njoints)]
     axes = [np.array(J[3:, model.joints[i].idx_v]) for i in range(1, model.njoints)]
-    return origins, axes
+    return _Chain(origins, axes, data.oMi[1].copy(), data.oMi[5].copy())  # copies: data changes on the next call
 
 
 def _closest_point_on_first(p1: np.ndarray, d1: np.ndarray, p2: np.ndarray, d2: np.ndarray) -> np.ndarray:
@@ -147,18 +157,20 @@ def _closest_point_on_first(p1: np.ndarray, d1: np.ndarray, p2: np.ndarray, d2: 
 @lru_cache(maxsize=64)
 def _reference(robot: Robot) -> _Reference:
     q0 = np.zeros(robot.n_joints)
-    origins, axes = _axes_and_origins(robot, q0)
+    chain = _chain(robot, q0)
+    origins, axes = chain.origins, chain.axes
     z1 = axes[0]
     up = z1 if float(z1 @ origins[1]) >= 0 else -z1  # origins are relative to the base origin
     wrist = _closest_point_on_first(origins[4], axes[4], origins[5], axes[5])
-    wrist_in_link5 = np.array(robot.data.oMi[5].actInv(wrist))
-    forward_in_link1 = _forward_in_link1(robot, up, axes[1])
+    wrist_in_link5 = np.array(chain.frame5.actInv(wrist))
+    forward_in_link1 = _forward_in_link1(robot, chain, up)
     # the signs are read at the OPW zero where there is one: the same arm pose whatever the file's zero
     q_ref = q0 if robot.opw is None else robot.opw.offsets * robot.opw.signs
     if robot.opw is not None:
-        origins, axes = _axes_and_origins(robot, q_ref)
-        wrist = np.array(robot.data.oMi[5].act(wrist_in_link5))
-    forward = _forward(robot, up, forward_in_link1)
+        chain = _chain(robot, q_ref)
+        origins, axes = chain.origins, chain.axes
+        wrist = np.array(chain.frame5.act(wrist_in_link5))
+    forward = _forward(chain, up, forward_in_link1)
     tool0 = robot.fk_tip(q_ref).translation
     elbow_joint = 4 if _parallel(axes[1], axes[3]) and _parallel(axes[2], axes[3]) else 0
     sign4 = 1.0 if float(axes[3] @ (wrist - origins[2])) >= 0 else -1.0
@@ -174,8 +186,8 @@ def _reference(robot: Robot) -> _Reference:
     return _Reference(up, sign4, sign5, sign6, wrist_in_link5, forward_in_link1, elbow_joint, has_wrist)
 
 
-def _forward_in_link1(robot: Robot, up: np.ndarray, axis2: np.ndarray) -> np.ndarray:
-    """The arm's forward direction in joint 1's frame (read with robot.data at q = 0).
+def _forward_in_link1(robot: Robot, chain: _Chain, up: np.ndarray) -> np.ndarray:
+    """The arm's forward direction in joint 1's frame (``chain`` at q = 0).
 
     For an OPW arm the OPW x axis (the arm plane at q1_opw = 0), for a UR arm its closed form's
     x axis (ur_description's base x at q1 = 0). Otherwise the direction
@@ -183,18 +195,18 @@ def _forward_in_link1(robot: Robot, up: np.ndarray, axis2: np.ndarray) -> np.nda
     frames), pointing along joint 1's x axis as ROS-Industrial files do, or where that x is
     perpendicular to it, towards the shoulder joint's offset from axis 1 (else either way).
     """
-    R1 = robot.data.oMi[1].rotation
+    R1 = chain.frame1.rotation
     R_base_closed = robot.recognition.T_base_closed[:3, :3]
     if robot.opw is not None:
         t1 = -robot.opw.offsets_rad[0]  # OPW angle of joint 1 at the robot's zero
         return R1.T @ R_base_closed @ np.array([math.cos(t1), math.sin(t1), 0.0])
     if robot.ur is not None:  # the closed form's x at q = 0, whatever the file's joint-1 frame
         return R1.T @ R_base_closed @ np.array([1.0, 0.0, 0.0])
-    across = cross3(axis2, up)
+    across = cross3(chain.axes[1], up)
     if float(np.linalg.norm(across)) < 1e-9:  # axis 2 along axis 1: keep joint 1's x
         return np.array([1.0, 0.0, 0.0])
     across = across / np.linalg.norm(across)
-    offset = robot.data.oMi[2].translation - robot.data.oMi[1].translation
+    offset = chain.origins[1] - chain.origins[0]
     for hint in (R1[:, 0], offset):
         dot = float(across @ hint)
         if abs(dot) > 1e-9:
@@ -206,17 +218,17 @@ def _parallel(a: np.ndarray, b: np.ndarray) -> bool:
     return float(np.linalg.norm(cross3(a, b))) < 1e-9
 
 
-def _forward(robot: Robot, up: np.ndarray, forward_in_link1: np.ndarray) -> np.ndarray:
-    x1 = robot.data.oMi[1].rotation @ forward_in_link1
+def _forward(chain: _Chain, up: np.ndarray, forward_in_link1: np.ndarray) -> np.ndarray:
+    x1 = chain.frame1.rotation @ forward_in_link1
     f = x1 - float(x1 @ up) * up
     return f / np.linalg.norm(f)
 
 
 def _frames(robot: Robot, q: np.ndarray) -> tuple[_Reference, _Frames]:
     ref = _reference(robot)
-    origins, axes = _axes_and_origins(robot, q)
-    wrist = np.array(robot.data.oMi[5].act(ref.wrist_in_link5))
-    return ref, _Frames(origins, axes, wrist, _forward(robot, ref.up, ref.forward_in_link1))
+    chain = _chain(robot, q)
+    wrist = np.array(chain.frame5.act(ref.wrist_in_link5))
+    return ref, _Frames(chain.origins, chain.axes, wrist, _forward(chain, ref.up, ref.forward_in_link1))
 
 
 def _signed_distances(ref: _Reference, fr: _Frames) -> tuple[float, float, float]:
@@ -307,9 +319,9 @@ def _opw_distances(q: np.ndarray, signs: np.ndarray, offsets: np.ndarray, a1: fl
     for i in range(q.shape[0]):
         t2, t3, t5 = (q[i, 1] * signs[1] - offsets[1], q[i, 2] * signs[2] - offsets[2],
                       q[i, 4] * signs[4] - offsets[4])
-        out[i, 0] = math.pi - (math.pi - t5) % (2.0 * math.pi)
+        out[i, 0] = wrap(t5)
         out[i, 1] = a1 + c2 * math.sin(t2) + k * math.sin(t2 + t3 + psi)
-        out[i, 2] = math.pi - (math.pi - (t3 + psi)) % (2.0 * math.pi)
+        out[i, 2] = wrap(t3 + psi)
     return out
 
 
@@ -328,8 +340,8 @@ def _ur_distances(q: np.ndarray, l2: float, l3: float, d5: float) -> np.ndarray:
     """:func:`distances_batch` of a UR arm: (-q5, shoulder, q3), angles wrapped to (-pi, pi]."""
     out = np.empty((q.shape[0], 3))
     for i in range(q.shape[0]):
-        out[i, 0] = math.pi - (math.pi + q[i, 4]) % (2.0 * math.pi)
+        out[i, 0] = wrap(-q[i, 4])
         q2, q23 = q[i, 1], q[i, 1] + q[i, 2]
         out[i, 1] = l2 * math.cos(q2) + l3 * math.cos(q23) - d5 * math.sin(q23 + q[i, 3])
-        out[i, 2] = math.pi - (math.pi - q[i, 2]) % (2.0 * math.pi)
+        out[i, 2] = wrap(q[i, 2])
     return out

@@ -26,6 +26,8 @@ from singplan.kinematics.ik.ur import UrParameters
 
 logger = logging.getLogger(__name__)
 
+# joint acceleration limit of a robot loaded without a task (the task's limits.acceleration, whose
+# default task.schema.DEFAULT_ACCELERATION_RAD_S2 equals it, replaces it for planning)
 DEFAULT_ACCELERATION_RAD_S2 = 10.0
 SUPPORTED_JOINT_COUNTS = (5, 6, 7)  # actuated revolute joints from the root to the tip
 MAX_URDF_BYTES = 32 * 1024 * 1024
@@ -34,6 +36,11 @@ MAX_JOINT_SPAN_RAD = 8 * math.pi  # 4 turns: the IK lists every 2*pi variant ins
 _FK_CHUNK = 16_384  # samples whose chain transforms are formed at once (~0.5 kB of temporaries each)
 MAX_REACH_M = 1000.0  # any joint or the tip farther from the base is a unit error (mm for m)
 _PACKAGE_DIR = Path(__file__).resolve().parents[1]  # the singplan package folder
+
+
+def _read_only(values: np.ndarray) -> np.ndarray:
+    values.flags.writeable = False
+    return values
 
 
 def robots_dir() -> Path:
@@ -100,12 +107,18 @@ class Robot:
         joint_names: the chain's joint names, base to tip.
         lower_rad, upper_rad: joint position limits, shape (n,).
         velocity_rad_s: joint speed limits, shape (n,).
-        acceleration_rad_s2: default joint acceleration limits, shape (n,).
+        acceleration_rad_s2: joint acceleration limits, shape (n,): the task's, given when the
+            robot is made (:meth:`with_acceleration`), else DEFAULT_ACCELERATION_RAD_S2.
         entry: registry entry for a bundled robot, else None.
+
+    A robot is not changed after it is made (its limit arrays are read-only): functions cache
+    their work per robot (``lru_cache`` keyed on the object), so another tool or other limits
+    make another robot.
     """
 
     def __init__(self, name: str, urdf_path: Path, model: pin.Model, tip: str, T_tip_tcp: pin.SE3,
-                 entry: RobotEntry | None) -> None:
+                 entry: RobotEntry | None,
+                 acceleration_rad_s2: np.ndarray | float = DEFAULT_ACCELERATION_RAD_S2) -> None:
         self.name = name
         self.urdf_path = urdf_path
         self.model = model
@@ -116,10 +129,11 @@ class Robot:
         self.T_tcp_tip_h = T_tip_tcp.inverse().homogeneous  # (4, 4): TCP poses -> tip poses, many at a time
         self.entry = entry
         self.joint_names = tuple(model.names[i] for i in range(1, model.njoints))
-        self.lower_rad = np.array(model.lowerPositionLimit, dtype=float)
-        self.upper_rad = np.array(model.upperPositionLimit, dtype=float)
-        self.velocity_rad_s = np.array(model.velocityLimit, dtype=float)
-        self.acceleration_rad_s2 = np.full(model.nq, DEFAULT_ACCELERATION_RAD_S2)
+        self.lower_rad = _read_only(np.array(model.lowerPositionLimit, dtype=float))
+        self.upper_rad = _read_only(np.array(model.upperPositionLimit, dtype=float))
+        self.velocity_rad_s = _read_only(np.array(model.velocityLimit, dtype=float))
+        self.acceleration_rad_s2 = _read_only(np.broadcast_to(np.asarray(acceleration_rad_s2, dtype=float),
+                                                              (model.nq,)).copy())
 
     @property
     def n_joints(self) -> int:
@@ -146,7 +160,18 @@ class Robot:
 
     def with_tool(self, T_tip_tcp: pin.SE3) -> Robot:
         """The same robot with another tool (a new Data, the model is shared)."""
-        return Robot(self.name, self.urdf_path, self.model, self.tip, T_tip_tcp, self.entry)
+        return self._variant(T_tip_tcp, self.acceleration_rad_s2)
+
+    def with_acceleration(self, acceleration_rad_s2: np.ndarray | float) -> Robot:
+        """The same robot with other joint acceleration limits [rad/s^2]: one value or one per joint."""
+        return self._variant(self.T_tip_tcp, acceleration_rad_s2)
+
+    def _variant(self, T_tip_tcp: pin.SE3, acceleration_rad_s2: np.ndarray | float) -> Robot:
+        """A robot on the same model and tip (its recognition carried over when already made)."""
+        robot = Robot(self.name, self.urdf_path, self.model, self.tip, T_tip_tcp, self.entry, acceleration_rad_s2)
+        if "recognition" in self.__dict__:  # the family depends on the model and the tip only
+            robot.__dict__["recognition"] = self.__dict__["recognition"]
+        return robot
 
     def fk(self, q: np.ndarray) -> pin.SE3:
         """TCP pose in the base frame, ``T_base_tcp``, for joint values ``q`` (n,) [rad]."""
@@ -233,9 +258,9 @@ class Robot:
         return J
 
     def joint_placements(self, q: np.ndarray) -> list[pin.SE3]:
-        """Placements of the joint frames 1..n in the base frame."""
+        """Placements of the joint frames 1..n in the base frame (copies: ``data`` changes on the next call)."""
         pin.forwardKinematics(self.model, self.data, q)
-        return [self.data.oMi[i] for i in range(1, self.model.njoints)]
+        return [self.data.oMi[i].copy() for i in range(1, self.model.njoints)]
 
     def wrist_center(self, q: np.ndarray) -> np.ndarray:
         """Wrist centre [m] in the base frame: the origin of joint 5's frame.

@@ -42,6 +42,7 @@ import numpy as np
 import yaml
 
 from singplan.errors import RobotModelError
+from singplan.kinematics.angles import wrap_deg
 from singplan.kinematics.configuration import distances_batch
 from singplan.kinematics.robot import Robot, robots_dir
 
@@ -82,11 +83,6 @@ class KukaStatusTurn(NamedTuple):
     turn: int
 
 
-def _wrap_deg(a: np.ndarray) -> np.ndarray:
-    """Angles into (-180, 180]."""
-    return 180.0 - np.mod(180.0 - a, 360.0)
-
-
 def abb_confdata(axes_deg: Sequence[float], behind_axis1: bool, behind_lower_arm: bool) -> AbbConfdata:
     """ABB confdata of one set of controller axis values [deg] and the two geometric flags."""
     a = np.asarray(axes_deg, dtype=float)
@@ -98,7 +94,7 @@ def abb_confdata(axes_deg: Sequence[float], behind_axis1: bool, behind_lower_arm
 def kuka_status_turn(axes_deg: Sequence[float], overhead: bool, phi_deg: float) -> KukaStatusTurn:
     """KUKA Status and Turn of controller axis values [deg]; ``phi_deg`` is the A3 of the stretched arm."""
     a = np.asarray(axes_deg, dtype=float)
-    status = int(overhead) | (int(a[2] >= phi_deg) << 1) | (int(_wrap_deg(a[4:5])[0] <= 0.0) << 2)
+    status = int(overhead) | (int(a[2] >= phi_deg) << 1) | (int(wrap_deg(a[4:5])[0] <= 0.0) << 2)
     turn = sum(1 << i for i in range(_N_AXES) if a[i] < 0.0)
     return KukaStatusTurn(status, turn)
 
@@ -111,7 +107,7 @@ def fanuc_turn(angle_deg: float) -> int:
 def fanuc_configuration(axes_deg: Sequence[float], up: bool, front: bool) -> str:
     """FANUC configuration string, e.g. ``"N U T, 0, 0, 0"``, of controller axis values [deg]."""
     a = [float(v) for v in axes_deg]
-    flip = "F" if _wrap_deg(np.array([a[4]]))[0] > 0.0 else "N"
+    flip = "F" if wrap_deg(np.array([a[4]]))[0] > 0.0 else "N"
     return (f"{flip} {'U' if up else 'D'} {'T' if front else 'B'}, "
             f"{fanuc_turn(a[0])}, {fanuc_turn(a[3])}, {fanuc_turn(a[5])}")
 

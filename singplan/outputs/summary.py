@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from singplan.results.trajectory import Trajectory
 from singplan.task.schema import Task
@@ -67,21 +68,21 @@ def _torque_line(traj: Trajectory, task: Task) -> str:
     return f"torques: peak x{m['max_torque_ratio']:.3f} of {limit} at {m['max_torque_joint']}"
 
 
-def _choice(alternatives: list[dict[str, object]]) -> str:
+def _choice(alternatives: list[dict[str, Any]]) -> str:
     """'auto chose X (n s); runner-up Y (m s), k s saved; infeasible: Z' from a crossing's alternatives."""
     feasible = [a for a in alternatives if a.get("feasible")]
     if len(alternatives) < 2 or not feasible:
         return ""
 
-    def name(a: dict[str, object]) -> str:
+    def name(a: dict[str, Any]) -> str:
         return f"{a['method']}{' ' + str(a['variant']) if a.get('variant') else ''}"
 
     best = feasible[0]
-    text = f"auto chose {name(best)} ({float(best['duration_s']):.3f} s move)"  # type: ignore[arg-type]
+    text = f"auto chose {name(best)} ({float(best['duration_s']):.3f} s move)"
     others = [a for a in feasible[1:] if a["method"] != best["method"]] or feasible[1:]
     if others:
-        saved = float(others[0]["duration_s"]) - float(best["duration_s"])  # type: ignore[arg-type]
-        text += f"; runner-up {name(others[0])} ({float(others[0]['duration_s']):.3f} s), {saved:.3f} s saved"  # type: ignore[arg-type]
+        saved = float(others[0]["duration_s"]) - float(best["duration_s"])
+        text += f"; runner-up {name(others[0])} ({float(others[0]['duration_s']):.3f} s), {saved:.3f} s saved"
     infeasible = sorted({str(a["method"]) for a in alternatives if not a.get("feasible")})
     if infeasible:
         text += f"; infeasible: {', '.join(infeasible)}"

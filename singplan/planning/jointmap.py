@@ -22,6 +22,7 @@ import pinocchio as pin
 
 from singplan.kinematics.angles import nearest_shifted
 from singplan.kinematics.compiled import jit
+from singplan.kinematics.ik.numeric import damped_solve
 from singplan.kinematics.ik.solve import closed_form_branches, opw_arm_for_point, solve_newton
 from singplan.kinematics.ik.ur import ur_arm_for_point
 from singplan.kinematics.robot import Robot
@@ -195,16 +196,11 @@ def position_solve(robot: Robot, q: np.ndarray, target_m: np.ndarray, joints: in
 
     Damped Newton on the TCP position with Pinocchio's Jacobian; returns the best found.
     """
-    q = np.array(q, dtype=float)
-    for _ in range(iterations):
-        err = target_m - robot.fk(q).translation
-        norm = float(np.linalg.norm(err))
-        if norm < tol_m:
-            break
-        J = robot.jacobian(q)[:3, :joints]
-        # constant damping: directions the joints barely move (a shoulder singularity) stay put
-        q[:joints] += J.T @ np.linalg.solve(J @ J.T + _DAMPING * np.eye(3), err)
-    return q
+    def residual(qk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return target_m - robot.fk(qk).translation, robot.jacobian(qk)[:3]
+
+    # constant damping: directions the joints barely move (a shoulder singularity) stay put
+    return damped_solve(residual, q, slice(0, joints), damping=_DAMPING, tol=tol_m, iterations=iterations)
 
 
 _EXACT_WEIGHT = 1e4  # weight of the kept component against the minimised one (per m / per rad)
@@ -220,20 +216,18 @@ def axis_solve(robot: Robot, q: np.ndarray, T_target: np.ndarray, fixed: int, ex
     orientation). SEEDS 000: wrist zone -> A4 held, position exact; shoulder -> A1 held,
     orientation exact; elbow -> A2 held, orientation exact.
     """
-    q = np.array(q, dtype=float)
-    free = [j for j in range(robot.n_joints) if j != fixed]
     w = np.array([_EXACT_WEIGHT] * 3 + [1.0] * 3) if exact == "position" else np.array([1.0] * 3 + [_EXACT_WEIGHT] * 3)
     p_star, R_star = T_target[:3, 3], T_target[:3, :3]
-    for _ in range(iterations):
-        T = robot.fk(q)
+
+    def residual(qk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        T = robot.fk(qk)
         M = R_star.T @ T.rotation
-        r = w * np.concatenate([T.translation - p_star, pin.log3(M)])
-        J = robot.jacobian(q)
-        Jr = np.vstack([J[:3], pin.Jlog3(M) @ T.rotation.T @ J[3:]])[:, free] * w[:, None]
-        step = np.linalg.lstsq(Jr, -r, rcond=None)[0]
-        q[free] += step
-        if float(np.max(np.abs(step))) < 1e-13:
-            break
+        J = robot.jacobian(qk)  # a fresh array: its rotation rows become those of log3's error
+        J[3:] = pin.Jlog3(M) @ T.rotation.T @ J[3:]
+        return -w * np.concatenate([T.translation - p_star, pin.log3(M)]), J * w[:, None]
+
+    free = np.arange(robot.n_joints) != fixed
+    q = damped_solve(residual, q, free, step_tol=1e-13, iterations=iterations)
     if exact == "position":
         return position_solve(robot, q, p_star)
     return orientation_solve(robot, q, R_star)
@@ -242,13 +236,9 @@ def axis_solve(robot: Robot, q: np.ndarray, T_target: np.ndarray, fixed: int, ex
 def orientation_solve(robot: Robot, q: np.ndarray, R_target: np.ndarray, tol_rad: float = 1e-13,
                       iterations: int = 30) -> np.ndarray:
     """Move the wrist joints (the last three) so the TCP orientation is ``R_target``."""
-    q = np.array(q, dtype=float)
+    def residual(qk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        T = robot.fk(qk)
+        return pin.log3(T.rotation.T @ R_target), T.rotation.T @ robot.jacobian(qk)[3:]  # body frame
+
     wrist = slice(robot.n_joints - 3, robot.n_joints)
-    for _ in range(iterations):
-        T = robot.fk(q)
-        err = pin.log3(T.rotation.T @ R_target)  # body frame
-        if float(np.linalg.norm(err)) < tol_rad:
-            break
-        Jw = T.rotation.T @ robot.jacobian(q)[3:, wrist]
-        q[wrist] += Jw.T @ np.linalg.solve(Jw @ Jw.T + _DAMPING * np.eye(3), err)
-    return q
+    return damped_solve(residual, q, wrist, damping=_DAMPING, tol=tol_rad, iterations=iterations)

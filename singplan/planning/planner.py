@@ -56,9 +56,7 @@ def load_task_robot(task: Task) -> Robot:
     check_against_robot(task, robot)
     if task.limits.torque_scale is not None:
         require_dynamics(robot)
-    acc = np.asarray(task.limits.acceleration_rad_s2, dtype=float)
-    robot.acceleration_rad_s2 = np.broadcast_to(acc, (robot.n_joints,)).copy()
-    return robot
+    return robot.with_acceleration(np.asarray(task.limits.acceleration_rad_s2, dtype=float))
 
 
 @dataclass(frozen=True)

@@ -85,8 +85,8 @@ def hold_joint(robot: Robot, joint: str, value_rad: float, field: str = "redunda
     q_lock = pin.neutral(robot.model)
     q_lock[index] = value_rad
     model = pin.buildReducedModel(robot.model, [robot.model.getJointId(joint)], q_lock)
-    reduced = Robot(robot.name, robot.urdf_path, model, robot.tip, robot.T_tip_tcp, robot.entry)
-    reduced.acceleration_rad_s2 = np.delete(robot.acceleration_rad_s2, index)
+    reduced = Robot(robot.name, robot.urdf_path, model, robot.tip, robot.T_tip_tcp, robot.entry,
+                    np.delete(robot.acceleration_rad_s2, index))
     return HeldJoint(robot, reduced, index, value_rad)
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from singplan.kinematics.angles import TWO_PI, nearest_shifted
+from singplan.kinematics.angles import nearest_row, nearest_shifted, row_step, shift_row_into
 from singplan.kinematics.compiled import jit
 from singplan.kinematics.ik import numeric as ik_numeric
 from singplan.kinematics.ik.solve import closed_form_branches, solve_newton
@@ -166,50 +166,21 @@ def _follow(C: np.ndarray, free: np.ndarray, du: np.ndarray, q0: np.ndarray, row
     for k in range(start, n_samples):
         prev = q[k - 1] if k > 0 else q0
         if row >= 0:
-            step = _row_step(C[k, row], prev)
+            step = row_step(C[k, row], prev)
             if step <= max_step or (math.isfinite(step) and du[k] > min_du and not free[k]):
-                _put(C[k, row], prev, q[k])
+                shift_row_into(C[k, row], prev, q[k])
                 steps[k] = step
                 continue
-        row, step = _nearest_row(C[k], prev)
+        row, step = nearest_row(C[k], prev)
         if step > max_step and free[k]:
             return k
         if not math.isfinite(step):
             q[k:] = np.nan
             steps[k:] = np.inf
             return n_samples
-        _put(C[k, row], prev, q[k])
+        shift_row_into(C[k, row], prev, q[k])
         steps[k] = step
     return n_samples
-
-
-@jit
-def _row_step(c: np.ndarray, prev: np.ndarray) -> float:
-    """Max-norm joint step from ``prev`` to the candidate row ``c`` moved by whole turns (inf if NaN)."""
-    d = 0.0
-    for j in range(c.shape[0]):
-        diff = abs(c[j] + TWO_PI * np.rint((prev[j] - c[j]) / TWO_PI) - prev[j])
-        if math.isnan(diff):
-            return np.inf
-        d = max(d, diff)
-    return d
-
-
-@jit
-def _nearest_row(rows: np.ndarray, prev: np.ndarray) -> tuple[int, float]:
-    """The row (B, n) nearest ``prev`` by :func:`_row_step`, and its step; ties keep the first."""
-    best, best_step = 0, np.inf
-    for r in range(rows.shape[0]):
-        step = _row_step(rows[r], prev)
-        if step < best_step:
-            best, best_step = r, step
-    return best, best_step
-
-
-@jit
-def _put(c: np.ndarray, prev: np.ndarray, out: np.ndarray) -> None:
-    for j in range(c.shape[0]):
-        out[j] = c[j] + TWO_PI * np.rint((prev[j] - c[j]) / TWO_PI)
 
 
 def track(robot: Robot, poses: PoseFunction, u0: np.ndarray, q_start: np.ndarray,

@@ -91,6 +91,11 @@ class Trajectory:
         events: zone entries/exits and configuration changes.
         metrics: the figures of DESIGN.md ("Metrics every trajectory carries").
         task: the validated task as a mapping.
+
+    Its arrays are read-only. :func:`save` and :func:`load` give back every field: the arrays and
+    ``samples`` exactly, except the per-sample series the file holds in mm and deg
+    (``position_error_m``, ``orientation_error_rad``, ``distances``), which come back to within
+    the round-off of one unit conversion (1e-15 relative).
     """
 
     robot: str
@@ -111,6 +116,11 @@ class Trajectory:
     # stopping_distance_m (singplan.kinematics.stopping)
     samples: dict[str, np.ndarray] = field(default_factory=dict)
     moves: tuple[MoveRecord, ...] = ()
+
+    def __post_init__(self) -> None:
+        # frozen all through: the arrays are made read-only in place (no copy of a million samples)
+        for values in (self.t, self.q, self.qd, self.qdd, *self.samples.values()):
+            values.flags.writeable = False
 
     @property
     def duration_s(self) -> float:

@@ -13,7 +13,7 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
@@ -24,8 +24,22 @@ from singplan.task.schema import (
     ACCELERATION_RAD_S2,
     ANGLE_DEG,
     BLEND_MM,
+    DEFAULT_BLEND_MM,
     COORDINATE_M,
+    DEFAULT_ACCELERATION_RAD_S2,
+    DEFAULT_CONFIG,
+    DEFAULT_METHOD,
+    DEFAULT_ORIENTATION_TOLERANCE_DEG,
+    DEFAULT_PERIOD_S,
+    DEFAULT_POSITION_TOLERANCE_MM,
+    DEFAULT_REDUNDANT_VALUE_DEG,
     DEFAULT_SPEED_M_S,
+    DEFAULT_TOOL,
+    DEFAULT_VELOCITY_SCALE,
+    DEFAULT_WEAVE_PATTERN,
+    DEFAULT_ZONE_ELBOW_DEG,
+    DEFAULT_ZONE_SHOULDER_MM,
+    DEFAULT_ZONE_WRIST_DEG,
     JERK_RAD_S3,
     JOINT_DEG,
     MAX_DEPTH,
@@ -70,7 +84,7 @@ from singplan.task.schema import (
     _path_text,
     _short,
     _string,
-    check_vector,
+    check_triple,
     method_names,
 )
 
@@ -80,7 +94,13 @@ _LONG_INTEGER = re.compile(r"[-+]?(?:[0-9][0-9_:]{399,}|0[xX][0-9a-fA-F_]{256,}|
 # -- reading ---------------------------------------------------------------------------------
 
 
-class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+if TYPE_CHECKING:  # the stubs' CSafeLoader is not a SafeLoader; both read the same documents
+    _SafeLoader = yaml.SafeLoader
+else:
+    _SafeLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+class _Loader(_SafeLoader):
     """The safe loader (libyaml's when installed); reached only after :func:`_scan` passed.
 
     It also reads ``1e-3`` and ``2E5`` as numbers (YAML 1.2, JSON), which YAML 1.1 leaves as
@@ -238,8 +258,8 @@ def parse_task(doc: Any, base_dir: Path | None = None) -> Task:
     return Task(
         robot=robot, moves=moves, start_joints_deg=start_joints, start_pose=start_pose, start_config=start_config,
         tip=tip,
-        tool_xyz=check_vector("tool.xyz", tool.get("xyz", (0, 0, 0)), 3, TOOL_OFFSET_M),  # type: ignore[arg-type]
-        tool_rpy_deg=check_vector("tool.rpy_deg", tool.get("rpy_deg", (0, 0, 0)), 3, ANGLE_DEG),  # type: ignore[arg-type]
+        tool_xyz=check_triple("tool.xyz", tool.get("xyz", DEFAULT_TOOL), TOOL_OFFSET_M),
+        tool_rpy_deg=check_triple("tool.rpy_deg", tool.get("rpy_deg", DEFAULT_TOOL), ANGLE_DEG),
         singularity=_singularity(_optional_mapping(doc, "singularity", "")),
         limits=_limits(_optional_mapping(doc, "limits", "")),
         period_s=_output_period(_optional_mapping(doc, "output", "")),
@@ -271,10 +291,10 @@ def _robot_ref(value: Any, base_dir: Path | None) -> str:
 def _pose(where: str, value: Any, need_rpy: bool = False) -> PoseSpec:
     _check_mapping(where, value)
     _check_keys(where, value, required=("xyz", *(("rpy_deg",) if need_rpy else ())), optional=("rpy_deg",))
-    xyz = check_vector(f"{where}.xyz", value["xyz"], 3, COORDINATE_M)
+    xyz = check_triple(f"{where}.xyz", value["xyz"], COORDINATE_M)
     rpy = value.get("rpy_deg")
-    rpy_t = check_vector(f"{where}.rpy_deg", rpy, 3, ANGLE_DEG) if rpy is not None else None
-    return PoseSpec(xyz, rpy_t)  # type: ignore[arg-type]
+    rpy_t = check_triple(f"{where}.rpy_deg", rpy, ANGLE_DEG) if rpy is not None else None
+    return PoseSpec(xyz, rpy_t)
 
 
 def _joints(where: str, value: Any) -> tuple[float, ...]:
@@ -337,35 +357,33 @@ def _move(where: str, value: Any) -> Move:
     else:
         _check_keys(where, spec, required=("to", *(("via",) if kind == "circ" else ())),
                     optional=("speed", "config", "weave", "blend_mm"))
-    config = _config(f"{where}.config", spec["config"]) if spec.get("config") is not None else "auto"
-    blend = _number(f"{where}.blend_mm", spec["blend_mm"], BLEND_MM) if spec.get("blend_mm") is not None else 0.0
+    config = _config(f"{where}.config", spec["config"]) if spec.get("config") is not None else DEFAULT_CONFIG
+    blend = (_number(f"{where}.blend_mm", spec["blend_mm"], BLEND_MM) if spec.get("blend_mm") is not None
+             else DEFAULT_BLEND_MM)
     to = spec["to"]
     _check_mapping(f"{where}.to", to)
     if kind == "ptp" and "joints_deg" in to:
         _check_keys(f"{where}.to", to, required=("joints_deg",))
         return Move(kind, to_joints_deg=_joints(f"{where}.to.joints_deg", to["joints_deg"]),
-                    velocity_scale=_scale(f"{where}.velocity_scale", spec.get("velocity_scale", 1.0)), config=config,
-                    blend_mm=blend)
+                    velocity_scale=_ptp_scale(where, spec), config=config, blend_mm=blend)
     target = _pose(f"{where}.to", to)
     if kind == "ptp":
-        return Move(kind, to=target, velocity_scale=_scale(f"{where}.velocity_scale", spec.get("velocity_scale", 1.0)),
-                    config=config, blend_mm=blend)
+        return Move(kind, to=target, velocity_scale=_ptp_scale(where, spec), config=config, blend_mm=blend)
     speed = _number(f"{where}.speed", spec.get("speed", DEFAULT_SPEED_M_S), SPEED_M_S)
     via = None
     if kind == "circ":
         via_spec = spec["via"]
         _check_mapping(f"{where}.via", via_spec)
         _check_keys(f"{where}.via", via_spec, required=("xyz",))
-        via = check_vector(f"{where}.via.xyz", via_spec["xyz"], 3, COORDINATE_M)
+        via = check_triple(f"{where}.via.xyz", via_spec["xyz"], COORDINATE_M)
     weave = _weave(f"{where}.weave", spec["weave"]) if spec.get("weave") is not None else None
-    return Move(kind, to=target, via_xyz=via, speed_m_s=speed, config=config, weave=weave,  # type: ignore[arg-type]
-                blend_mm=blend)
+    return Move(kind, to=target, via_xyz=via, speed_m_s=speed, config=config, weave=weave, blend_mm=blend)
 
 
 def _weave(where: str, value: Any) -> Weave:
     _check_mapping(where, value)
     _check_keys(where, value, required=("amplitude_mm", "wavelength_mm"), optional=("pattern",))
-    return Weave(_check_choice(f"{where}.pattern", value.get("pattern", "sine"), WEAVE_PATTERNS),
+    return Weave(_check_choice(f"{where}.pattern", value.get("pattern", DEFAULT_WEAVE_PATTERN), WEAVE_PATTERNS),
                  _number(f"{where}.amplitude_mm", value["amplitude_mm"], WEAVE_AMPLITUDE_MM),
                  _number(f"{where}.wavelength_mm", value["wavelength_mm"], WEAVE_WAVELENGTH_MM))
 
@@ -374,33 +392,39 @@ def _scale(where: str, value: Any) -> float:
     return _number(where, value, VELOCITY_SCALE)
 
 
+def _ptp_scale(where: str, spec: Mapping[str, Any]) -> float:
+    return _scale(f"{where}.velocity_scale", spec.get("velocity_scale", DEFAULT_VELOCITY_SCALE))
+
+
 def _singularity(value: Any) -> SingularitySettings:
     _check_keys("singularity", value,
                 optional=("method", "orientation_tolerance_deg", "position_tolerance_mm", "zone"))
     zone = _optional_mapping(value, "zone", "singularity")
     _check_keys("singularity.zone", zone, optional=("wrist_deg", "shoulder_mm", "elbow_deg"))
-    defaults = ZoneThresholds()
     return SingularitySettings(
-        method=_check_choice("singularity.method", value.get("method", "auto"), method_names()),
-        orientation_tolerance_deg=_number("singularity.orientation_tolerance_deg",
-                                          value.get("orientation_tolerance_deg", 5.0), ORIENTATION_TOLERANCE_DEG),
-        position_tolerance_mm=_number("singularity.position_tolerance_mm", value.get("position_tolerance_mm", 0.01),
-                                      POSITION_TOLERANCE_MM),
+        method=_check_choice("singularity.method", value.get("method", DEFAULT_METHOD), method_names()),
+        orientation_tolerance_deg=_number(
+            "singularity.orientation_tolerance_deg",
+            value.get("orientation_tolerance_deg", DEFAULT_ORIENTATION_TOLERANCE_DEG), ORIENTATION_TOLERANCE_DEG),
+        position_tolerance_mm=_number(
+            "singularity.position_tolerance_mm",
+            value.get("position_tolerance_mm", DEFAULT_POSITION_TOLERANCE_MM), POSITION_TOLERANCE_MM),
         zone=ZoneThresholds(
-            wrist_deg=_number("singularity.zone.wrist_deg", zone.get("wrist_deg", defaults.wrist_deg),
+            wrist_deg=_number("singularity.zone.wrist_deg", zone.get("wrist_deg", DEFAULT_ZONE_WRIST_DEG),
                               ZONE_ANGLE_DEG),
-            shoulder_mm=_number("singularity.zone.shoulder_mm", zone.get("shoulder_mm", defaults.shoulder_mm),
+            shoulder_mm=_number("singularity.zone.shoulder_mm", zone.get("shoulder_mm", DEFAULT_ZONE_SHOULDER_MM),
                                 ZONE_SHOULDER_MM),
-            elbow_deg=_number("singularity.zone.elbow_deg", zone.get("elbow_deg", defaults.elbow_deg),
+            elbow_deg=_number("singularity.zone.elbow_deg", zone.get("elbow_deg", DEFAULT_ZONE_ELBOW_DEG),
                               ZONE_ANGLE_DEG)))
 
 
 def _limits(value: Any) -> Limits:
     _check_keys("limits", value, optional=("velocity_scale", "acceleration", "jerk", "torque_scale"))
-    accel = _per_joint("limits.acceleration", value.get("acceleration", 10.0), ACCELERATION_RAD_S2)
+    accel = _per_joint("limits.acceleration", value.get("acceleration", DEFAULT_ACCELERATION_RAD_S2),
+                       ACCELERATION_RAD_S2)
     jerk = _per_joint("limits.jerk", value["jerk"], JERK_RAD_S3) if "jerk" in value else None
     torque = _number("limits.torque_scale", value["torque_scale"], TORQUE_SCALE) if "torque_scale" in value else None
-    return Limits(velocity_scale=_scale("limits.velocity_scale", value.get("velocity_scale", 1.0)),
+    return Limits(velocity_scale=_scale("limits.velocity_scale", value.get("velocity_scale", DEFAULT_VELOCITY_SCALE)),
                   acceleration_rad_s2=accel, torque_scale=torque, jerk_rad_s3=jerk)
 
 
@@ -418,12 +442,12 @@ def _redundancy(value: Any) -> Redundancy:
         raise TaskError("redundancy", f"expected a mapping {{joint: NAME, value_deg: X}}, got {_describe(value)}")
     _check_keys("redundancy", value, required=("joint",), optional=("value_deg",))
     return Redundancy(_string("redundancy.joint", value["joint"]),
-                      _number("redundancy.value_deg", value.get("value_deg", 0.0), ANGLE_DEG))
+                      _number("redundancy.value_deg", value.get("value_deg", DEFAULT_REDUNDANT_VALUE_DEG), ANGLE_DEG))
 
 
 def _output_period(value: Any) -> float:
     _check_keys("output", value, optional=("period",))
-    return _number("output.period", value.get("period", 0.004), PERIOD_S)
+    return _number("output.period", value.get("period", DEFAULT_PERIOD_S), PERIOD_S)
 
 
 # -- robot-dependent checks ------------------------------------------------------------------

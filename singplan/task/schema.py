@@ -58,7 +58,23 @@ MAX_PATH_CHARS = 4096
 MAX_JOINTS = 64
 METHODS = ("auto", "wrist-joint", "axis", "null-space", "exact", "dls", "average", "ptp", "stop")  # built in
 _ADDED_METHODS: list[str] = []  # names registered by users (singplan.planning.crossing.registry.register)
-DEFAULT_SPEED_M_S = 0.25
+# the defaults of optional task fields, written once: the records below, the YAML reader and
+# the docs' tables take them from here
+DEFAULT_SPEED_M_S = 0.25  # LIN / CIRC speed
+DEFAULT_VELOCITY_SCALE = 1.0  # PTP velocity_scale and limits.velocity_scale
+DEFAULT_METHOD = "auto"
+DEFAULT_CONFIG = "auto"
+DEFAULT_ORIENTATION_TOLERANCE_DEG = 5.0
+DEFAULT_POSITION_TOLERANCE_MM = 0.01
+DEFAULT_ZONE_WRIST_DEG = 5.0
+DEFAULT_ZONE_SHOULDER_MM = 20.0
+DEFAULT_ZONE_ELBOW_DEG = 5.0
+DEFAULT_ACCELERATION_RAD_S2 = 10.0  # limits.acceleration, all joints
+DEFAULT_PERIOD_S = 0.004  # output.period
+DEFAULT_WEAVE_PATTERN = "sine"
+DEFAULT_BLEND_MM = 0.0  # a move ends at rest on its point
+DEFAULT_REDUNDANT_VALUE_DEG = 0.0
+DEFAULT_TOOL = (0.0, 0.0, 0.0)  # tool.xyz [m] and tool.rpy_deg
 MAX_KEY_CHARS = 256  # keys are field names; a longer one can only be a mistake (or a huge number)
 
 
@@ -123,19 +139,19 @@ class Move:
     to_joints_deg: tuple[float, ...] | None = None
     via_xyz: tuple[float, float, float] | None = None  # CIRC only
     speed_m_s: float = DEFAULT_SPEED_M_S  # LIN / CIRC TCP speed
-    velocity_scale: float = 1.0  # PTP fraction of the joint speed limits
-    config: str = "auto"  # "auto" | "keep" | a label like "F U N"
+    velocity_scale: float = DEFAULT_VELOCITY_SCALE  # PTP fraction of the joint speed limits
+    config: str = DEFAULT_CONFIG  # "auto" | "keep" | a label like "F U N"
     weave: Weave | None = None  # LIN / CIRC only
-    blend_mm: float = 0.0  # fly-by radius around the move's end point; 0: the move ends at rest
+    blend_mm: float = DEFAULT_BLEND_MM  # fly-by radius around the move's end point; 0: the move ends at rest
 
 
 @dataclass(frozen=True)
 class ZoneThresholds:
     """Detection thresholds of singular zones."""
 
-    wrist_deg: float = 5.0
-    shoulder_mm: float = 20.0
-    elbow_deg: float = 5.0
+    wrist_deg: float = DEFAULT_ZONE_WRIST_DEG
+    shoulder_mm: float = DEFAULT_ZONE_SHOULDER_MM
+    elbow_deg: float = DEFAULT_ZONE_ELBOW_DEG
 
     def si(self) -> np.ndarray:
         """(wrist [rad], shoulder [m], elbow [rad]) thresholds, the order of the signed distances."""
@@ -144,16 +160,17 @@ class ZoneThresholds:
 
 @dataclass(frozen=True)
 class SingularitySettings:
-    method: str = "auto"
-    orientation_tolerance_deg: float = 5.0
-    position_tolerance_mm: float = 0.01
+    method: str = DEFAULT_METHOD
+    orientation_tolerance_deg: float = DEFAULT_ORIENTATION_TOLERANCE_DEG
+    position_tolerance_mm: float = DEFAULT_POSITION_TOLERANCE_MM
     zone: ZoneThresholds = field(default_factory=ZoneThresholds)
 
 
 @dataclass(frozen=True)
 class Limits:
-    velocity_scale: float = 1.0
-    acceleration_rad_s2: tuple[float, ...] = (10.0,)  # one value for all joints, or one per joint
+    velocity_scale: float = DEFAULT_VELOCITY_SCALE
+    # one value for all joints, or one per joint
+    acceleration_rad_s2: tuple[float, ...] = (DEFAULT_ACCELERATION_RAD_S2,)
     torque_scale: float | None = None  # fraction of the URDF efforts, enforced; None: torques not limited
     jerk_rad_s3: tuple[float, ...] | None = None  # one value for all joints, or one per joint; None: not limited
     # Python API only (no YAML key in format v1): "quintic" times every PTP move by SEEDS 003's
@@ -166,7 +183,7 @@ class Redundancy:
     """A 7-joint arm's redundant joint, held at one value for the whole task (SEEDS 003)."""
 
     joint: str
-    value_deg: float = 0.0
+    value_deg: float = DEFAULT_REDUNDANT_VALUE_DEG
 
 
 @dataclass(frozen=True)
@@ -179,11 +196,11 @@ class Task:
     start_pose: PoseSpec | None = None
     start_config: str | None = None
     tip: str | None = None
-    tool_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    tool_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    tool_xyz: tuple[float, float, float] = DEFAULT_TOOL
+    tool_rpy_deg: tuple[float, float, float] = DEFAULT_TOOL
     singularity: SingularitySettings = field(default_factory=SingularitySettings)
     limits: Limits = field(default_factory=Limits)
-    period_s: float = 0.004
+    period_s: float = DEFAULT_PERIOD_S
     redundancy: Redundancy | None = None
 
     def with_method(self, method: str) -> Task:
@@ -340,6 +357,12 @@ def check_vector(where: str, value: Any, n: int, bounds: Range) -> tuple[float, 
     if len(value) != n:
         raise TaskError(where, f"expected {n} numbers, got {len(value)}")
     return tuple(_number(f"{where}[{i}]", v, bounds) for i, v in enumerate(value))
+
+
+def check_triple(where: str, value: Any, bounds: Range) -> tuple[float, float, float]:
+    """:func:`check_vector` of three numbers (a position or roll-pitch-yaw), typed as a triple."""
+    x, y, z = check_vector(where, value, 3, bounds)
+    return x, y, z
 
 
 def _string(where: str, value: Any, max_chars: int = MAX_NAME_CHARS) -> str:

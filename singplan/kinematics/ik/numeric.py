@@ -2,7 +2,7 @@
 
 A general 6R arm (no closed form, e.g. a wrist whose axes do not meet) has up to 16 solutions
 per pose; a 7R arm has one-parameter families of them. :func:`all_branches` finds them with
-Levenberg-Marquardt (Pinocchio Jacobians, SE(3) log error, one damped least-squares helper)
+Levenberg-Marquardt (Pinocchio Jacobians, SE(3) log error, :func:`damped_step`)
 run from a deterministic seed set:
 
 1. the caller's seed, if any;
@@ -18,6 +18,9 @@ they agree modulo whole turns (6R) or carry the same configuration label (7R: on
 configuration found, the one nearest the seed).
 
 :func:`newton` is the fast seeded solve the per-sample tracking uses (no limits, no search).
+:func:`damped_step` and :func:`damped_solve` are the package's one damped least-squares step
+and loop: the planner's re-solves (position, orientation, axis, null-space) call them with
+their own residual, joints and damping.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.kinematics import reduced
-from singplan.kinematics.angles import TWO_PI
+from singplan.kinematics.angles import shifted_toward, wrap_to_pi
 from singplan.kinematics.robot import Robot
 
 _HALTON_PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37)
@@ -64,17 +67,57 @@ class NumericIkOptions:
     tol: float = 1e-12
 
 
-def damped_step(J: np.ndarray, err: np.ndarray, damping: float) -> np.ndarray:
-    """The step ``dq`` minimising ``|J dq - err|^2 + damping |dq|^2`` (J of shape (m, n): 6 rows, or 5 reduced).
+Residual = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]  # q -> (error (m,), its Jacobian (m, n))
 
-    A reduced (five-row) Jacobian may lack rank everywhere (a roll about the tool axis moves
-    nothing it keeps): there the minimum-norm least-squares step of the stacked system is
-    taken, as the normal equations would divide round-off by a vanishing damping.
+
+def damped_step(J: np.ndarray, err: np.ndarray, damping: float, rcond: float | None = None,
+                stacked: bool = False) -> np.ndarray:
+    """The step ``dq`` minimising ``|J dq - err|^2 + damping |dq|^2``; J of shape (m, n).
+
+    ``damping`` 0 gives the minimum-norm least-squares step, singular values under ``rcond``
+    times the largest dropped. ``stacked`` solves ``[J; sqrt(damping) I] dq = [err; 0]`` by
+    least squares instead of the normal equations: for a Jacobian that lacks rank everywhere (a
+    five-joint arm's reduced rows: a roll about the tool axis moves nothing they keep), where
+    the normal equations would divide round-off by a vanishing damping.
     """
-    if J.shape[0] < 6:
-        stacked = np.vstack([J, math.sqrt(damping) * np.eye(J.shape[1])])
-        return np.linalg.lstsq(stacked, np.concatenate([err, np.zeros(J.shape[1])]), rcond=None)[0]
+    if damping == 0.0:
+        return np.linalg.lstsq(J, err, rcond=rcond)[0]
+    if stacked:
+        lifted = np.vstack([J, math.sqrt(damping) * np.eye(J.shape[1])])
+        return np.linalg.lstsq(lifted, np.concatenate([err, np.zeros(J.shape[1])]), rcond=rcond)[0]
     return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), err)
+
+
+def damped_solve(residual: Residual, q: np.ndarray, joints: slice | list[int] | np.ndarray, damping: float = 0.0,
+                 rcond: float | None = None, tol: float = 0.0, step_tol: float = 0.0,
+                 max_step: float = math.inf, iterations: int = 30) -> np.ndarray:
+    """Joints ``q`` with ``joints`` moved by damped Gauss-Newton until the residual vanishes; the best found.
+
+    ``residual(q)`` gives the error a step should remove and its Jacobian (``J dq = err``
+    removes it to first order); each step is :func:`damped_step` on the ``joints`` columns,
+    scaled down to ``max_step`` [rad] (max norm) when longer. The loop ends when the error is
+    under ``tol`` (max norm, before a step), the step under ``step_tol``, or after ``iterations``.
+    """
+    q = np.array(q, dtype=float)
+    sized = step_tol > 0.0 or max_step < math.inf  # its size costs ~2 us an iteration: only for a stop or a cap
+    for _ in range(iterations):
+        err, J = residual(q)
+        if tol > 0.0 and float(np.max(np.abs(err))) < tol:
+            break
+        step = damped_step(J[:, joints], err, damping, rcond)
+        size = float(np.max(np.abs(step))) if sized else 0.0
+        q[joints] += step if size <= max_step else step * (max_step / size)
+        if size < step_tol:
+            break
+    return q
+
+
+def pose_error(robot: Robot, q: np.ndarray, T_target: np.ndarray) -> np.ndarray:
+    """(6,) position [m] and orientation [rad] error of the TCP at ``q`` to T_target (4, 4), in base
+    coordinates (the frame of :meth:`Robot.jacobian`), so that ``J dq = error`` removes it to first order."""
+    T = robot.fk(q)
+    return np.concatenate([T_target[:3, 3] - T.translation,
+                           T.rotation @ pin.log3(T.rotation.T @ T_target[:3, :3])])
 
 
 def _tip_target(robot: Robot, T_base_tcp: pin.SE3) -> pin.SE3:
@@ -119,7 +162,7 @@ def newton(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray, tol: float = 1e-
         J = _error_jacobian(robot, T_target_tip, q, T)
         if _stalled(robot, err, J):
             return q
-        q = q + damped_step(J, err, min(1e-2, norm) ** 2)
+        q = q + damped_step(J, err, min(1e-2, norm) ** 2, stacked=reduced.is_reduced(robot))
     return None
 
 
@@ -142,7 +185,7 @@ def into_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarr
     The variant nearest the middle is the one inside the range whenever one exists.
     """
     middle = 0.5 * (lower + upper)
-    return np.clip(q + TWO_PI * np.round((middle - q) / TWO_PI), lower, upper)
+    return np.clip(shifted_toward(q, middle), lower, upper)
 
 
 def solve_lm(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray,
@@ -166,7 +209,7 @@ def solve_lm(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray,
             return q
         if iteration == options.max_iterations // 2 and cost > _FAR_COST:
             return None
-        step = damped_step(J, err, damping)
+        step = damped_step(J, err, damping, stacked=reduced.is_reduced(robot))
         q_new = into_limits(q + step, lower, upper)
         err_new, T_new = _error(robot, T_target_tip, q_new)
         cost_new = float(err_new @ err_new)
@@ -233,7 +276,7 @@ class _Found:
     def add(self, q: np.ndarray, origin: int) -> bool:
         """Keep ``q``; True when it is a new branch (a redundant arm's nearer point replaces the old)."""
         if self.key is None:
-            if any(np.all(np.abs(_wrap(q - r)) < _SAME_BRANCH_RAD) for r in self.rows):
+            if any(np.all(np.abs(wrap_to_pi(q - r)) < _SAME_BRANCH_RAD) for r in self.rows):
                 return False
             self.rows.append(q)
             self.origins.append(origin)
@@ -248,10 +291,6 @@ class _Found:
         self.origins.append(origin)
         self.keys.append(key)
         return True
-
-
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return a - TWO_PI * np.round(a / TWO_PI)
 
 
 def _distance(q: np.ndarray, seed: np.ndarray) -> float:
@@ -330,7 +369,7 @@ def _nearest_per_label(robot: Robot, T_base_tcp: pin.SE3, found: _Found, seed: n
     origins: list[int] = []
     for _, q, origin in sorted(best.values(), key=lambda item: item[0]):
         # on a label boundary one point carries both labels: keep it once
-        if not any(np.all(np.abs(_wrap(q - r)) < _SAME_BRANCH_RAD) for r in rows):
+        if not any(np.all(np.abs(wrap_to_pi(q - r)) < _SAME_BRANCH_RAD) for r in rows):
             rows.append(q)
             origins.append(origin)
     return rows, origins

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from singplan.kinematics.angles import TWO_PI
+from singplan.kinematics.angles import wrap
 from singplan.kinematics.compiled import jit
 
 # A wrist centre this much [m per m of the arm's size] beyond a reach boundary (the stretched or
@@ -31,13 +31,6 @@ def _safe_acos(x: float, slack: float) -> float:
     if not abs(x) <= 1.0 + slack:  # also NaN
         return math.nan
     return math.acos(min(1.0, max(-1.0, x)))
-
-
-@jit
-def wrap(angle: float) -> float:
-    """An angle [rad] wrapped to (-pi, pi]."""
-    wrapped = angle - TWO_PI * np.rint(angle / TWO_PI)
-    return wrapped + TWO_PI if wrapped <= -math.pi else wrapped
 
 
 @jit
@@ -164,4 +157,4 @@ def arm_for_point(q_opw: np.ndarray, point: np.ndarray, targets: np.ndarray, a1:
 def kernels_cached() -> bool:
     """Whether numba's disk cache already holds singplan's kernels (judged by this module's)."""
     folder = branches.stats.cache_path  # None when numba found no writable cache folder
-    return folder is not None and any(Path(folder).glob("opw.branches-*.nbi"))
+    return folder is not None and any(Path(folder).glob(f"opw.{branches.py_func.__qualname__}-*.nbi"))

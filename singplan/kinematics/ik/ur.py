@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from singplan.kinematics.angles import nearest_shifted
+from singplan.kinematics.angles import nearest_shifted, wrap
 from singplan.kinematics.compiled import jit
 
 if TYPE_CHECKING:  # robot.py recognises families with this module's solver
@@ -174,7 +174,7 @@ def _branches(T: np.ndarray, a_seed: np.ndarray, d1: float, lateral: float, l2: 
                     row[0], row[1], row[2] = q1, q2, q3
                     row[3], row[4], row[5] = a - math.pi - q2 - q3, q5, q6
                     for j in range(6):
-                        row[j] = math.pi - (math.pi - row[j]) % (2.0 * math.pi)
+                        row[j] = wrap(row[j])
     return out
 
 
@@ -192,7 +192,7 @@ def _free_wrist_angle(a_seed: float, x: float, z: float, d5: float, l2: float, l
     if radius * d5 == 0.0:
         return a_seed
     theta = math.atan2(x, z)
-    delta = math.atan2(math.sin(a_seed - theta), math.cos(a_seed - theta))
+    delta = wrap(a_seed - theta)
     c_far = (radius * radius + d5 * d5 - (l2 + l3) ** 2) / (2.0 * d5 * radius)
     c_near = (radius * radius + d5 * d5 - (l2 - l3) ** 2) / (2.0 * d5 * radius)
     c = math.cos(delta)
@@ -224,9 +224,8 @@ def ur_arm_for_point(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.n
 
 def _tcp_in_joint3(robot: Robot, q: np.ndarray) -> np.ndarray:
     """The TCP in the closed form's joint-3 frame (the URDF's, or its layout's: T_joint3_closed)."""
-    T_base_tcp = robot.fk(q)  # also places joint 3 in robot.data
-    frame3 = robot.data.oMi[3] * pin.SE3(robot.recognition.T_joint3_closed)
-    return np.asarray(frame3.actInv(T_base_tcp.translation))
+    frame3 = robot.joint_placements(q)[2] * pin.SE3(robot.recognition.T_joint3_closed)
+    return np.asarray(frame3.actInv(robot.fk(q).translation))
 
 
 @jit

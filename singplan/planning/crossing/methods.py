@@ -330,7 +330,4 @@ class Dls:
         return Crossing(zone, self.name, JointPart("ptp", u, q), q_exit)
 
     def _step(self, robot: Robot, q: np.ndarray, T_target: np.ndarray) -> np.ndarray:
-        T = robot.fk(q)
-        err = np.concatenate([T_target[:3, 3] - T.translation, T.rotation @ pin.log3(T.rotation.T @ T_target[:3, :3])])
-        J = robot.jacobian(q)
-        return q + J.T @ np.linalg.solve(J @ J.T + self.damping**2 * np.eye(6), err)
+        return q + ik_numeric.damped_step(robot.jacobian(q), ik_numeric.pose_error(robot, q, T_target), self.damping**2)

@@ -32,11 +32,11 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-import pinocchio as pin
 
 from singplan.errors import JointLimitError, SingularityError
 from singplan.kinematics.configuration import distances_batch
 from singplan.kinematics.dynamics import move_torque_ratio
+from singplan.kinematics.ik.numeric import damped_solve, pose_error
 from singplan.kinematics.robot import Robot
 from singplan.planning.crossing.base import Crossing, MoveContext, Pause
 from singplan.planning.crossing.methods import (
@@ -233,45 +233,32 @@ class _NoSelfMotionError(Exception):
     """The null space does not carry the driven joint on (the message says why)."""
 
 
-def pose_error(robot: Robot, q: np.ndarray, T_target: np.ndarray) -> np.ndarray:
-    """(6,) position [m] and orientation [rad] error to T_target, in base coordinates (the
-    Jacobian's frame), so that ``J dq = error`` removes it to first order."""
-    T = robot.fk(q)
-    return np.concatenate([T_target[:3, 3] - T.translation,
-                           T.rotation @ pin.log3(T.rotation.T @ T_target[:3, :3])])
-
-
 def hold_pose(robot: Robot, q: np.ndarray, T_target: np.ndarray, joint: int, iterations: int = 10) -> np.ndarray:
     """q with every joint but ``joint`` moved so the pose is T_target (least squares; at a singular
     configuration the other joints' columns still span the Jacobian's range)."""
-    q = np.array(q, dtype=float)
+    def residual(qk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return pose_error(robot, qk, T_target), robot.jacobian(qk)
+
     free = [j for j in range(robot.n_joints) if j != joint]
-    for _ in range(iterations):
-        err = pose_error(robot, q, T_target)
-        if float(np.max(np.abs(err))) < 1e-13:
-            break
-        q[free] += np.linalg.lstsq(robot.jacobian(q)[:, free], err, rcond=1e-10)[0]
-    return q
+    return damped_solve(residual, q, free, rcond=1e-10, tol=1e-13, iterations=iterations)
 
 
 def singular_config(robot: Robot, q: np.ndarray, T_target: np.ndarray, kind: str, iterations: int = 30) -> np.ndarray:
     """Joints near q at the pose T_target with the ``kind`` singular distance zero (Gauss-Newton on
     the pose error and the weighted distance; the distance's gradient by central differences).
     Where the path only nearly meets the singularity, the pose error left is about the miss."""
-    q = np.array(q, dtype=float)
     i, h = KIND_INDEX[kind], 1e-7
-    for _ in range(iterations):
-        probes = np.vstack([q, q + h * np.eye(len(q)), q - h * np.eye(len(q))])
+
+    def residual(qk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        probes = np.vstack([qk, qk + h * np.eye(len(qk)), qk - h * np.eye(len(qk))])
         dist = distances_batch(robot, probes)[:, i]
-        grad = (dist[1:len(q) + 1] - dist[len(q) + 1:]) / (2 * h)
-        r = np.append(pose_error(robot, q, T_target), -_SINGULAR_WEIGHT * dist[0])
-        A = np.vstack([robot.jacobian(q), _SINGULAR_WEIGHT * grad])
-        # the self-motion direction is in the null space of both rows: truncate, never amplify it
-        step = np.linalg.lstsq(A, r, rcond=1e-6)[0]
-        q += step * min(1.0, _MAX_PROJECTION_STEP_RAD / max(float(np.max(np.abs(step))), 1e-300))
-        if float(np.max(np.abs(step))) < 1e-14:
-            break
-    return q
+        grad = (dist[1:len(qk) + 1] - dist[len(qk) + 1:]) / (2 * h)
+        return (np.append(pose_error(robot, qk, T_target), -_SINGULAR_WEIGHT * dist[0]),
+                np.vstack([robot.jacobian(qk), _SINGULAR_WEIGHT * grad]))
+
+    # the self-motion direction is in the null space of both rows: truncate, never amplify it
+    return damped_solve(residual, q, slice(None), rcond=1e-6, step_tol=1e-14, max_step=_MAX_PROJECTION_STEP_RAD,
+                        iterations=iterations)
 
 
 def self_motion(robot: Robot, q0: np.ndarray, T_target: np.ndarray, joint: int, turn_rad: float,

@@ -1,0 +1,85 @@
+"""The one damped least-squares home (kinematics.ik.numeric) and the re-solves that call it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from singplan.kinematics.ik.numeric import damped_solve, damped_step, pose_error
+from singplan.kinematics.robot import load_robot
+from singplan.planning.crossing.nullspace import hold_pose
+from singplan.planning.jointmap import axis_solve, orientation_solve, position_solve
+
+
+def test_damped_step_minimises_the_damped_residual_in_each_form() -> None:
+    rng = np.random.default_rng(4)
+    for rows, cols in [(6, 6), (3, 3), (5, 6), (6, 5)]:
+        J, err = rng.normal(size=(rows, cols)), rng.normal(size=rows)
+        for damping in (1e-6, 1e-2, 1.0):
+            normal, stacked = damped_step(J, err, damping), damped_step(J, err, damping, stacked=True)
+            np.testing.assert_allclose(normal, stacked, rtol=1e-8, atol=1e-10)
+            gradient = J.T @ (J @ normal - err) + damping * normal  # zero at the minimum
+            assert float(np.max(np.abs(gradient))) < 1e-9
+        np.testing.assert_allclose(damped_step(J, err, 0.0), np.linalg.lstsq(J, err, rcond=None)[0], atol=0.0)
+
+
+def test_damped_solve_caps_steps_and_stops_on_the_error_or_the_step() -> None:
+    A, target = np.diag([1.0, 2.0, 4.0]), np.array([3.0, -1.0, 2.0])
+    calls: list[np.ndarray] = []
+
+    def residual(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        calls.append(q.copy())
+        return target - A @ q, A
+
+    q = damped_solve(residual, np.zeros(3), slice(None), max_step=0.5, tol=1e-14, iterations=50)
+    steps = np.abs(np.diff(np.array(calls), axis=0)).max(axis=1)
+    assert float(steps.max()) <= 0.5 + 1e-15 and steps[0] == pytest.approx(0.5)  # capped, not scaled up
+    np.testing.assert_allclose(A @ q, target, atol=1e-14)
+    calls.clear()
+    q = damped_solve(residual, np.zeros(3), [0, 2], step_tol=1e-12, iterations=50)  # joint 1 held
+    assert q[1] == 0.0 and len(calls) == 2  # an exact linear solve, then a step under step_tol
+    np.testing.assert_allclose(q[[0, 2]], [3.0, 0.5], atol=1e-15)
+
+
+@pytest.fixture(scope="module")
+def arm_cases() -> list[tuple[np.ndarray, np.ndarray, pin.SE3]]:
+    """(q start, q goal, goal pose) of the ABB IRB 2400: goals a few degrees from the starts, seeded."""
+    robot = load_robot("abb_irb2400")
+    rng = np.random.default_rng(12)
+    out = []
+    for _ in range(8):
+        q_goal = rng.uniform(-1.0, 1.0, 6) * np.array([2.0, 0.8, 0.8, 2.0, 1.5, 2.0]) + np.array([0, 0, 0, 0, 0.8, 0])
+        out.append((q_goal + rng.uniform(-0.05, 0.05, 6), q_goal, robot.fk(q_goal)))
+    return out
+
+
+def test_the_re_solves_reach_their_targets(arm_cases: list[tuple[np.ndarray, np.ndarray, pin.SE3]]) -> None:
+    robot = load_robot("abb_irb2400")
+    for q0, q_goal, T in arm_cases:
+        q = position_solve(robot, q0, T.translation)
+        assert float(np.linalg.norm(robot.fk(q).translation - T.translation)) < 1e-11
+        np.testing.assert_array_equal(q[3:], q0[3:])  # only the arm joints move
+        q = orientation_solve(robot, q0, T.rotation)
+        assert float(np.linalg.norm(pin.log3(robot.fk(q).rotation.T @ T.rotation))) < 1e-12
+        np.testing.assert_array_equal(q[:3], q0[:3])
+        start = q0.copy()
+        start[3] = q_goal[3]  # five joints reach a full pose only with the held one at a solution's value
+        q = hold_pose(robot, start, T.homogeneous, joint=3)
+        assert float(np.max(np.abs(pose_error(robot, q, T.homogeneous)))) < 1e-12 and q[3] == q_goal[3]
+
+
+def test_axis_solve_keeps_the_held_joint_and_the_exact_component(
+        arm_cases: list[tuple[np.ndarray, np.ndarray, pin.SE3]]) -> None:
+    robot = load_robot("abb_irb2400")
+    for q0, q_goal, T in arm_cases:
+        q = axis_solve(robot, q0, T.homogeneous, fixed=3, exact="position")
+        assert float(np.linalg.norm(robot.fk(q).translation - T.translation)) < 1e-11 and q[3] == q0[3]
+        # held 3 deg at most off the goal's value, the orientation error stays a few degrees
+        assert math.degrees(float(np.linalg.norm(pin.log3(robot.fk(q).rotation.T @ T.rotation)))) < 10.0
+        held = q_goal.copy()
+        held[3] = q0[3]
+        q = axis_solve(robot, held, T.homogeneous, fixed=3, exact="orientation")
+        assert float(np.linalg.norm(pin.log3(robot.fk(q).rotation.T @ T.rotation))) < 1e-12

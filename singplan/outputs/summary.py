@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Sequence
 
-from singplan.results.trajectory import Trajectory
+from singplan.planning.records import Alternative
+from singplan.results.metrics import BlendFigures, CrossingFigures
+from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.schema import Task
 
 
@@ -20,70 +22,71 @@ def summary(traj: Trajectory, task: Task) -> str:
         lines.append(f"  move {i} {move.kind:4s} {t0:8.3f} .. {t1:8.3f} s  {what:16s} "
                      f"{segs[0].config_before} -> {segs[-1].config_after}")
         for s in segs:
-            if s.kind == "blend":
-                d = s.details
-                reduced = f" ({d['reduced']})" if "reduced" in d else ""
-                lines.append(f"      fly-by {s.t0:.3f} .. {s.t1:.3f} s: radius {d['radius_mm']:g} mm{reduced}")
-            if s.kind != "crossing":
-                continue
-            d = s.details
-            unit_value = (f"{d['min_distance'] * 1e3:.3f} mm" if d.get("min_distance_unit") == "m"
-                          else f"{math.degrees(d['min_distance']):.4f} deg")
-            how = "changing branch" if d.get("changes_branch") else "keeping the branch (joints swing, path slowed)"
-            if "pause_s" in d:  # null-space
-                how = f"pausing {d['pause_s']:.3f} s on the singular point while the aligned joints turn"
-            lines.append(f"      {s.singularity} zone {s.t0:.3f} .. {s.t1:.3f} s: closest {unit_value}, "
-                         f"method {s.method} {how}, {s.config_before} -> {s.config_after}, "
-                         f"dev {d['max_position_error_mm']:.4f} mm / {d['max_orientation_error_deg']:.4f} deg, "
-                         f"time lost {d['time_lost_s']:.3f} s")
-            choice = _choice(d.get("alternatives") or [])
-            if choice:
-                lines.append(f"        {choice}")
+            lines.extend(_segment_lines(s))
     m = traj.metrics
-    lines.append(f"metrics: position error {m['max_position_error_mm']:.5f} mm, orientation error "
-                 f"{m['max_orientation_error_deg']:.5f} deg, joint speed x{m['max_joint_speed_ratio']:.3f}, "
-                 f"joint accel x{m['max_joint_accel_ratio']:.3f}, planning {m['planning_time_s']:.2f} s")
+    lines.append(f"metrics: position error {m.max_position_error_mm:.5f} mm, orientation error "
+                 f"{m.max_orientation_error_deg:.5f} deg, joint speed x{m.max_joint_speed_ratio:.3f}, "
+                 f"joint accel x{m.max_joint_accel_ratio:.3f}, planning {m.planning_time_s:.2f} s")
     lines.append(_torque_line(traj, task))
-    if "acceleration_limited_duration_s" in m:
-        jerk = f"joint jerk x{m['max_joint_jerk_ratio']:.3f}, " if "max_joint_jerk_ratio" in m else ""
+    if m.jerk is not None:
+        ratio = m.jerk.max_joint_jerk_ratio
+        jerk = f"joint jerk x{ratio:.3f}, " if ratio is not None else ""
         law = "quintic PTP law, " if task.limits.ptp_time_law == "quintic" else ""
-        lines.append(f"jerk: {jerk}{law}{m['jerk_time_lost_s']:.3f} s longer than the acceleration-limited "
-                     f"{m['acceleration_limited_duration_s']:.3f} s")
-    stopped = [b for b in m.get("blends", []) if not b["flown"]]
-    for b in stopped:
-        lines.append(f"fly-by after move {b['move']} ({b['requested_mm']:g} mm asked): {b['reduced']}")
-    if "max_stopping_distance_mm" in m:
-        lines.append(f"stopping distance: up to {m['max_stopping_distance_mm']:.3f} mm at "
-                     f"t = {m['max_stopping_distance_at_s']:.3f} s (every joint braking at its acceleration limit)")
+        lines.append(f"jerk: {jerk}{law}{m.jerk.jerk_time_lost_s:.3f} s longer than the acceleration-limited "
+                     f"{m.jerk.acceleration_limited_duration_s:.3f} s")
+    lines += [f"fly-by after move {b.move} ({b.requested_mm:g} mm asked): {b.reduced}" for b in m.blends if not b.flown]
+    lines.append(f"stopping distance: up to {m.max_stopping_distance_mm:.3f} mm at "
+                 f"t = {m.max_stopping_distance_at_s:.3f} s (every joint braking at its acceleration limit)")
     return "\n".join(lines) + "\n"
 
 
 def _torque_line(traj: Trajectory, task: Task) -> str:
     """The torque figures: the peak against the limit, or why there are none."""
-    m = traj.metrics
-    if "max_torque_ratio" not in m:
-        return f"torques: {m.get('torques', 'not computed')}"
+    torques = traj.metrics.torques
+    if isinstance(torques, str):
+        return f"torques: {torques}"
     scale = task.limits.torque_scale
     limit = f"effort x{scale:g} (enforced)" if scale is not None else "the URDF effort (not enforced: no torque_scale)"
-    return f"torques: peak x{m['max_torque_ratio']:.3f} of {limit} at {m['max_torque_joint']}"
+    return f"torques: peak x{torques.max_torque_ratio:.3f} of {limit} at {torques.max_torque_joint}"
 
 
-def _choice(alternatives: list[dict[str, Any]]) -> str:
+def _segment_lines(s: Segment) -> list[str]:
+    """The lines of a fly-by corner or a crossing (none for other segments)."""
+    d = s.details
+    if isinstance(d, BlendFigures):
+        reduced = f" ({d.reduced})" if d.reduced else ""
+        return [f"      fly-by {s.t0:.3f} .. {s.t1:.3f} s: radius {d.radius_mm:g} mm{reduced}"]
+    if not isinstance(d, CrossingFigures):
+        return []
+    unit_value = (f"{d.min_distance * 1e3:.3f} mm" if d.min_distance_unit == "m"
+                  else f"{math.degrees(d.min_distance):.4f} deg")
+    how = "changing branch" if d.changes_branch else "keeping the branch (joints swing, path slowed)"
+    if d.pause_s is not None:  # null-space
+        how = f"pausing {d.pause_s:.3f} s on the singular point while the aligned joints turn"
+    lines = [f"      {s.singularity} zone {s.t0:.3f} .. {s.t1:.3f} s: closest {unit_value}, "
+             f"method {s.method} {how}, {s.config_before} -> {s.config_after}, "
+             f"dev {d.max_position_error_mm:.4f} mm / {d.max_orientation_error_deg:.4f} deg, "
+             f"time lost {d.time_lost_s:.3f} s"]
+    choice = _choice(d.alternatives)
+    return [*lines, f"        {choice}"] if choice else lines
+
+
+def _choice(alternatives: Sequence[Alternative]) -> str:
     """'auto chose X (n s); runner-up Y (m s), k s saved; infeasible: Z' from a crossing's alternatives."""
-    feasible = [a for a in alternatives if a.get("feasible")]
+    feasible = [a for a in alternatives if a.feasible and a.duration_s is not None]
     if len(alternatives) < 2 or not feasible:
         return ""
 
-    def name(a: dict[str, Any]) -> str:
-        return f"{a['method']}{' ' + str(a['variant']) if a.get('variant') else ''}"
+    def name(a: Alternative) -> str:
+        return f"{a.method}{' ' + a.variant if a.variant else ''}"
 
     best = feasible[0]
-    text = f"auto chose {name(best)} ({float(best['duration_s']):.3f} s move)"
-    others = [a for a in feasible[1:] if a["method"] != best["method"]] or feasible[1:]
+    text = f"auto chose {name(best)} ({best.duration_s:.3f} s move)"
+    others = [a for a in feasible[1:] if a.method != best.method] or feasible[1:]
     if others:
-        saved = float(others[0]["duration_s"]) - float(best["duration_s"])
-        text += f"; runner-up {name(others[0])} ({float(others[0]['duration_s']):.3f} s), {saved:.3f} s saved"
-    infeasible = sorted({str(a["method"]) for a in alternatives if not a.get("feasible")})
+        saved = float(others[0].duration_s or 0.0) - float(best.duration_s or 0.0)
+        text += f"; runner-up {name(others[0])} ({others[0].duration_s:.3f} s), {saved:.3f} s saved"
+    infeasible = sorted({a.method for a in alternatives if not a.feasible})
     if infeasible:
         text += f"; infeasible: {', '.join(infeasible)}"
     return text

@@ -15,7 +15,7 @@ from singplan.kinematics.robot import Robot
 from singplan.planning.budget import BudgetError
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Exact
-from singplan.planning.records import PlannedMove
+from singplan.planning.records import Alternative, PlannedMove
 from singplan.planning.timing import TimedMove
 
 Attempt = Callable[[CrossingMethod], tuple[PlannedMove, TimedMove]]  # plan, time and check one move
@@ -52,9 +52,8 @@ def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod],
         raise PlanningError(f"move {i} ({kind}): no method could plan it: "
                             + "; ".join(f"{name}: {exc}" for name, exc in failures))
     results.sort(key=lambda r: r[1].duration_s)
-    alternatives = tuple([{"method": r[0].method, "variant": r[0].variant, "duration_s": r[1].duration_s,
-                           "feasible": True} for r in results]
-                         + [{"method": name, "feasible": False, "reason": str(exc)} for name, exc in failures])
+    alternatives = tuple([Alternative(r[0].method, True, r[0].variant, r[1].duration_s) for r in results]
+                         + [Alternative(name, False, reason=str(exc)) for name, exc in failures])
     best_pm, best_tm = results[0]
     return replace(best_pm, alternatives=alternatives if len(methods) > 1 else ()), best_tm
 

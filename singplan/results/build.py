@@ -18,7 +18,7 @@ import numpy as np
 from singplan.kinematics.configuration import distances_batch, labels_from_distances
 from singplan.kinematics.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.kinematics.robot import Robot
-from singplan.kinematics.stopping import stopping_distances, stopping_metrics
+from singplan.kinematics.stopping import stopping_distances, worst_stopping
 from singplan.kinematics.vendor_config import vendor_configs
 from singplan.planning.blending import Blend
 from singplan.planning.jerk import third_difference_ratio
@@ -27,7 +27,16 @@ from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint
 from singplan.planning.timing import TimedMove, sample_ratios
 from singplan.planning.zones import Zone
-from singplan.results.trajectory import Event, MoveRecord, Segment, Trajectory, finite_differences
+from singplan.results.metrics import (
+    BlendFigures,
+    BlendReport,
+    CrossingFigures,
+    CrossingReport,
+    JerkFigures,
+    Metrics,
+    TorqueFigures,
+)
+from singplan.results.trajectory import Event, MoveRecord, Segment, SegmentKind, Trajectory, finite_differences
 from singplan.task.schema import Task
 
 
@@ -47,7 +56,7 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     labels = _Labels(distances)
     segments: list[Segment] = []
     events: list[Event] = []
-    crossings: list[dict[str, Any]] = []
+    crossings: list[CrossingReport] = []
     worst_pos, worst_ori = 0.0, 0.0
     k0 = 0
     pos_all, ori_all = [np.zeros(1)], [np.zeros(1)]
@@ -64,20 +73,18 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
         segs = _move_segments(pm, tm, k0, k1, period, labels, pos_err, ori_err, flown.get(pm.index))
         segments.extend(segs)
         events.extend(_move_events(pm, segs, k0, k1, period, labels))
-        crossings.extend({"move": s.move, "t0": s.t0, "t1": s.t1, "singularity": s.singularity, "method": s.method,
-                          "config_before": s.config_before, "config_after": s.config_after, **s.details}
-                         for s in segs if s.kind == "crossing")
+        crossings.extend(CrossingReport(s.move, s.t0, s.t1, s.singularity, s.method, s.config_before, s.config_after,
+                                        s.details) for s in segs if isinstance(s.details, CrossingFigures))
         k0 = k1
     arm, q = (held.full, held.expand(q_planned)) if held is not None else (robot, q_planned)
     speed, accel = _chunked_ratios(q, period, arm.velocity_rad_s * task.limits.velocity_scale,
                                    arm.acceleration_rad_s2)
     qd, qdd = _chunked_differences(q, period)
     stopping_m = stopping_distances(arm, q, qd, arm.acceleration_rad_s2)
-    metrics = {"max_position_error_mm": worst_pos * 1e3, "max_orientation_error_deg": math.degrees(worst_ori),
-               "max_joint_speed_ratio": speed, "max_joint_accel_ratio": accel, "duration_s": float(t[-1]),
-               "planning_time_s": planning_time_s, "samples": len(t), "method": method,
-               "crossings": crossings, **_torque_metrics(arm, task, q), **_jerk_metrics(arm, task, q, timed),
-               **stopping_metrics(stopping_m, period), **_blend_metrics(blends)}
+    stop_mm, stop_at_s = worst_stopping(stopping_m, period)
+    metrics = Metrics(worst_pos * 1e3, math.degrees(worst_ori), speed, accel, float(t[-1]), planning_time_s, len(t),
+                      method, tuple(crossings), _torque_metrics(arm, task, q), stop_mm, stop_at_s,
+                      _jerk_metrics(arm, task, q, timed), _blend_reports(blends))
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
     samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all),
                "stopping_distance_m": stopping_m}
@@ -103,35 +110,32 @@ def _move_records(robot: Robot, task: Task, segments: list[Segment], q: np.ndarr
 _CHUNK = 65_536  # programmed poses formed at once (128 bytes a sample)
 
 
-def _jerk_metrics(robot: Robot, task: Task, q: np.ndarray, timed: list[TimedMove]) -> dict[str, Any]:
+def _jerk_metrics(robot: Robot, task: Task, q: np.ndarray, timed: list[TimedMove]) -> JerkFigures | None:
     """With a jerk limit or the quintic PTP law: the jerk ratio and the time they cost against the
     acceleration-limited optimum (TOPP-RA's duration of every move)."""
     jerk = task.limits.jerk_rad_s3
     if jerk is None and task.limits.ptp_time_law == "optimal":
-        return {}
+        return None
     optimal_s = sum(tm.optimal_duration_s if tm.optimal_duration_s is not None else tm.duration_s for tm in timed)
-    out: dict[str, Any] = {"acceleration_limited_duration_s": optimal_s,
-                           "jerk_time_lost_s": sum(tm.duration_s for tm in timed) - optimal_s}
-    if jerk is not None:
-        jmax = np.broadcast_to(np.asarray(jerk, dtype=float), (robot.n_joints,))
-        out["max_joint_jerk_ratio"] = third_difference_ratio(q, task.period_s, jmax)
-    return out
+    ratio = (third_difference_ratio(q, task.period_s, np.broadcast_to(np.asarray(jerk, dtype=float),
+                                                                      (robot.n_joints,)))
+             if jerk is not None else None)
+    return JerkFigures(optimal_s, sum(tm.duration_s for tm in timed) - optimal_s, ratio)
 
 
-def _torque_metrics(robot: Robot, task: Task, q: np.ndarray) -> dict[str, Any]:
+def _torque_metrics(robot: Robot, task: Task, q: np.ndarray) -> TorqueFigures | str:
     """Inverse-dynamics torques of the samples against the efforts x ``limits.torque_scale`` (1 if unset).
 
     A robot without dynamics gets the reason instead (no torque is invented for it).
     """
     reason = no_dynamics_reason(robot)
     if reason is not None:
-        return {"torques": f"not computed: {reason}"}
+        return f"not computed: {reason}"
     limit_nm = effort_limits_nm(robot) * (task.limits.torque_scale or 1.0)
     peaks, _ = trajectory_torques(robot, q, task.period_s, limit_nm)
-    return {"max_torque_ratio": peaks.ratio, "max_torque_at_s": peaks.sample * task.period_s,
-            "max_torque_joint": robot.joint_names[peaks.joint],
-            "peak_torque_Nm": dict(zip(robot.joint_names, peaks.peak_nm.tolist(), strict=True)),
-            "torque_limit_Nm": dict(zip(robot.joint_names, limit_nm.tolist(), strict=True))}
+    return TorqueFigures(peaks.ratio, peaks.sample * task.period_s, robot.joint_names[peaks.joint],
+                         dict(zip(robot.joint_names, peaks.peak_nm.tolist(), strict=True)),
+                         dict(zip(robot.joint_names, limit_nm.tolist(), strict=True)))
 
 
 class _Labels:
@@ -197,26 +201,23 @@ def _merged_spans(pm: PlannedMove, tm: TimedMove, last: int) -> list[tuple[int, 
     return spans
 
 
-def _blend_metrics(blends: tuple[Blend, ...]) -> dict[str, Any]:
+def _blend_reports(blends: tuple[Blend, ...]) -> tuple[BlendReport, ...]:
     """Every corner that asked for a fly-by: the radius asked for, the radius used and why it differs."""
-    if not blends:
-        return {}
-    return {"blends": [{"move": b.move, "requested_mm": b.requested_m * 1e3, "radius_mm": b.radius_m * 1e3,
-                        "flown": b.jmap is not None, **({"reduced": b.note} if b.note else {})} for b in blends]}
+    return tuple(BlendReport(b.move, b.requested_m * 1e3, b.radius_m * 1e3, b.jmap is not None, b.note)
+                 for b in blends)
 
 
 def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float, labels: _Labels,
                    pos_err: np.ndarray, ori_err: np.ndarray, blend: Blend | None) -> list[Segment]:
-    def seg(kind: str, a: int, b: int, **extra: Any) -> Segment:
+    def seg(kind: SegmentKind, a: int, b: int, **extra: Any) -> Segment:
         return Segment(pm.index, kind, (k0 + a) * period, (k0 + b) * period, labels[k0 + a], labels[k0 + b], **extra)
 
     if tm.blend_from is None:
         return _path_segments(pm, tm, k1 - k0, seg, period, pos_err, ori_err)
     assert blend is not None
     own = _path_segments(pm, tm, tm.blend_from, seg, period, pos_err, ori_err) if tm.blend_from > 0 else []
-    return [*own, seg("blend", tm.blend_from, k1 - k0, details={
-        "radius_mm": blend.radius_m * 1e3, "requested_mm": blend.requested_m * 1e3,
-        **({"reduced": blend.note} if blend.note else {})})]
+    return [*own, seg("blend", tm.blend_from, k1 - k0,
+                      details=BlendFigures(blend.radius_m * 1e3, blend.requested_m * 1e3, blend.note))]
 
 
 SegmentMaker = Callable[..., Segment]
@@ -253,7 +254,7 @@ def _zone_method(pm: PlannedMove, zone: Zone) -> str:
 
 
 def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone, pos_err: np.ndarray,
-                      ori_err: np.ndarray, period: float) -> dict[str, Any]:
+                      ori_err: np.ndarray, period: float) -> CrossingFigures:
     k = a + int(np.argmax(ori_err[a:b + 1]))
     speed = pm.limits.tcp_speed_m_s or 0.0
     nominal = (tm.u[b] - tm.u[a]) * pm.limits.length_m / speed if speed > 0 else 0.0
@@ -261,13 +262,10 @@ def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone
     # a null-space pause: the samples that stay at the singular point's u while the joints turn
     waits = [int(np.count_nonzero(np.abs(tm.u[a:b + 1] - c.pause.u) < 1e-12)) - 1 for c in pm.crossings
              if c.pause is not None and c.zone.u_closest == zone.u_closest]
-    pause = {"pause_s": max(0, sum(waits)) * period} if waits else {}
-    return {**pause, "min_distance": zone.min_distance, "min_distance_unit": zone.unit,
-            "max_position_error_mm": float(pos_err[a:b + 1].max()) * 1e3,
-            "max_orientation_error_deg": math.degrees(float(ori_err[a:b + 1].max())),
-            "max_orientation_error_at_s": float(tm.u[k] * pm.limits.length_m),
-            "time_lost_s": max(0.0, (b - a) * period - nominal),
-            "changes_branch": through, "alternatives": list(pm.alternatives)}
+    return CrossingFigures(zone.min_distance, zone.unit, float(pos_err[a:b + 1].max()) * 1e3,
+                           math.degrees(float(ori_err[a:b + 1].max())), float(tm.u[k] * pm.limits.length_m),
+                           max(0.0, (b - a) * period - nominal), through, pm.alternatives,
+                           max(0, sum(waits)) * period if waits else None)
 
 
 def _move_events(pm: PlannedMove, segs: list[Segment], k0: int, k1: int, period: float,
@@ -275,8 +273,8 @@ def _move_events(pm: PlannedMove, segs: list[Segment], k0: int, k1: int, period:
     events = []
     for s in segs:
         if s.kind == "crossing":
-            events.append(Event(s.t0, pm.index, "zone_entry", {"singularity": s.singularity}))
-            events.append(Event(s.t1, pm.index, "zone_exit", {"singularity": s.singularity}))
+            events.append(Event(s.t0, pm.index, "zone_entry", s.singularity))
+            events.append(Event(s.t1, pm.index, "zone_exit", s.singularity))
     for k in labels.changes(k0, k1).tolist():
-        events.append(Event(k * period, pm.index, "config_change", {"from": labels[k - 1], "to": labels[k]}))
+        events.append(Event(k * period, pm.index, "config_change", config_from=labels[k - 1], config_to=labels[k]))
     return sorted(events, key=lambda e: e.t)

@@ -54,14 +54,14 @@ def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: 
     """The last gate: no plan is returned whose own samples break a limit (whatever the cause)."""
     _check_positions(robot, planned, timed, traj)
     unlimited = () if task.limits.torque_scale is not None else ("max_torque_ratio",)  # reported, not a limit
-    over = {k: v for k, v in traj.metrics.items()  # `not <=`: a NaN ratio is a violation too
-            if k.startswith("max_") and k.endswith("_ratio") and isinstance(v, float) and not v <= 1.0 + _ROUND_OFF
-            and k not in unlimited}
+    over = {k: v for k, v in traj.metrics.limit_ratios().items()  # `not <=`: a NaN ratio is a violation too
+            if not v <= 1.0 + _ROUND_OFF and k not in unlimited}
     if not over:
         return
     vmax, amax = robot.velocity_rad_s * task.limits.velocity_scale, robot.acceleration_rad_s2
-    if list(over) == ["max_torque_ratio"]:
-        k = round(float(traj.metrics["max_torque_at_s"]) / traj.period)
+    torques = traj.metrics.torques
+    if list(over) == ["max_torque_ratio"] and not isinstance(torques, str):
+        k = round(torques.max_torque_at_s / traj.period)
     else:
         k = worst_sample(traj.q, traj.period, vmax, amax)
     m, k_move = _move_of_sample(timed, k)

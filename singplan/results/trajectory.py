@@ -14,51 +14,66 @@ import os
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, Literal, TextIO
 
 import numpy as np
 
 from singplan.errors import InputError
 from singplan.results.files import Writer, text_writer, write_files
+from singplan.results.metrics import NO_FIGURES, Metrics, SegmentFigures, figures_from_json
 
 FORMAT = "singplan.trajectory/1"
+SegmentKind = Literal["path", "pre", "crossing", "post", "ptp", "blend"]
 _CHUNK_ROWS = 4096  # samples formatted at once when writing (bounds the text held in memory)
 
 
 @dataclass(frozen=True)
 class Segment:
-    """A stretch of one move: "path", "pre", "crossing", "post" or "ptp".
+    """A stretch of one move: "path", "pre", "crossing", "post", "ptp" or "blend".
 
-    Crossing segments also carry their figures: ``min_distance`` (rad or m), the largest
-    position and orientation deviation from the programmed path, and ``time_lost_s`` versus
-    the same move timed with no singular zone.
+    Crossing segments carry their figures (:class:`~singplan.results.metrics.CrossingFigures`:
+    ``min_distance`` (rad or m), the largest position and orientation deviation from the
+    programmed path, ``time_lost_s`` versus the programmed speed, what auto compared); a fly-by
+    corner its radius (:class:`~singplan.results.metrics.BlendFigures`); the others none.
     """
 
     move: int
-    kind: str
+    kind: SegmentKind
     t0: float
     t1: float
     config_before: str
     config_after: str
     singularity: str | None = None
     method: str | None = None
-    details: dict[str, Any] = field(default_factory=dict)
+    details: SegmentFigures = NO_FIGURES
 
     def to_json(self) -> dict[str, Any]:
-        out = {k: v for k, v in asdict(self).items() if k != "details"}
-        out.update(self.details)
-        return out
+        return {"move": self.move, "kind": self.kind, "t0": self.t0, "t1": self.t1,
+                "config_before": self.config_before, "config_after": self.config_after,
+                "singularity": self.singularity, "method": self.method, **self.details.to_json()}
 
 
 @dataclass(frozen=True)
 class Event:
+    """Something that happens at one sample: a zone entered or left (``singularity`` says which
+    kind), or the configuration label changing (``config_from`` -> ``config_to``)."""
+
     t: float
     move: int
-    type: str  # "zone_entry" | "zone_exit" | "config_change"
-    details: dict[str, Any] = field(default_factory=dict)
+    type: Literal["zone_entry", "zone_exit", "config_change"]
+    singularity: str | None = None
+    config_from: str | None = None
+    config_to: str | None = None
 
     def to_json(self) -> dict[str, Any]:
-        return {"t": self.t, "move": self.move, "type": self.type, **self.details}
+        if self.type == "config_change":
+            return {"t": self.t, "move": self.move, "type": self.type, "from": self.config_from, "to": self.config_to}
+        return {"t": self.t, "move": self.move, "type": self.type, "singularity": self.singularity}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> Event:
+        return cls(float(doc["t"]), int(doc["move"]), doc["type"], doc.get("singularity"), doc.get("from"),
+                   doc.get("to"))
 
 
 @dataclass(frozen=True)
@@ -111,7 +126,7 @@ class Trajectory:
     qdd: np.ndarray  # (K, n)
     segments: tuple[Segment, ...]
     events: tuple[Event, ...]
-    metrics: dict[str, Any]
+    metrics: Metrics
     # per-sample series, each (K,) or (K, 3): position_error_m, orientation_error_rad, distances,
     # stopping_distance_m (singplan.kinematics.stopping)
     samples: dict[str, np.ndarray] = field(default_factory=dict)
@@ -137,7 +152,7 @@ class Trajectory:
             "task": self.task, "joint_names": list(self.joint_names), "period": self.period,
             "t": self.t, "q": self.q, "qd": self.qd, "qdd": self.qdd,
             "segments": [s.to_json() for s in self.segments], "events": [e.to_json() for e in self.events],
-            "moves": [m.to_json() for m in self.moves], "metrics": _jsonable(self.metrics),
+            "moves": [m.to_json() for m in self.moves], "metrics": _jsonable(self.metrics.to_json()),
             "samples": _sample_series(self.samples),
         }
 
@@ -278,12 +293,12 @@ def load(path: str | Path) -> Trajectory:
 
 def _from_document(doc: dict[str, Any]) -> Trajectory:
     segments = tuple(Segment(**{k: s.get(k) for k in _SEGMENT_FIELDS},
-                             details={k: v for k, v in s.items() if k not in _SEGMENT_FIELDS})
+                             details=figures_from_json(s["kind"], {k: v for k, v in s.items()
+                                                                   if k not in _SEGMENT_FIELDS}))
                      for s in doc["segments"])
-    events = tuple(Event(e["t"], e["move"], e["type"], {k: v for k, v in e.items() if k not in ("t", "move", "type")})
-                   for e in doc["events"])
+    events = tuple(Event.from_json(e) for e in doc["events"])
     arrays = {k: np.asarray(doc[k], dtype=float) for k in ("t", "q", "qd", "qdd")}
     return Trajectory(doc["robot"], doc["urdf"], doc["tip"], doc["tool"], doc["task"], tuple(doc["joint_names"]),
                       float(doc["period"]), arrays["t"], arrays["q"], arrays["qd"], arrays["qdd"], segments, events,
-                      doc["metrics"], _samples_from_file(doc.get("samples", {})),
+                      Metrics.from_json(doc["metrics"]), _samples_from_file(doc.get("samples", {})),
                       tuple(MoveRecord(**m) for m in doc.get("moves", ())))

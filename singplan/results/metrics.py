@@ -1,0 +1,226 @@
+"""The figures a trajectory carries, as typed records (DESIGN.md "Metrics every trajectory carries").
+
+Each record has typed fields for code and reads as its trajectory.json mapping
+(``traj.metrics["max_joint_accel_ratio"]``), so the file contract and the Python API say the
+same thing. :meth:`Metrics.from_json` reads them back from a file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from singplan.planning.records import Alternative, JsonRecord
+
+
+@dataclass(frozen=True, eq=False)
+class CrossingFigures(JsonRecord):
+    """What a crossing segment cost and how close it came.
+
+    Attributes:
+        min_distance: the closest approach to the singular configuration, in ``min_distance_unit``
+            ("rad", or "m" for the shoulder).
+        max_position_error_mm, max_orientation_error_deg: the largest deviation from the path in it.
+        max_orientation_error_at_s: where along the move's path that orientation error is [m].
+        time_lost_s: against crossing the same stretch at the programmed speed.
+        changes_branch: the crossing changes the configuration on purpose.
+        alternatives: what auto compared on this move, fastest first.
+        pause_s: how long the TCP waits on the singular point (null-space), None without a pause.
+    """
+
+    min_distance: float
+    min_distance_unit: str
+    max_position_error_mm: float
+    max_orientation_error_deg: float
+    max_orientation_error_at_s: float
+    time_lost_s: float
+    changes_branch: bool
+    alternatives: tuple[Alternative, ...] = ()
+    pause_s: float | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {} if self.pause_s is None else {"pause_s": self.pause_s}
+        return {**out, "min_distance": self.min_distance, "min_distance_unit": self.min_distance_unit,
+                "max_position_error_mm": self.max_position_error_mm,
+                "max_orientation_error_deg": self.max_orientation_error_deg,
+                "max_orientation_error_at_s": self.max_orientation_error_at_s, "time_lost_s": self.time_lost_s,
+                "changes_branch": self.changes_branch, "alternatives": [a.to_json() for a in self.alternatives]}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> CrossingFigures:
+        return cls(float(doc["min_distance"]), str(doc["min_distance_unit"]), float(doc["max_position_error_mm"]),
+                   float(doc["max_orientation_error_deg"]), float(doc["max_orientation_error_at_s"]),
+                   float(doc["time_lost_s"]), bool(doc["changes_branch"]),
+                   tuple(Alternative.from_json(a) for a in doc.get("alternatives", ())),
+                   None if doc.get("pause_s") is None else float(doc["pause_s"]))
+
+
+@dataclass(frozen=True, eq=False)
+class BlendFigures(JsonRecord):
+    """A fly-by corner (the incoming move's ``blend`` segment): the radius used, the radius asked
+    for [mm], and why they differ ("" when they do not)."""
+
+    radius_mm: float
+    requested_mm: float
+    reduced: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"radius_mm": self.radius_mm, "requested_mm": self.requested_mm}
+        return {**out, "reduced": self.reduced} if self.reduced else out
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> BlendFigures:
+        return cls(float(doc["radius_mm"]), float(doc["requested_mm"]), str(doc.get("reduced", "")))
+
+
+@dataclass(frozen=True, eq=False)
+class NoFigures(JsonRecord):
+    """The figures of a segment that has none of its own (path, pre, post, ptp)."""
+
+    def to_json(self) -> dict[str, Any]:
+        return {}
+
+
+SegmentFigures = CrossingFigures | BlendFigures | NoFigures
+NO_FIGURES = NoFigures()
+
+
+def figures_from_json(kind: str, doc: Mapping[str, Any]) -> SegmentFigures:
+    """A segment's figures as written in trajectory.json (its keys beyond the segment's own)."""
+    if kind == "crossing":
+        return CrossingFigures.from_json(doc)
+    if kind == "blend":
+        return BlendFigures.from_json(doc)
+    return NO_FIGURES
+
+
+@dataclass(frozen=True, eq=False)
+class CrossingReport(JsonRecord):
+    """One crossing of the trajectory: its segment's place and its figures (``metrics.crossings``)."""
+
+    move: int
+    t0: float
+    t1: float
+    singularity: str | None
+    method: str | None
+    config_before: str
+    config_after: str
+    figures: CrossingFigures
+
+    def to_json(self) -> dict[str, Any]:
+        return {"move": self.move, "t0": self.t0, "t1": self.t1, "singularity": self.singularity,
+                "method": self.method, "config_before": self.config_before, "config_after": self.config_after,
+                **self.figures.to_json()}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> CrossingReport:
+        return cls(int(doc["move"]), float(doc["t0"]), float(doc["t1"]), doc.get("singularity"), doc.get("method"),
+                   str(doc["config_before"]), str(doc["config_after"]), CrossingFigures.from_json(doc))
+
+
+@dataclass(frozen=True, eq=False)
+class BlendReport(JsonRecord):
+    """A corner that asked for a fly-by (``metrics.blends``): flown or not, and its radius [mm]."""
+
+    move: int
+    requested_mm: float
+    radius_mm: float
+    flown: bool
+    reduced: str = ""  # why the radius is smaller than asked, or why the corner is stopped at
+
+    def to_json(self) -> dict[str, Any]:
+        out = {"move": self.move, "requested_mm": self.requested_mm, "radius_mm": self.radius_mm, "flown": self.flown}
+        return {**out, "reduced": self.reduced} if self.reduced else out
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> BlendReport:
+        return cls(int(doc["move"]), float(doc["requested_mm"]), float(doc["radius_mm"]), bool(doc["flown"]),
+                   str(doc.get("reduced", "")))
+
+
+@dataclass(frozen=True, eq=False)
+class TorqueFigures(JsonRecord):
+    """Inverse-dynamics torques of the samples against the efforts x ``limits.torque_scale``."""
+
+    max_torque_ratio: float
+    max_torque_at_s: float
+    max_torque_joint: str
+    peak_torque_Nm: Mapping[str, float]  # noqa: N815 (the file's key)
+    torque_limit_Nm: Mapping[str, float]  # noqa: N815
+
+    def to_json(self) -> dict[str, Any]:
+        return {"max_torque_ratio": self.max_torque_ratio, "max_torque_at_s": self.max_torque_at_s,
+                "max_torque_joint": self.max_torque_joint, "peak_torque_Nm": dict(self.peak_torque_Nm),
+                "torque_limit_Nm": dict(self.torque_limit_Nm)}
+
+
+@dataclass(frozen=True, eq=False)
+class JerkFigures(JsonRecord):
+    """With a jerk limit or the quintic PTP law: what the smoother time law costs.
+
+    ``max_joint_jerk_ratio`` is None with the quintic law alone (no jerk limit to compare with).
+    """
+
+    acceleration_limited_duration_s: float
+    jerk_time_lost_s: float
+    max_joint_jerk_ratio: float | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"acceleration_limited_duration_s": self.acceleration_limited_duration_s,
+                               "jerk_time_lost_s": self.jerk_time_lost_s}
+        return out if self.max_joint_jerk_ratio is None else {**out, "max_joint_jerk_ratio": self.max_joint_jerk_ratio}
+
+
+@dataclass(frozen=True, eq=False)
+class Metrics(JsonRecord):
+    """Every trajectory's figures (deviations, limit ratios, timing, crossings, torques, jerk,
+    stopping distance, fly-by corners); as a mapping, trajectory.json's ``metrics``."""
+
+    max_position_error_mm: float
+    max_orientation_error_deg: float
+    max_joint_speed_ratio: float
+    max_joint_accel_ratio: float
+    duration_s: float
+    planning_time_s: float
+    samples: int
+    method: str
+    crossings: tuple[CrossingReport, ...]
+    torques: TorqueFigures | str  # str: why there are none ("not computed: ...")
+    max_stopping_distance_mm: float
+    max_stopping_distance_at_s: float
+    jerk: JerkFigures | None = None
+    blends: tuple[BlendReport, ...] = ()
+
+    def to_json(self) -> dict[str, Any]:
+        torques = {"torques": self.torques} if isinstance(self.torques, str) else self.torques.to_json()
+        out: dict[str, Any] = {
+            "max_position_error_mm": self.max_position_error_mm,
+            "max_orientation_error_deg": self.max_orientation_error_deg,
+            "max_joint_speed_ratio": self.max_joint_speed_ratio, "max_joint_accel_ratio": self.max_joint_accel_ratio,
+            "duration_s": self.duration_s, "planning_time_s": self.planning_time_s, "samples": self.samples,
+            "method": self.method, "crossings": [c.to_json() for c in self.crossings], **torques,
+            **(self.jerk.to_json() if self.jerk is not None else {}),
+            "max_stopping_distance_mm": self.max_stopping_distance_mm,
+            "max_stopping_distance_at_s": self.max_stopping_distance_at_s}
+        return {**out, "blends": [b.to_json() for b in self.blends]} if self.blends else out
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> Metrics:
+        torques: TorqueFigures | str = (str(doc["torques"]) if "torques" in doc else TorqueFigures(
+            float(doc["max_torque_ratio"]), float(doc["max_torque_at_s"]), str(doc["max_torque_joint"]),
+            {str(k): float(v) for k, v in doc["peak_torque_Nm"].items()},
+            {str(k): float(v) for k, v in doc["torque_limit_Nm"].items()}))
+        jerk = (JerkFigures(float(doc["acceleration_limited_duration_s"]), float(doc["jerk_time_lost_s"]),
+                            None if doc.get("max_joint_jerk_ratio") is None else float(doc["max_joint_jerk_ratio"]))
+                if "acceleration_limited_duration_s" in doc else None)
+        return cls(float(doc["max_position_error_mm"]), float(doc["max_orientation_error_deg"]),
+                   float(doc["max_joint_speed_ratio"]), float(doc["max_joint_accel_ratio"]), float(doc["duration_s"]),
+                   float(doc["planning_time_s"]), int(doc["samples"]), str(doc["method"]),
+                   tuple(CrossingReport.from_json(c) for c in doc.get("crossings", ())), torques,
+                   float(doc.get("max_stopping_distance_mm", 0.0)), float(doc.get("max_stopping_distance_at_s", 0.0)),
+                   jerk, tuple(BlendReport.from_json(b) for b in doc.get("blends", ())))
+
+    def limit_ratios(self) -> dict[str, float]:
+        """Every ``max_*_ratio`` figure (the limits a plan must keep, and the torque it reports)."""
+        return {k: v for k, v in self.items() if k.startswith("max_") and k.endswith("_ratio") and isinstance(v, float)}

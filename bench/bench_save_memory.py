@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from singplan.results.metrics import Metrics
 from singplan.results.trajectory import Trajectory, save
 
 
@@ -36,7 +37,7 @@ def synthetic(samples: int, joints: int = 6, seed: int = 7) -> Trajectory:
     task = {"robot": "kuka_kr6_r900_2", "moves": [{"lin": {"to": {"xyz": [0.5, 0, 0.5]}}}]}
     return Trajectory("kuka_kr6_r900_2", "/robots/kuka.urdf", "tool0", {"xyz": [0, 0, 0], "rpy_deg": [0, 0, 0]}, task,
                       tuple(f"joint_{i + 1}" for i in range(joints)), period_s, t, q, qd, qdd, (), (),
-                      {"duration_s": float(t[-1])}, series)
+                      Metrics.of_samples(float(t[-1]), samples), series)
 
 
 def save_old(traj: Trajectory, folder: Path) -> None:

@@ -109,7 +109,9 @@ def test_the_final_gate_refuses_a_plan_over_the_jerk_limit() -> None:
     task = _with_limits(load_task(DEMO), jerk_rad_s3=(300.0,))
     planned = plan_moves(replace(task, moves=task.moves[:1]))  # the gate's own inputs
     traj = trajectory_of(planned)  # the real samples pass
-    over: Trajectory = replace(traj, metrics={**traj.metrics, "max_joint_jerk_ratio": 1.2})
+    assert traj.metrics.jerk is not None
+    over: Trajectory = replace(traj, metrics=replace(traj.metrics, jerk=replace(traj.metrics.jerk,
+                                                                                max_joint_jerk_ratio=1.2)))
     with pytest.raises(PlanningError, match=r"max_joint_jerk_ratio 1\.2"):
         _check_metrics(planned.full, planned.task, list(planned.moves), list(planned.timed), over)
 

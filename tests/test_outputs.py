@@ -12,6 +12,7 @@ import signal
 import subprocess
 import sys
 import tracemalloc
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,7 @@ from singplan.cli import main
 from singplan.errors import OutputPathError
 from singplan.results import files as outputs
 from singplan.results import trajectory as trajectory_module
+from singplan.results.metrics import Metrics
 from singplan.results.trajectory import Trajectory, load, save, write_csv, write_json
 
 ROBOT_URDF = Path(__file__).resolve().parents[1] / "robots" / "urdf" / "kuka_kr6_r900_2.urdf"
@@ -247,7 +249,7 @@ def _synthetic(samples: int) -> Trajectory:
               "distances": rng.uniform(0, 1, (samples, 3))}
     return Trajectory("r", "/r.urdf", "tool0", {"xyz": [0, 0, 0], "rpy_deg": [0, 0, 0]}, {"robot": "r"},
                       tuple(f"j{i}" for i in range(6)), 0.004, t, q, q * 2, q * 3, (), (),
-                      {"duration_s": float(t[-1]), "nan": float("nan")}, series)
+                      replace(Metrics.of_samples(float(t[-1]), samples), max_position_error_mm=float("nan")), series)
 
 
 @pytest.mark.parametrize("error", [RuntimeError("boom\nsecond line"), RecursionError("maximum recursion depth"),

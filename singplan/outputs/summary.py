@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from singplan.planning.records import Alternative
+from singplan.planning.alternatives import Alternative
 from singplan.results.metrics import BlendFigures, CrossingFigures
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.schema import Task

@@ -12,10 +12,11 @@ from dataclasses import replace
 
 from singplan.errors import PlanningError, SingularityError, UnreachableError
 from singplan.kinematics.robot import Robot
+from singplan.planning.alternatives import Alternative
 from singplan.planning.budget import BudgetError
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Exact
-from singplan.planning.records import Alternative, PlannedMove
+from singplan.planning.records import PlannedMove
 from singplan.planning.timing import TimedMove
 
 Attempt = Callable[[CrossingMethod], tuple[PlannedMove, TimedMove]]  # plan, time and check one move

@@ -7,11 +7,17 @@ same thing. :meth:`Metrics.from_json` reads them back from a file.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from singplan.planning.records import Alternative, JsonRecord
+from singplan.planning.alternatives import Alternative, JsonRecord
+
+
+def _f(value: Any) -> float:
+    """A figure read back from trajectory.json, which writes a NaN or infinite figure as null."""
+    return math.nan if value is None else float(value)
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,11 +55,11 @@ class CrossingFigures(JsonRecord):
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> CrossingFigures:
-        return cls(float(doc["min_distance"]), str(doc["min_distance_unit"]), float(doc["max_position_error_mm"]),
-                   float(doc["max_orientation_error_deg"]), float(doc["max_orientation_error_at_s"]),
-                   float(doc["time_lost_s"]), bool(doc["changes_branch"]),
+        return cls(_f(doc["min_distance"]), str(doc["min_distance_unit"]), _f(doc["max_position_error_mm"]),
+                   _f(doc["max_orientation_error_deg"]), _f(doc["max_orientation_error_at_s"]),
+                   _f(doc["time_lost_s"]), bool(doc["changes_branch"]),
                    tuple(Alternative.from_json(a) for a in doc.get("alternatives", ())),
-                   None if doc.get("pause_s") is None else float(doc["pause_s"]))
+                   None if doc.get("pause_s") is None else _f(doc["pause_s"]))
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,7 +77,7 @@ class BlendFigures(JsonRecord):
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> BlendFigures:
-        return cls(float(doc["radius_mm"]), float(doc["requested_mm"]), str(doc.get("reduced", "")))
+        return cls(_f(doc["radius_mm"]), _f(doc["requested_mm"]), str(doc.get("reduced", "")))
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,7 +121,7 @@ class CrossingReport(JsonRecord):
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> CrossingReport:
-        return cls(int(doc["move"]), float(doc["t0"]), float(doc["t1"]), doc.get("singularity"), doc.get("method"),
+        return cls(int(doc["move"]), _f(doc["t0"]), _f(doc["t1"]), doc.get("singularity"), doc.get("method"),
                    str(doc["config_before"]), str(doc["config_after"]), CrossingFigures.from_json(doc))
 
 
@@ -135,7 +141,7 @@ class BlendReport(JsonRecord):
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> BlendReport:
-        return cls(int(doc["move"]), float(doc["requested_mm"]), float(doc["radius_mm"]), bool(doc["flown"]),
+        return cls(int(doc["move"]), _f(doc["requested_mm"]), _f(doc["radius_mm"]), bool(doc["flown"]),
                    str(doc.get("reduced", "")))
 
 
@@ -208,18 +214,23 @@ class Metrics(JsonRecord):
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Metrics:
         torques: TorqueFigures | str = (str(doc["torques"]) if "torques" in doc else TorqueFigures(
-            float(doc["max_torque_ratio"]), float(doc["max_torque_at_s"]), str(doc["max_torque_joint"]),
+            _f(doc["max_torque_ratio"]), _f(doc["max_torque_at_s"]), str(doc["max_torque_joint"]),
             {str(k): float(v) for k, v in doc["peak_torque_Nm"].items()},
             {str(k): float(v) for k, v in doc["torque_limit_Nm"].items()}))
-        jerk = (JerkFigures(float(doc["acceleration_limited_duration_s"]), float(doc["jerk_time_lost_s"]),
-                            None if doc.get("max_joint_jerk_ratio") is None else float(doc["max_joint_jerk_ratio"]))
+        jerk = (JerkFigures(_f(doc["acceleration_limited_duration_s"]), _f(doc["jerk_time_lost_s"]),
+                            None if doc.get("max_joint_jerk_ratio") is None else _f(doc["max_joint_jerk_ratio"]))
                 if "acceleration_limited_duration_s" in doc else None)
-        return cls(float(doc["max_position_error_mm"]), float(doc["max_orientation_error_deg"]),
-                   float(doc["max_joint_speed_ratio"]), float(doc["max_joint_accel_ratio"]), float(doc["duration_s"]),
-                   float(doc["planning_time_s"]), int(doc["samples"]), str(doc["method"]),
+        return cls(_f(doc["max_position_error_mm"]), _f(doc["max_orientation_error_deg"]),
+                   _f(doc["max_joint_speed_ratio"]), _f(doc["max_joint_accel_ratio"]), _f(doc["duration_s"]),
+                   _f(doc["planning_time_s"]), int(doc["samples"]), str(doc["method"]),
                    tuple(CrossingReport.from_json(c) for c in doc.get("crossings", ())), torques,
-                   float(doc.get("max_stopping_distance_mm", 0.0)), float(doc.get("max_stopping_distance_at_s", 0.0)),
+                   _f(doc.get("max_stopping_distance_mm", 0.0)), _f(doc.get("max_stopping_distance_at_s", 0.0)),
                    jerk, tuple(BlendReport.from_json(b) for b in doc.get("blends", ())))
+
+    @classmethod
+    def of_samples(cls, duration_s: float, samples: int) -> Metrics:
+        """The figures of samples made elsewhere (tests, benchmarks): duration and count, the rest 0."""
+        return cls(0.0, 0.0, 0.0, 0.0, duration_s, 0.0, samples, "exact", (), "not computed", 0.0, 0.0)
 
     def limit_ratios(self) -> dict[str, float]:
         """Every ``max_*_ratio`` figure (the limits a plan must keep, and the torque it reports)."""

@@ -20,7 +20,7 @@ import numpy as np
 
 from singplan.errors import InputError
 from singplan.results.files import Writer, text_writer, write_files
-from singplan.results.metrics import NO_FIGURES, Metrics, SegmentFigures, figures_from_json
+from singplan.results.metrics import Metrics, NoFigures, SegmentFigures, figures_from_json
 
 FORMAT = "singplan.trajectory/1"
 SegmentKind = Literal["path", "pre", "crossing", "post", "ptp", "blend"]
@@ -45,7 +45,7 @@ class Segment:
     config_after: str
     singularity: str | None = None
     method: str | None = None
-    details: SegmentFigures = NO_FIGURES
+    details: SegmentFigures = field(default_factory=NoFigures)
 
     def to_json(self) -> dict[str, Any]:
         return {"move": self.move, "kind": self.kind, "t0": self.t0, "t1": self.t1,

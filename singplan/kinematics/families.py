@@ -27,6 +27,7 @@ from typing import Literal
 import numpy as np
 import pinocchio as pin
 
+from singplan.kinematics.angles import wrap_to_pi
 from singplan.kinematics.ik import opw
 from singplan.kinematics.ik.ur import UrParameters, ur_batch
 
@@ -254,7 +255,13 @@ def _sign(x: float) -> float:
 
 def _offset(angle_at_zero: float) -> float:
     """The OPW offset of a joint whose OPW angle is ``angle_at_zero`` at the robot's zero, in (-pi, pi]."""
-    return float(opw.wrap(-angle_at_zero))
+    return _wrap(-angle_at_zero)
+
+
+def _wrap(angle_rad: float) -> float:
+    """One angle wrapped to (-pi, pi] by the numpy formula (calling the compiled scalar ``opw.wrap``
+    from Python would load its kernel from the disk cache, ~10 ms, for six numbers)."""
+    return float(wrap_to_pi(np.array(angle_rad)))
 
 
 def _snap(x: float) -> float:
@@ -309,7 +316,7 @@ def _derive_opw(model: pin.Model, tip_frame_id: int) -> tuple[OpwParameters, np.
     t4 = math.atan2(-axis5_c[0], axis5_c[1])
     s5 = 1.0
     if abs(t4) > math.pi / 2:
-        t4, s5 = float(opw.wrap(t4 + math.pi)), -1.0
+        t4, s5 = _wrap(t4 + math.pi), -1.0
     R_c4 = R_0c @ _rz(t4)
     w = R_c4.T @ tip_z
     t5 = math.atan2(w[0], w[2])

@@ -44,7 +44,7 @@ import yaml
 from singplan.errors import RobotModelError
 from singplan.kinematics.angles import wrap_deg
 from singplan.kinematics.configuration import distances_batch
-from singplan.kinematics.robot import Robot, robots_dir
+from singplan.kinematics.robot import Robot, registry_specs, robots_dir
 
 Vendor = Literal["abb", "kuka", "fanuc", "staubli", "none"]
 VENDORS: tuple[Vendor, ...] = ("abb", "kuka", "fanuc", "staubli", "none")
@@ -117,9 +117,8 @@ def fanuc_configuration(axes_deg: Sequence[float], up: bool, front: bool) -> str
 @cache
 def _registry_conventions() -> dict[str, ControllerConvention | None]:
     """Bundled URDF file path (resolved) -> convention, from robots.yaml."""
-    registry = yaml.safe_load((robots_dir() / "robots.yaml").read_text())["robots"]
     out: dict[str, ControllerConvention | None] = {}
-    for name, spec in registry.items():
+    for name, spec in registry_specs().items():
         convention = parse_convention(spec.get("controller"), f"robots.yaml: robots.{name}.controller")
         if "urdf" in spec:  # the example-robot-data arms (UR5, Panda) have vendor none
             out[str((robots_dir() / spec["urdf"]).resolve())] = convention

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from scipy.interpolate import CubicSpline
 
 from singplan.kinematics.angles import nearest_shifted
 from singplan.kinematics.compiled import jit
@@ -141,11 +142,28 @@ class JointMap:
         return self._exact_near(interpolate(part, u), u)
 
     def solve_axis(self, part: JointPart, u: np.ndarray) -> np.ndarray:
-        """The axis method's joints at u: part.axis on the blend, the rest by :func:`axis_solve`."""
+        """The axis method's joints at u: part.axis on the blend, the rest by :func:`axis_solve`.
+
+        Each solve starts near its solution, so it converges in a few iterations to the same
+        solution (to the solve's tolerance) as from the blend: on a densely sampled part (the
+        crossing's reference samples, each a solution) from a spline through them; on a part
+        given by its ends, from the previous sample's offset to the blend, extrapolated.
+        """
         assert self.poses is not None
-        q_ref = hermite(part, u)
+        blend = hermite(part, u)
+        free = np.arange(blend.shape[1]) != part.axis
+        dense = len(part.u) > 3
+        start = blend.copy()
+        if dense:
+            start[:, free] = CubicSpline(part.u, part.q[:, free], axis=0)(u)
         T = self.poses(u)
-        return np.array([axis_solve(self.robot, q_ref[k], T[k], part.axis, part.exact) for k in range(len(u))])
+        out = np.empty_like(blend)
+        for k in range(len(u)):
+            if not dense and k >= 2:  # offsets from the blend change smoothly along the part
+                offset = 2.0 * (out[k - 1] - blend[k - 1]) - (out[k - 2] - blend[k - 2])
+                start[k, free] += offset[free]
+            out[k] = axis_solve(self.robot, start[k], T[k], part.axis, part.exact)
+        return out
 
     def _exact_near(self, q_ref: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Exact IK at each u: the branch and turn nearest the reference joint values."""
@@ -216,18 +234,18 @@ def axis_solve(robot: Robot, q: np.ndarray, T_target: np.ndarray, fixed: int, ex
     orientation exact; elbow -> A2 held, orientation exact.
     """
     q = np.array(q, dtype=float)
-    free = [j for j in range(robot.n_joints) if j != fixed]
+    free = np.arange(robot.n_joints) != fixed
     w = np.array([_EXACT_WEIGHT] * 3 + [1.0] * 3) if exact == "position" else np.array([1.0] * 3 + [_EXACT_WEIGHT] * 3)
     p_star, R_star = T_target[:3, 3], T_target[:3, :3]
     for _ in range(iterations):
         T = robot.fk(q)
         M = R_star.T @ T.rotation
         r = w * np.concatenate([T.translation - p_star, pin.log3(M)])
-        J = robot.jacobian(q)
-        Jr = np.vstack([J[:3], pin.Jlog3(M) @ T.rotation.T @ J[3:]])[:, free] * w[:, None]
-        step = np.linalg.lstsq(Jr, -r, rcond=None)[0]
+        J = robot.jacobian(q)  # a fresh array: its rotation rows become those of log3's error
+        J[3:] = pin.Jlog3(M) @ T.rotation.T @ J[3:]
+        step = np.linalg.lstsq(J[:, free] * w[:, None], -r, rcond=None)[0]
         q[free] += step
-        if float(np.max(np.abs(step))) < 1e-13:
+        if abs(step).max() < 1e-13:
             break
     if exact == "position":
         return position_solve(robot, q, p_star)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +33,7 @@ from singplan.planning.crossing.nullspace import time_with_pauses
 from singplan.planning.jointmap import JointMap, JointPart
 from singplan.planning.path import CartesianPiece, move_target, sample_deviations
 from singplan.planning.pieces import move_piece
-from singplan.planning.records import PlannedMove
+from singplan.planning.records import PlannedMove, SampleDeviations
 from singplan.planning.redundancy import HeldJoint, hold_for_task
 from singplan.planning.select import best_of
 from singplan.planning.timing import MoveLimits, TimedMove, TimingError, time_move
@@ -137,18 +137,20 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
         if move.kind != "ptp" and not tracking:
             tracking.append(MoveTracking(robot, task, i, move, T))
         pm = _plan_move(robot, task, i, move, T, q, method, tracking[0] if tracking else None)
-        outcome = next((done for seen, done in outcomes if _same_motion(seen, pm)), None)
-        if outcome is None:
+        same = next(((seen, done) for seen, done in outcomes if _same_motion(seen, pm)), None)
+        if same is None:
             try:
-                outcome = _timed(robot, pm, task.period_s, max_samples)
-                _check_config(robot, move, pm, outcome)
-                _check_tolerances(robot, task, pm, outcome)
+                timed = _timed(robot, pm, task.period_s, max_samples)
+                _check_config(robot, move, pm, timed)
+                pm = replace(pm, deviations=_check_tolerances(robot, task, pm, timed))
+                same = (pm, timed)
             except (PlanningError, BudgetError) as exc:
-                outcome = exc
-            outcomes.append((pm, outcome))
+                same = (pm, exc)
+            outcomes.append(same)
+        seen, outcome = same
         if isinstance(outcome, (PlanningError, BudgetError)):
             raise outcome
-        return pm, outcome
+        return replace(pm, deviations=seen.deviations), outcome
 
     return best_of(robot, i, move.kind, methods, attempt)
 
@@ -159,23 +161,30 @@ def _same_motion(a: PlannedMove, b: PlannedMove) -> bool:
         return False
     if any(c.pause is not None for c in (*a.crossings, *b.crossings)):
         return False
-    return all(p.kind == r.kind and p.axis == r.axis and p.exact == r.exact and np.array_equal(p.u, r.u)
-               and np.array_equal(p.q, r.q) and (p.dq_du is None) == (r.dq_du is None)
-               and (p.dq_du is None or np.array_equal(p.dq_du, r.dq_du))
+    return all(p.kind == r.kind and p.axis == r.axis and p.exact == r.exact and _equal(p.u, r.u)
+               and _equal(p.q, r.q) and _equal(p.dq_du, r.dq_du)
                for p, r in zip(a.jmap.parts, b.jmap.parts, strict=True))
 
 
-def _check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove) -> None:
-    """A crossing may deviate up to the task's tolerances; more is no plan (exit 3)."""
+def _equal(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    return a is b or (a is not None and b is not None and np.array_equal(a, b))
+
+
+def _check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove) -> SampleDeviations | None:
+    """A crossing may deviate up to the task's tolerances; more is no plan (exit 3).
+
+    Returns the samples' deviations (None for a PTP move), for the trajectory record to reuse.
+    """
+    if pm.piece is None:
+        return None
     pos, ori = sample_deviations(robot, pm.piece, tm.u, tm.q)
     pos_tol = task.singularity.position_tolerance_mm / 1e3
     ori_tol = math.radians(task.singularity.orientation_tolerance_deg)
     if pos.max(initial=0.0) <= pos_tol and ori.max(initial=0.0) <= ori_tol:
-        return
+        return SampleDeviations(tm.u, tm.q, pos, ori)
     k = int(np.argmax(np.maximum(pos / pos_tol, ori / ori_tol)))
     zone = min(pm.zones, key=lambda z: abs(z.u_closest - tm.u[k])) if pm.zones else None
     where = f"in the {zone.kind} zone " if zone else ""
-    assert pm.piece is not None
     raise SingularityError(
         f"move {pm.index} ({pm.kind}): the crossing {where}deviates {pos[k] * 1e3:.4f} mm / "
         f"{math.degrees(ori[k]):.4f} deg at {pm.piece.describe(float(tm.u[k]))}, over the tolerance "

@@ -49,7 +49,8 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     pos_all, ori_all = [np.zeros(1)], [np.zeros(1)]
     for pm, tm in zip(planned, timed, strict=True):
         k1 = k0 + len(tm.q) - 1
-        pos_err, ori_err = sample_deviations(robot, pm.piece, tm.u, tm.q)
+        measured = pm.deviations.of(tm.u, tm.q) if pm.deviations is not None else None  # when the move was checked
+        pos_err, ori_err = measured if measured is not None else sample_deviations(robot, pm.piece, tm.u, tm.q)
         pos_all.append(pos_err[1:])
         ori_all.append(ori_err[1:])
         worst_pos = max(worst_pos, float(pos_err.max(initial=0.0)))

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from scipy.interpolate import CubicSpline
 
 from singplan.kinematics.angles import nearest_shifted
 from singplan.kinematics.compiled import jit
@@ -147,11 +148,18 @@ class JointMap:
         return self._exact_near(interpolate(part, u), u)
 
     def solve_axis(self, part: JointPart, u: np.ndarray) -> np.ndarray:
-        """The axis method's joints at u: part.axis on the blend, the rest by :func:`axis_solve`."""
+        """The axis method's joints at u: part.axis on the blend, the rest by :func:`axis_solve`.
+
+        On a densely sampled part (the crossing's reference samples, each a solution) each solve
+        starts from a spline through them: it converges in a few iterations to the same solution
+        (to the solve's tolerance) as from the blend.
+        """
         assert self.poses is not None
-        q_ref = hermite(part, u)
-        T = self.poses(u)
-        return np.array([axis_solve(self.robot, q_ref[k], T[k], part.axis, part.exact) for k in range(len(u))])
+        start = hermite(part, u)
+        if len(part.u) > 3:
+            free = np.arange(start.shape[1]) != part.axis
+            start[:, free] = CubicSpline(part.u, part.q[:, free], axis=0)(u)
+        return axis_solve(self.robot, start, self.poses(u), part.axis, part.exact)
 
     def _exact_near(self, q_ref: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Exact IK at each u: the branch and turn nearest the reference joint values."""
@@ -208,29 +216,45 @@ _EXACT_WEIGHT = 1e4  # weight of the kept component against the minimised one (p
 
 def axis_solve(robot: Robot, q: np.ndarray, T_target: np.ndarray, fixed: int, exact: str,
                iterations: int = 25) -> np.ndarray:
-    """Joints with ``q[fixed]`` held: one pose component exact, the other's error minimised.
+    """Joints (N, n) from starts ``q`` (N, n) with ``q[:, fixed]`` held, for the poses ``T_target``
+    (N, 4, 4): one pose component exact, the other's error minimised.
 
     Gauss-Newton on the weighted residual ``[w_p (p - p*), w_o log3(R*^T R)]`` over the free
-    joints, with Pinocchio's Jacobian and ``Jlog3``; then the kept component is made exact by
-    the three joints that control it (arm joints for the position, wrist joints for the
-    orientation). SEEDS 000: wrist zone -> A4 held, position exact; shoulder -> A1 held,
+    joints, with Pinocchio's Jacobian and ``Jlog3``, each sample until its step is under 1e-13
+    (the samples' least-squares steps are solved together); then the kept component is made
+    exact by the three joints that control it (arm joints for the position, wrist joints for
+    the orientation). SEEDS 000: wrist zone -> A4 held, position exact; shoulder -> A1 held,
     orientation exact; elbow -> A2 held, orientation exact.
     """
-    w = np.array([_EXACT_WEIGHT] * 3 + [1.0] * 3) if exact == "position" else np.array([1.0] * 3 + [_EXACT_WEIGHT] * 3)
-    p_star, R_star = T_target[:3, 3], T_target[:3, :3]
-
-    def residual(qk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        T = robot.fk(qk)
-        M = R_star.T @ T.rotation
-        J = robot.jacobian(qk)  # a fresh array: its rotation rows become those of log3's error
-        J[3:] = pin.Jlog3(M) @ T.rotation.T @ J[3:]
-        return -w * np.concatenate([T.translation - p_star, pin.log3(M)]), J * w[:, None]
-
+    q = np.array(q, dtype=float).reshape(-1, robot.n_joints)
+    T_target = np.asarray(T_target, dtype=float).reshape(-1, 4, 4)
     free = np.arange(robot.n_joints) != fixed
-    q = damped_solve(residual, q, free, step_tol=1e-13, iterations=iterations)
+    w = np.array([_EXACT_WEIGHT] * 3 + [1.0] * 3) if exact == "position" else np.array([1.0] * 3 + [_EXACT_WEIGHT] * 3)
+    active = np.arange(len(q))
+    for _ in range(iterations):
+        if active.size == 0:
+            break
+        r, Jr = _weighted_residuals(robot, q[active], T_target[active], free, w)
+        step = np.einsum("kij,kj->ki", np.linalg.pinv(Jr), -r)  # least squares, one per sample
+        q[np.ix_(active, free)] += step
+        active = active[np.abs(step).max(axis=1) >= 1e-13]
     if exact == "position":
-        return position_solve(robot, q, p_star)
-    return orientation_solve(robot, q, R_star)
+        return np.array([position_solve(robot, qk, T[:3, 3]) for qk, T in zip(q, T_target, strict=True)])
+    return np.array([orientation_solve(robot, qk, T[:3, :3]) for qk, T in zip(q, T_target, strict=True)])
+
+
+def _weighted_residuals(robot: Robot, q: np.ndarray, T_target: np.ndarray, free: np.ndarray,
+                        w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """axis_solve's residuals (N, 6) and their Jacobians over the free joints (N, 6, n - 1)."""
+    r = np.empty((len(q), 6))
+    J = np.empty((len(q), 6, robot.n_joints))
+    for k, (qk, target) in enumerate(zip(q, T_target, strict=True)):
+        T = robot.fk(qk)
+        M = target[:3, :3].T @ T.rotation
+        r[k, :3], r[k, 3:] = T.translation - target[:3, 3], pin.log3(M)
+        J[k] = robot.jacobian(qk)
+        J[k, 3:] = pin.Jlog3(M) @ T.rotation.T @ J[k, 3:]
+    return r * w, J[:, :, free] * w[:, None]
 
 
 def orientation_solve(robot: Robot, q: np.ndarray, R_target: np.ndarray, tol_rad: float = 1e-13,

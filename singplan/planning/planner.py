@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +27,7 @@ from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import Robot, load_robot
 from singplan.kinematics.stopping import path_estimate, ptp_estimate
 from singplan.planning.blending import Blend, corners
-from singplan.planning.budget import check_task
+from singplan.planning.budget import BudgetError, check_task
 from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import Crossing, CrossingMethod, MoveContext
@@ -35,7 +35,7 @@ from singplan.planning.crossing.nullspace import time_with_pauses
 from singplan.planning.jointmap import JointMap, JointPart
 from singplan.planning.path import CartesianPiece, move_target, sample_deviations
 from singplan.planning.pieces import move_piece
-from singplan.planning.records import PlannedMove
+from singplan.planning.records import PlannedMove, SampleDeviations
 from singplan.planning.redundancy import HeldJoint, hold_for_task
 from singplan.planning.select import best_of
 from singplan.planning.timing import MoveLimits, TimedMove, TimingError, time_move
@@ -167,29 +167,66 @@ def _timed(robot: Robot, pm: PlannedMove, period_s: float, max_samples: int) -> 
 
 def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
              methods: list[CrossingMethod], max_samples: int) -> tuple[PlannedMove, TimedMove]:
-    """Plan, time and check the move with each method; :func:`select.best_of` keeps the fastest."""
+    """Plan, time and check the move with each method; :func:`select.best_of` keeps the fastest.
+
+    The candidates share the move's tracking (:class:`MoveTracking`); a candidate whose joint map
+    equals an earlier one's (wrist-joint hands a shoulder zone to exact) takes that one's outcome.
+    """
+    tracking: list[MoveTracking] = []  # made by the first attempt, inside it (a bad piece fails every method alike)
+    outcomes: list[tuple[PlannedMove, TimedMove | PlanningError | BudgetError]] = []
 
     def attempt(method: CrossingMethod) -> tuple[PlannedMove, TimedMove]:
-        pm = _plan_move(robot, task, i, move, T, q, method)
-        tm = _timed(robot, pm, task.period_s, max_samples)
-        _check_config(robot, move, pm, tm)
-        _check_tolerances(robot, task, pm, tm)
-        return pm, tm
+        if move.kind != "ptp" and not tracking:
+            tracking.append(MoveTracking(robot, task, i, move, T))
+        pm = _plan_move(robot, task, i, move, T, q, method, tracking[0] if tracking else None)
+        same = next(((seen, done) for seen, done in outcomes if _same_motion(seen, pm)), None)
+        if same is None:
+            try:
+                timed = _timed(robot, pm, task.period_s, max_samples)
+                _check_config(robot, move, pm, timed)
+                pm = replace(pm, deviations=_check_tolerances(robot, task, pm, timed))
+                same = (pm, timed)
+            except (PlanningError, BudgetError) as exc:
+                same = (pm, exc)
+            outcomes.append(same)
+        seen, outcome = same
+        if isinstance(outcome, (PlanningError, BudgetError)):
+            raise outcome
+        return replace(pm, deviations=seen.deviations), outcome
 
     return best_of(robot, i, move.kind, methods, attempt)
 
 
-def _check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove) -> None:
-    """A crossing may deviate up to the task's tolerances; more is no plan (exit 3)."""
+def _same_motion(a: PlannedMove, b: PlannedMove) -> bool:
+    """Whether two plans of one move give the same timing and checks: equal joint maps and zones, no pause."""
+    if a.zones != b.zones or len(a.jmap.parts) != len(b.jmap.parts):
+        return False
+    if any(c.pause is not None for c in (*a.crossings, *b.crossings)):
+        return False
+    return all(p.kind == r.kind and p.axis == r.axis and p.exact == r.exact and _equal(p.u, r.u)
+               and _equal(p.q, r.q) and _equal(p.dq_du, r.dq_du)
+               for p, r in zip(a.jmap.parts, b.jmap.parts, strict=True))
+
+
+def _equal(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    return a is b or (a is not None and b is not None and np.array_equal(a, b))
+
+
+def _check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove) -> SampleDeviations | None:
+    """A crossing may deviate up to the task's tolerances; more is no plan (exit 3).
+
+    Returns the samples' deviations (None for a PTP move), for the trajectory record to reuse.
+    """
+    if pm.piece is None:
+        return None
     pos, ori = sample_deviations(robot, pm.piece, tm.u, tm.q)
     pos_tol = task.singularity.position_tolerance_mm / 1e3
     ori_tol = math.radians(task.singularity.orientation_tolerance_deg)
     if pos.max(initial=0.0) <= pos_tol and ori.max(initial=0.0) <= ori_tol:
-        return
+        return SampleDeviations(tm.u, tm.q, pos, ori)
     k = int(np.argmax(np.maximum(pos / pos_tol, ori / ori_tol)))
     zone = min(pm.zones, key=lambda z: abs(z.u_closest - tm.u[k])) if pm.zones else None
     where = f"in the {zone.kind} zone " if zone else ""
-    assert pm.piece is not None
     raise SingularityError(
         f"move {pm.index} ({pm.kind}): the crossing {where}deviates {pos[k] * 1e3:.4f} mm / "
         f"{math.degrees(ori[k]):.4f} deg at {pm.piece.describe(float(tm.u[k]))}, over the tolerance "
@@ -225,12 +262,14 @@ def _limits(robot: Robot, task: Task, move: Move, length_m: float) -> MoveLimits
 
 
 def _plan_move(robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3, q_start: np.ndarray,
-               method: CrossingMethod) -> PlannedMove:
+               method: CrossingMethod, tracking: MoveTracking | None = None) -> PlannedMove:
+    """One move's joint map with ``method``; ``tracking`` shares the tracked stretches among candidates."""
     if move.kind == "ptp":
         q_target = _ptp_target(robot, i, move, q_start)
         part = JointPart("ptp", np.array([0.0, 1.0]), np.array([q_start, q_target]))
         return PlannedMove(i, "ptp", JointMap(robot, None, [part]), _limits(robot, task, move, 0.0))
-    return _plan_cartesian(robot, task, i, move, move_piece(i, move, T_start), q_start, method)
+    tracking = tracking if tracking is not None else MoveTracking(robot, task, i, move, T_start)
+    return _plan_cartesian(robot, task, i, move, tracking, q_start, method)
 
 
 def _ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.ndarray:
@@ -249,33 +288,23 @@ def _ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.nda
     return np.array(sols.q[best])
 
 
-def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: CartesianPiece, q_start: np.ndarray,
+def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, tracking: MoveTracking, q_start: np.ndarray,
                     method: CrossingMethod) -> PlannedMove:
     """Track the path, let the method handle each zone, and stitch the joint map."""
-    grid = path_grid(piece, STEP_M, STEP_RAD)
-    thresholds = task.singularity.zone.si()
+    piece = tracking.piece
+    grid = tracking.grid
     parts: list[JointPart] = []
     zones: list[Zone] = []
     crossings: list[Crossing] = []
     u_from, q_from = 0.0, q_start
-    cands = BranchCandidates(robot, piece.poses)
-    in_zone = _ZoneTest(robot, thresholds)
     full = False  # track singular zones in full (a method kept one that was left coarse)
     while True:
-        # inside singular zones the in-branch swing is resolved only if the method keeps it
-        tracked = track(robot, piece.poses, np.concatenate([[u_from], grid[grid > u_from + 1e-12]]), q_from,
-                        cands=cands, hold=None if full else in_zone)
+        stage = tracking.stage(grid, u_from, q_from, full, crossings[-1].zone.kind if crossings else None)
+        tracked = stage.ctx.tracked
         # the grid as refined: a re-track after a crossing starts from it (tracked.u starts at u_from)
         grid = np.concatenate([grid[grid < u_from], tracked.u])
-        _check_tracked(robot, i, move, piece, tracked)
-        dist = in_zone.distances(tracked.q)
-        ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
-        found = find_zones(tracked.u, dist, thresholds, _refiner(robot, ref),
-                           continued=crossings[-1].zone.kind if crossings else None)
-        ctx = MoveContext(robot, i, move.kind, piece, tracked, dist, task.singularity.position_tolerance_mm / 1e3,
-                          math.radians(task.singularity.orientation_tolerance_deg), thresholds)
         zones_before = list(zones)
-        result = _first_crossing(method, ctx, found, zones, u_from)
+        result = _first_crossing(method, stage.ctx, stage.found, zones, u_from)
         if tracked.coarse_from_u < (result.blend.u0 if result is not None else math.inf):
             zones[:], full = zones_before, True  # a kept zone was left coarse: track it in full
             continue
@@ -296,7 +325,56 @@ def _plan_cartesian(robot: Robot, task: Task, i: int, move: Move, piece: Cartesi
                        piece, tuple(zones), tuple(crossings))
 
 
-def _first_crossing(method: CrossingMethod, ctx: MoveContext, found: list[Zone], zones: list[Zone],
+@dataclass(frozen=True)
+class _Stage:
+    """One tracked stretch of a move, from where it starts to the move's end, and the zones along it."""
+
+    ctx: MoveContext  # what a method sees: the tracked joints and their singular distances
+    found: tuple[Zone, ...]
+
+
+class MoveTracking:
+    """The tracking of one LIN / CIRC move, shared by the candidate methods that plan it.
+
+    A stretch (IK tracked from a start to the move's end, its singular distances and zones)
+    depends only on where it starts, the grid ahead of it, whether held zones are tracked in
+    full and which zone kind it continues, never on the method: every candidate starts with the
+    same stretch, and candidates whose crossings end alike share the stretch after them too.
+    """
+
+    def __init__(self, robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3) -> None:
+        self.robot, self.task, self.index, self.move = robot, task, i, move
+        self.piece = move_piece(i, move, T_start)
+        self.grid = path_grid(self.piece, STEP_M, STEP_RAD)
+        self.thresholds = task.singularity.zone.si()
+        self._cands = BranchCandidates(robot, self.piece.poses)  # IK branches per path parameter, solved once
+        self._in_zone = _ZoneTest(robot, self.thresholds)
+        self._stages: dict[tuple[float, bytes, bool, str | None, bytes], _Stage] = {}
+
+    def stage(self, grid: np.ndarray, u_from: float, q_from: np.ndarray, full: bool,
+              continued: str | None) -> _Stage:
+        """The stretch from ``q_from`` at ``u_from`` over ``grid``'s points after it (computed once)."""
+        ahead = grid[grid > u_from + 1e-12]
+        key = (u_from, np.asarray(q_from, dtype=float).tobytes(), full, continued, ahead.tobytes())
+        if key not in self._stages:
+            self._stages[key] = self._track(np.concatenate([[u_from], ahead]), q_from, full, continued)
+        return self._stages[key]
+
+    def _track(self, u: np.ndarray, q_from: np.ndarray, full: bool, continued: str | None) -> _Stage:
+        robot, piece, task = self.robot, self.piece, self.task
+        # inside singular zones the in-branch swing is resolved only if the method keeps it
+        tracked = track(robot, piece.poses, u, q_from, cands=self._cands, hold=None if full else self._in_zone)
+        _check_tracked(robot, self.index, self.move, piece, tracked)
+        dist = self._in_zone.distances(tracked.q)
+        ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
+        found = find_zones(tracked.u, dist, self.thresholds, _refiner(robot, ref), continued=continued)
+        ctx = MoveContext(robot, self.index, self.move.kind, piece, tracked, dist,
+                          task.singularity.position_tolerance_mm / 1e3,
+                          math.radians(task.singularity.orientation_tolerance_deg), self.thresholds)
+        return _Stage(ctx, tuple(found))
+
+
+def _first_crossing(method: CrossingMethod, ctx: MoveContext, found: tuple[Zone, ...], zones: list[Zone],
                     u_from: float) -> Crossing | None:
     """Ask the method about each new zone; record zones; return the first crossing it makes."""
     for zone in found:

@@ -15,6 +15,22 @@ from singplan.planning.zones import Zone
 
 
 @dataclass(frozen=True)
+class SampleDeviations:
+    """How far a timed move's samples leave the path, measured once when the move was checked."""
+
+    u: np.ndarray  # (K+1,) the samples' path parameters and joints, as timed
+    q: np.ndarray  # (K+1, n)
+    position_m: np.ndarray  # (K+1,) position error of each sample [m]
+    orientation_rad: np.ndarray  # (K+1,) orientation error [rad] (five joints: between the tool z axes)
+
+    def of(self, u: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """The errors, if these are the samples measured; None for any other samples."""
+        if np.array_equal(u, self.u) and np.array_equal(q, self.q):
+            return self.position_m, self.orientation_rad
+        return None
+
+
+@dataclass(frozen=True)
 class PlannedMove:
     """One move before timing: its joint map and what was found along it."""
 
@@ -28,6 +44,7 @@ class PlannedMove:
     method: str = "exact"
     variant: str = ""  # e.g. the wrist-joint blend window
     alternatives: tuple[Alternative, ...] = ()  # what auto compared, fastest first
+    deviations: SampleDeviations | None = None  # of the samples the move was checked on (LIN / CIRC)
 
     def describe(self, u: float) -> str:
         """A point of the move for messages: the path point of a LIN / CIRC, the fraction and joints of a PTP."""

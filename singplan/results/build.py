@@ -63,7 +63,10 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     flown = {b.move: b for b in blends if b.jmap is not None}
     for pm, tm in zip(planned, timed, strict=True):
         k1 = k0 + len(tm.q) - 1
-        pos_err, ori_err = sample_deviations(robot, pm.piece, tm.u, tm.q)
+        # a move flown into a fly-by corner has other samples than the ones checked: measured afresh
+        measured = (pm.deviations.of(tm.u, tm.q) if pm.deviations is not None and tm.blend_from is None
+                    else None)
+        pos_err, ori_err = measured if measured is not None else sample_deviations(robot, pm.piece, tm.u, tm.q)
         if tm.blend_from is not None:  # a fly-by corner leaves the path on purpose: its own figures
             pos_err[tm.blend_from + 1:] = ori_err[tm.blend_from + 1:] = 0.0
         pos_all.append(pos_err[1:])

@@ -16,7 +16,11 @@ from singplan.planning.zones import Zone
 
 @dataclass(frozen=True)
 class MoveContext:
-    """What a method may look at: one LIN/CIRC move tracked in its current branch."""
+    """What a method may look at: one LIN/CIRC move tracked in its current branch.
+
+    auto's candidates are handed the same context (the planner tracks each stretch once): a method
+    reads its arrays and never changes them.
+    """
 
     robot: Robot
     move_index: int

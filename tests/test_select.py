@@ -1,0 +1,136 @@
+"""auto's shared work: one tracking per move, one timing per distinct joint map, deviations measured once,
+and the axis method's warm-started solves equal to cold ones; the choices stay those of each method alone."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from singplan.kinematics.ik.solve import solve_all
+from singplan.kinematics.robot import load_robot
+from singplan.planning import planner
+from singplan.planning.crossing.methods import Axis
+from singplan.planning.crossing.registry import candidates
+from singplan.planning.jointmap import axis_solve, hermite
+from singplan.planning.path import sample_deviations
+from singplan.results import build
+from singplan.results.plan import plan
+from singplan.task.load import load_task, parse_task
+
+NEAR_MISS = Path(__file__).resolve().parents[1] / "examples" / "abb_near_miss_auto.yaml"
+
+
+def _shoulder_near_miss() -> dict[str, Any]:
+    """An IRB 2400 LIN passing 5 mm beside axis 1 (built as in tests/test_crossing.py), under auto: exact
+    plans it (the wrist swings within its limits), so every candidate gets timed."""
+    robot = load_robot("abb_irb2400", tool=pin.SE3(np.eye(3), np.array([0, 0, 0.1])))
+    wrist = [0.3, -0.8, 0.1]
+    lo, hi = -1.7, 0.0  # bisect q2 so the wrist centre sits on axis 1
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        x_lo, x_mid = (float(robot.wrist_center(np.array([0.0, v, 0.3, *wrist]))[0]) for v in (lo, mid))
+        lo, hi = (mid, hi) if (x_lo > 0) == (x_mid > 0) else (lo, mid)
+    q_mid = np.array([0.0, 0.5 * (lo + hi), 0.3, *wrist])
+    T = robot.fk(q_mid)
+    side = np.array([0.0, 0.005, 0.0])
+    q0 = solve_all(robot, pin.SE3(T.rotation, T.translation - np.array([0.1, 0, 0]) + side), seed=q_mid).nearest(q_mid)
+    return {"robot": "abb_irb2400", "tool": {"xyz": [0, 0, 0.1]}, "start": {"joints_deg": list(np.degrees(q0))},
+            "moves": [{"lin": {"to": {"xyz": list(T.translation + np.array([0.1, 0, 0]) + side),
+                                      "rpy_deg": list(np.degrees(pin.rpy.matrixToRpy(T.rotation)))}}}],
+            "singularity": {"method": "auto", "position_tolerance_mm": 2.0}}
+
+
+def test_auto_tracks_each_stretch_of_the_move_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    stretches: list[tuple[float, bytes, bool, int]] = []
+    real_track = planner.track
+
+    def counting_track(*args: Any, **kwargs: Any) -> Any:
+        # a stretch: where it starts (the grid's first point) and from which joints, held zones coarse or in full
+        stretches.append((float(args[2][0]), args[3].tobytes(), kwargs.get("hold") is None, len(args[2])))
+        return real_track(*args, **kwargs)
+
+    monkeypatch.setattr(planner, "track", counting_track)
+    task = load_task(NEAR_MISS)
+    traj = plan(task)
+    assert len(candidates("auto", task.moves[0])) >= 5
+    assert stretches.count(stretches[0]) == 1 and stretches[0][0] == 0.0  # the move's start: once, not per candidate
+    assert len(set(stretches)) == len(stretches)
+    assert any(s.kind == "crossing" for s in traj.segments)
+
+
+def test_auto_picks_and_reports_what_each_candidate_gives_alone() -> None:
+    task = load_task(NEAR_MISS)
+    crossing = next(s for s in plan(task).segments if s.kind == "crossing")
+    feasible = [a for a in crossing.details["alternatives"] if a["feasible"]]
+    assert len(feasible) >= 3
+    for method in candidates("auto", task.moves[0]):
+        entry = next((a for a in feasible if (a["method"], a["variant"]) == (method.name, method.variant)), None)
+        if entry is not None:  # planned alone, the candidate gives the very duration auto compared
+            assert plan(task, method=method).duration_s == entry["duration_s"], (method.name, method.variant)
+    assert crossing.method == feasible[0]["method"]
+
+
+def test_a_candidate_with_an_earlier_ones_joint_map_is_not_timed_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    timed: list[int] = []
+    real_timed = planner._timed
+
+    def counting_timed(*args: Any, **kwargs: Any) -> Any:
+        timed.append(1)
+        return real_timed(*args, **kwargs)
+
+    monkeypatch.setattr(planner, "_timed", counting_timed)
+    task = parse_task(_shoulder_near_miss())
+    crossing = next(s for s in plan(task).segments if s.kind == "crossing")
+    assert crossing.singularity == "shoulder"
+    durations = {(a["method"], a.get("variant")): a.get("duration_s") for a in crossing.details["alternatives"]}
+    windows = [key for key in durations if key[0] == "wrist-joint"]
+    assert len(windows) == 3 and all(durations[key] == durations[("exact", "")] for key in windows)
+    # at a shoulder zone wrist-joint hands the zone to exact: its three windows take exact's timing
+    assert len(timed) <= len(candidates("auto", task.moves[0])) - 3
+
+
+def test_the_trajectory_reuses_the_deviations_measured_when_the_move_was_checked(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    calls: list[int] = []
+    real = sample_deviations
+
+    def counting(*args: Any, **kwargs: Any) -> Any:
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(planner, "sample_deviations", counting)
+    monkeypatch.setattr(build, "sample_deviations", counting)
+    planned = planner.plan_moves(load_task(NEAR_MISS), "axis")
+    traj = plan(load_task(NEAR_MISS), method="axis")
+    assert len(calls) == 1 + 1  # one per plan: the check; the record reused it
+    pm, tm = planned.moves[0], planned.timed[0]
+    assert pm.deviations is not None
+    pos, ori = real(planned.robot, pm.piece, tm.u, tm.q)
+    assert traj.metrics["max_position_error_mm"] == pytest.approx(pos.max() * 1e3, rel=1e-12, abs=1e-15)
+    assert traj.metrics["max_orientation_error_deg"] == pytest.approx(np.degrees(ori.max()), rel=1e-12)
+    other = tm.q.copy()
+    other[len(other) // 2] += 1e-3
+    assert pm.deviations.of(tm.u, tm.q) is not None and pm.deviations.of(tm.u, other) is None
+
+
+@pytest.mark.parametrize("dense", [True, False])
+def test_axis_warm_started_solves_equal_cold_ones(dense: bool) -> None:
+    task = load_task(NEAR_MISS).with_method("axis")
+    robot = planner.load_task_robot(task)
+    q0 = np.radians(task.start_joints_deg)
+    pm = planner._plan_move(robot, task, 0, task.moves[0], robot.fk(q0), q0, Axis())
+    part = next(p for p in pm.jmap.parts if p.kind == "axis")
+    if not dense:  # the part as the method gives it before sampling: its two ends
+        part = replace(part, u=part.u[[0, -1]], q=part.q[[0, -1]])
+    rng = np.random.default_rng(7)
+    u = np.sort(rng.uniform(part.u0, part.u1, 60))
+    warm = pm.jmap.solve_axis(part, u)
+    blend, T = hermite(part, u), pm.jmap.poses(u)
+    cold = np.array([axis_solve(robot, blend[k], T[k], part.axis, part.exact)[0] for k in range(len(u))])  # one by one
+    assert np.max(np.abs(warm - cold)) < 1e-11  # the same solutions, to the solve's own tolerance
+    assert np.max(np.abs(warm - blend)) > 1e-4  # and not the blend itself: the solve moved the joints

@@ -75,11 +75,11 @@ def test_axis_solve_keeps_the_held_joint_and_the_exact_component(
         arm_cases: list[tuple[np.ndarray, np.ndarray, pin.SE3]]) -> None:
     robot = load_robot("abb_irb2400")
     for q0, q_goal, T in arm_cases:
-        q = axis_solve(robot, q0, T.homogeneous, fixed=3, exact="position")
+        q = axis_solve(robot, q0, T.homogeneous, fixed=3, exact="position")[0]  # a batch of one (N, n)
         assert float(np.linalg.norm(robot.fk(q).translation - T.translation)) < 1e-11 and q[3] == q0[3]
         # held 3 deg at most off the goal's value, the orientation error stays a few degrees
         assert math.degrees(float(np.linalg.norm(pin.log3(robot.fk(q).rotation.T @ T.rotation)))) < 10.0
         held = q_goal.copy()
         held[3] = q0[3]
-        q = axis_solve(robot, held, T.homogeneous, fixed=3, exact="orientation")
+        q = axis_solve(robot, held, T.homogeneous, fixed=3, exact="orientation")[0]
         assert float(np.linalg.norm(pin.log3(robot.fk(q).rotation.T @ T.rotation))) < 1e-12

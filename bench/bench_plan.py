@@ -23,7 +23,7 @@ import numpy as np
 import yaml
 
 from singplan.errors import SingplanError
-from singplan.planning import planner
+from singplan.planning import move_plan, targets
 from singplan.planning.crossing import registry
 from singplan.planning.records import PlannedMove
 from singplan.results.plan import plan
@@ -98,7 +98,7 @@ class _GeometryMove:
 
     def __init__(self, task: Task, method: str) -> None:
         self.task = task
-        self.robot = planner.load_task_robot(task)
+        self.robot = targets.load_task_robot(task)
         self.q0 = np.radians(task.start_joints_deg)
         self.crossing = registry.candidates(method, task.moves[0])[0]
         try:
@@ -107,7 +107,7 @@ class _GeometryMove:
             self.samples = 0  # the method cannot plan this move
 
     def _plan(self) -> PlannedMove:
-        return planner._plan_move(self.robot, self.task, 0, self.task.moves[0], self.robot.fk(self.q0), self.q0,
+        return move_plan.plan_move(self.robot, self.task, 0, self.task.moves[0], self.robot.fk(self.q0), self.q0,
                                   self.crossing)
 
     def best_seconds(self, repeat: int) -> float:

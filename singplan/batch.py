@@ -37,7 +37,7 @@ from typing import Any, TextIO
 from singplan.errors import InputError, SingplanError
 from singplan.outputs.pages import build_pages
 from singplan.planning.budget import TASK_MEMORY_MB
-from singplan.planning.planner import load_task_robot
+from singplan.planning.targets import load_task_robot
 from singplan.results.files import check_output_dir, write_files
 from singplan.results.plan import plan
 from singplan.results.trajectory import Trajectory, save

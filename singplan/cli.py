@@ -302,7 +302,7 @@ def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from singplan.planning.planner import detect
+    from singplan.planning.detect import detect
     from singplan.task.load import load_task
 
     task = load_task(args.task)

@@ -312,7 +312,7 @@ def test_random_ptp_programs_keep_every_limit_on_the_samples(rng: np.random.Gene
 
 def test_random_lins_keep_every_limit_on_the_samples(rng: np.random.Generator) -> None:
     """Seeded random LINs near the demo's start (KR 6 R900-2), jerks 20-2000 rad/s^3: whatever plans keeps them."""
-    from singplan.planning.planner import load_task_robot
+    from singplan.planning.targets import load_task_robot
 
     base = load_task(DEMO)
     start = load_task_robot(base).fk(np.radians(base.start_joints_deg))

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from singplan.kinematics.robot import DEFAULT_ACCELERATION_RAD_S2, load_robot
-from singplan.planning.planner import load_task_robot
 from singplan.planning.redundancy import hold_joint
+from singplan.planning.targets import load_task_robot
 from singplan.task.load import parse_task
 
 TASK = {"robot": "abb_irb2400", "start": {"joints_deg": [0, 10, 20, 0, 30, 0]},

@@ -13,7 +13,7 @@ import pytest
 
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import load_robot
-from singplan.planning import planner
+from singplan.planning import checks, move_plan, planner, targets
 from singplan.planning.crossing.methods import Axis
 from singplan.planning.crossing.registry import candidates
 from singplan.planning.jointmap import axis_solve, hermite
@@ -47,14 +47,14 @@ def _shoulder_near_miss() -> dict[str, Any]:
 
 def test_auto_tracks_each_stretch_of_the_move_once(monkeypatch: pytest.MonkeyPatch) -> None:
     stretches: list[tuple[float, bytes, bool, int]] = []
-    real_track = planner.track
+    real_track = move_plan.track
 
     def counting_track(*args: Any, **kwargs: Any) -> Any:
         # a stretch: where it starts (the grid's first point) and from which joints, held zones coarse or in full
         stretches.append((float(args[2][0]), args[3].tobytes(), kwargs.get("hold") is None, len(args[2])))
         return real_track(*args, **kwargs)
 
-    monkeypatch.setattr(planner, "track", counting_track)
+    monkeypatch.setattr(move_plan, "track", counting_track)
     task = load_task(NEAR_MISS)
     traj = plan(task)
     assert len(candidates("auto", task.moves[0])) >= 5
@@ -103,7 +103,7 @@ def test_the_trajectory_reuses_the_deviations_measured_when_the_move_was_checked
         calls.append(1)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(planner, "sample_deviations", counting)
+    monkeypatch.setattr(checks, "sample_deviations", counting)
     monkeypatch.setattr(build, "sample_deviations", counting)
     planned = planner.plan_moves(load_task(NEAR_MISS), "axis")
     traj = plan(load_task(NEAR_MISS), method="axis")
@@ -121,9 +121,9 @@ def test_the_trajectory_reuses_the_deviations_measured_when_the_move_was_checked
 @pytest.mark.parametrize("dense", [True, False])
 def test_axis_warm_started_solves_equal_cold_ones(dense: bool) -> None:
     task = load_task(NEAR_MISS).with_method("axis")
-    robot = planner.load_task_robot(task)
+    robot = targets.load_task_robot(task)
     q0 = np.radians(task.start_joints_deg)
-    pm = planner._plan_move(robot, task, 0, task.moves[0], robot.fk(q0), q0, Axis())
+    pm = move_plan.plan_move(robot, task, 0, task.moves[0], robot.fk(q0), q0, Axis())
     part = next(p for p in pm.jmap.parts if p.kind == "axis")
     if not dense:  # the part as the method gives it before sampling: its two ends
         part = replace(part, u=part.u[[0, -1]], q=part.q[[0, -1]])

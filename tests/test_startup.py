@@ -20,7 +20,7 @@ import yaml
 from singplan import cli
 from singplan.kinematics import families, robot, vendor_config
 from singplan.kinematics.ik import opw
-from singplan.planning import planner
+from singplan.planning import targets
 
 DEMO = Path(cli.__file__).with_name("demo_task.yaml")
 HEAVY = ("pinocchio", "numba", "toppra", "scipy", "meshcat", "matplotlib")
@@ -69,13 +69,13 @@ def test_the_numpy_wrap_of_the_family_offsets_is_the_compiled_one() -> None:
 
 def test_plan_with_a_page_loads_the_robot_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     loads: list[str] = []
-    real_load = planner.load_robot
+    real_load = targets.load_robot
 
     def counting(name: str, **kwargs: Any) -> robot.Robot:
         loads.append(name)
         return real_load(name, **kwargs)
 
-    monkeypatch.setattr(planner, "load_robot", counting)
+    monkeypatch.setattr(targets, "load_robot", counting)
     out = io.StringIO()
     code = cli.main(["plan", str(DEMO), "-o", str(tmp_path / "o"), "--quiet", "--no-replay"], out=out,
                     err=io.StringIO())

@@ -1,0 +1,78 @@
+"""What a task asks of its robot: the robot with the task's tool and limits, the start joints and
+each PTP's target joints (IK, in the requested configuration), and each move's timing limits."""
+
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from singplan.errors import UnreachableError
+from singplan.kinematics.configuration import classify
+from singplan.kinematics.dynamics import TorqueLimit, effort_limits_nm, require_dynamics
+from singplan.kinematics.geometry import rpy_deg_to_rotation
+from singplan.kinematics.ik.solve import solve_all
+from singplan.kinematics.robot import Robot, load_robot
+from singplan.planning.path import move_target
+from singplan.planning.timing import MoveLimits
+from singplan.task.load import check_against_robot
+from singplan.task.schema import Move, Task
+
+
+def load_task_robot(task: Task) -> Robot:
+    """The task's robot: its URDF with the task's tip and tool, checked against the task, with the
+    task's joint accelerations (and dynamics, when the task limits torques)."""
+    tool = pin.SE3(rpy_deg_to_rotation(task.tool_rpy_deg), np.asarray(task.tool_xyz, dtype=float))
+    robot = load_robot(task.robot, tip=task.tip, tool=tool)
+    check_against_robot(task, robot)
+    if task.limits.torque_scale is not None:
+        require_dynamics(robot)
+    return robot.with_acceleration(np.asarray(task.limits.acceleration_rad_s2, dtype=float))
+
+
+def start_joints(task: Task, robot: Robot) -> np.ndarray:
+    """The start joints [rad]: as given, or the IK solution of the start pose (in its configuration)
+    nearest zero."""
+    if task.start_joints_deg is not None:
+        return np.radians(np.asarray(task.start_joints_deg, dtype=float))
+    assert task.start_pose is not None
+    pose = task.start_pose
+    T = pin.SE3(rpy_deg_to_rotation(pose.rpy_deg or (0.0, 0.0, 0.0)), np.asarray(pose.xyz, dtype=float))
+    sols = solve_all(robot, T, seed=np.zeros(robot.n_joints))
+    keep = [k for k, label in enumerate(sols.labels) if task.start_config in (None, label)]
+    if not keep:
+        wanted = f" in configuration {task.start_config}" if task.start_config else ""
+        raise UnreachableError(f"start.pose: no IK solution{wanted} inside the joint limits "
+                               f"(xyz {list(pose.xyz)}); available: {sorted(set(sols.labels)) or 'none'}")
+    best = min(keep, key=lambda k: float(np.max(np.abs(sols.q[k]))))  # the solution nearest zero
+    return np.array(sols.q[best])
+
+
+def ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.ndarray:
+    """A PTP's target joints [rad]: as given, or the IK solution of its pose in the requested
+    configuration nearest the start."""
+    if move.to_joints_deg is not None:
+        return np.radians(np.asarray(move.to_joints_deg, dtype=float))
+    target = move_target(move, robot.fk(q_start))
+    sols = solve_all(robot, target, seed=q_start)
+    keep = [k for k, label in enumerate(sols.labels) if move.config in ("auto", "keep", label)]
+    if move.config == "keep":
+        keep = [k for k in keep if sols.labels[k] == classify(robot, q_start).label]
+    if not keep:
+        raise UnreachableError(f"move {i} (ptp): no IK solution for xyz {target.translation.tolist()} inside the joint "
+                               f"limits in the requested configuration ({move.config}); available: "
+                               f"{sorted(set(sols.labels)) or 'none'}", move=i)
+    best = min(keep, key=lambda k: float(np.max(np.abs(sols.q[k] - q_start))))
+    return np.array(sols.q[best])
+
+
+def move_limits(robot: Robot, task: Task, move: Move, length_m: float) -> MoveLimits:
+    """The limits one move is timed under (a PTP's velocity_scale, a LIN / CIRC's TCP speed)."""
+    scale = task.limits.velocity_scale * (move.velocity_scale if move.kind == "ptp" else 1.0)
+    torque = (TorqueLimit(robot, effort_limits_nm(robot) * task.limits.torque_scale)
+              if task.limits.torque_scale is not None else None)
+    jerk = (np.broadcast_to(np.asarray(task.limits.jerk_rad_s3, dtype=float), (robot.n_joints,)).copy()
+            if task.limits.jerk_rad_s3 is not None else None)
+    return MoveLimits(robot.velocity_rad_s * scale, robot.acceleration_rad_s2, length_m,
+                      move.speed_m_s if move.kind != "ptp" else None, torque, jerk,
+                      quintic=move.kind == "ptp" and task.limits.ptp_time_law == "quintic")

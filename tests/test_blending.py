@@ -264,3 +264,42 @@ def test_five_and_seven_axis_arms_fly_by(tmp_path: Path, example: str, hold: boo
     assert all(b["flown"] for b in traj.metrics["blends"])
     assert traj.duration_s < plan(parse_task(_stop_to_stop(doc))).duration_s
     _check(tmp_path, doc, traj)
+
+
+FANUC_START = [-19.983106522, 6.301262855, -37.800889182, 0.0, -45.897847963, 19.983106522]
+
+
+def _fanuc(targets: list[list[float]], radii: list[float], **limits: Any) -> dict[str, Any]:
+    moves = [{"lin": {"to": {"xyz": xyz, "rpy_deg": [180.0, 0.0, 0.0]}, "speed": 0.4,
+                      **({"blend_mm": r} if r else {})}} for xyz, r in zip(targets, radii, strict=True)]
+    return {"robot": "fanuc_lrmate200id", "tool": {"xyz": [0, 0, 0.12], "rpy_deg": [0, 0, 0]},
+            "start": {"joints_deg": FANUC_START}, "moves": moves,
+            "limits": {"velocity_scale": 1.0, "acceleration": 5.0, **limits}, "output": {"period": 0.004}}
+
+
+def test_a_move_too_short_for_a_sample_between_two_corners_stops_its_first_corner(tmp_path: Path) -> None:
+    """1 mm between two 20 mm corners at 0.4 m/s: the move's own path would get no output sample."""
+    doc = _fanuc([[0.33, -0.04, 0.25], [0.33, -0.039, 0.25], [0.25, -0.039, 0.25]], [20, 20, 0])
+    traj = plan(parse_task(doc))
+    first = traj.metrics.blends[0]
+    assert not first.flown and "move 1's own path between its corners is shorter than one period" in first.reduced
+    assert all(s.t1 > s.t0 for s in traj.segments) and traj.metrics.max_position_error_mm < 0.01
+    _check(tmp_path, doc, traj)
+
+
+def test_a_jerk_limited_chain_that_loses_time_is_split_and_never_slower_than_stopping() -> None:
+    doc = _fanuc([[0.33, -0.04, 0.25], [0.29, 0.0, 0.25], [0.21, 0.0, 0.25]], [5, 5, 0], jerk=5.0)
+    traj = plan(parse_task(doc))
+    flat = plan(parse_task(_stop_to_stop(doc)))
+    assert traj.duration_s <= flat.duration_s
+    for b in traj.metrics.blends:
+        assert b.flown or "stopped here and the parts timed apart" in b.reduced
+
+
+@pytest.mark.parametrize("radius_mm, second, reason", [
+    (0.001, [0.33, -0.03, 0.25], "at or below the least radius flown"),
+    (20.0, [0.33, -0.04, 0.25], "move 1 has no TCP travel to fly by in")])
+def test_a_corner_that_cannot_be_flown_says_why(radius_mm: float, second: list[float], reason: str) -> None:
+    doc = _fanuc([[0.33, -0.04, 0.25], second, [0.25, -0.04, 0.25]], [radius_mm, 0, 0])
+    traj = plan(parse_task(doc))
+    assert not traj.metrics.blends[0].flown and reason in traj.metrics.blends[0].reduced

@@ -46,6 +46,7 @@ _CHECK_POINTS = 65  # samples along a blend verified against the sphere and the 
 _SPHERE_MARGIN = 0.999  # the blend's samples keep within this fraction of r (the checker allows r + tolerance)
 _ORIENTATION_SLACK_RAD = math.radians(0.005)  # the checker allows 0.01 deg over the ends' deviation
 _SAME_BRANCH_RAD = 1e-6  # the tracked blend must end on the next move's joints
+_LEAST_RADIUS_M = 1e-6  # below this a corner is stopped at
 _OWN_PATH = 0.05  # the least part of a move's parameter left on its own path between two corners
 
 
@@ -179,8 +180,10 @@ def blend_corner(robot: Robot, move: int, requested_m: float, incoming: Side, ou
     """
     cap = min(incoming.cap_m, outgoing.cap_m)
     radius, note = requested_m, ""
+    which = move if incoming.cap_m <= outgoing.cap_m else move + 1
+    if cap <= _LEAST_RADIUS_M:
+        return Blend(move, requested_m, 0.0, f"not flown by: move {which} has no TCP travel to fly by in")
     if cap < radius:
-        which = move if incoming.cap_m <= outgoing.cap_m else move + 1
         radius, note = cap, f"reduced to half of move {which}'s length ({2 * cap * 1e3:.3f} mm)"
     corner = robot.tcp_positions(outgoing.jmap.evaluate(np.array([0.0])))[0]
     if u_floor > 0:  # the fly-by into the incoming move takes its start: keep some of its own path
@@ -189,8 +192,11 @@ def blend_corner(robot: Robot, move: int, requested_m: float, incoming: Side, ou
         if room < radius:
             radius, note = room * 0.999, (f"reduced to {room * 0.999e3:.3f} mm: the fly-by into move {move} "
                                           f"leaves it no more room")
+    if radius <= _LEAST_RADIUS_M:
+        return Blend(move, requested_m, 0.0, f"not flown by: {radius * 1e3:g} mm is at or below the least radius flown "
+                                             f"({_LEAST_RADIUS_M * 1e3:g} mm)")
     for _ in range(_SHRINK_STEPS):
-        if radius <= 1e-6:
+        if radius <= _LEAST_RADIUS_M:
             break
         u_leave = crossing_parameter(robot, incoming.jmap, corner, radius, leaving=True)
         u_join = crossing_parameter(robot, outgoing.jmap, corner, radius, leaving=False)
@@ -262,12 +268,12 @@ def _violation(robot: Robot, q: np.ndarray, T_corner: pin.SE3, radius_m: float) 
     return ""
 
 
-def corners(robot: Robot, moves: list[tuple[JointMap, bool, float | None, bool]],
+def corners(robot: Robot, moves: list[tuple[JointMap, bool, float | None, str]],
             requested_m: list[float]) -> dict[int, Blend]:
     """The fly-by corners of a task's moves, in order, each fitted between its neighbours.
 
-    ``moves``: per move its joint map, whether it is a LIN / CIRC, its TCP speed and whether it
-    pauses on its path (a null-space crossing: its corners are stopped at, the pause needs rest);
+    ``moves``: per move its joint map, whether it is a LIN / CIRC, its TCP speed and why it must
+    start and end at rest ("" when it need not: a null-space pause, the quintic PTP law);
     ``requested_m``: per move ``blend_mm`` [m] (0: none).
     """
     sides = [side_of(robot, jmap, cartesian, speed) for jmap, cartesian, speed, _ in moves]
@@ -277,12 +283,16 @@ def corners(robot: Robot, moves: list[tuple[JointMap, bool, float | None, bool]]
         if r <= 0:
             u_floor = 0.0
             continue
-        pausing = [k for k in (i, i + 1) if moves[k][3]]
-        if pausing:
-            out[i] = Blend(i, r, 0.0, f"not flown by: move {pausing[0]} pauses on its path (a null-space crossing "
-                                      "starts and ends at rest)")
+        resting = [k for k in (i, i + 1) if moves[k][3]]
+        if resting:
+            out[i] = Blend(i, r, 0.0, f"not flown by: move {resting[0]} {moves[resting[0]][3]}")
             u_floor = 0.0
             continue
         out[i] = blend_corner(robot, i, r, sides[i], sides[i + 1], u_floor)
         u_floor = out[i].u_join if out[i].jmap is not None else 0.0
     return out
+
+
+def stopped(blend: Blend, reason: str) -> Blend:
+    """The corner stopped at after all, with the reason."""
+    return Blend(blend.move, blend.requested_m, 0.0, f"not flown by: {reason}")

@@ -170,9 +170,20 @@ def chain_limits(members: list[PlannedMove], chain: ChainMap) -> MoveLimits:
                    quintic=False, clock=chain.clock, velocity_at=chain.velocities)
 
 
+def starved(chain: ChainMap, timed: TimedMove) -> int | None:
+    """The first move whose own stretch of the chain holds no output sample (its two corners meet
+    within one period), or None: such a move cannot be told apart from its corners."""
+    w = timed.u
+    for p in chain.pieces:
+        if p.blend is None and not np.any((w >= p.w0 - 1e-15) & (w <= p.w1 + 1e-15)):
+            return p.move
+    return None
+
+
 def split(chain: ChainMap, timed: TimedMove, limits: MoveLimits, period_s: float) -> list[TimedMove]:
     """The timed chain as one TimedMove per move: each runs to the end of the corner it flies
-    (its ``blend_from`` marks where that corner starts); neighbours share that sample."""
+    (its ``blend_from`` marks where that corner starts); neighbours share that sample. Every
+    move's own stretch must hold a sample (:func:`starved`)."""
     w = timed.u
     starts: dict[int, int] = {}
     ends: dict[int, int] = {}

@@ -23,9 +23,9 @@ import pinocchio as pin
 
 from singplan.errors import PlanningError
 from singplan.kinematics.robot import Robot
-from singplan.planning.blending import Blend, corners
+from singplan.planning.blending import Blend, corners, stopped
 from singplan.planning.budget import BudgetError, check_task
-from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split
+from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
 from singplan.planning.checks import check_config, check_tolerances
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
@@ -93,8 +93,7 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
         T = pm.piece.T_end if pm.piece is not None else robot.fk(q)
         if progress is not None:
             progress(i + 1, len(task.moves))
-    blends = corners(robot, [(pm.jmap, pm.piece is not None, pm.limits.tcp_speed_m_s,
-                              any(c.pause is not None for c in pm.crossings)) for pm in planned],
+    blends = corners(robot, [(pm.jmap, pm.piece is not None, pm.limits.tcp_speed_m_s, _at_rest(pm)) for pm in planned],
                      [m.blend_mm / 1e3 for m in arm_task.moves])
     if any(b.jmap is not None for b in blends.values()):
         timed = _time_chains(planned, timed, blends, task.period_s, allowance)
@@ -103,39 +102,56 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
                        tuple(blends.values()))
 
 
+def _at_rest(pm: PlannedMove) -> str:
+    """Why a move must start and end at rest ("" when it need not)."""
+    if any(c.pause is not None for c in pm.crossings):
+        return "pauses on its path (a null-space crossing starts and ends at rest)"
+    if pm.limits.quintic:
+        return "is timed by the quintic PTP law, which runs from rest to rest"
+    return ""
+
+
 def _time_chains(planned: list[PlannedMove], timed: list[TimedMove], blends: dict[int, Blend], period_s: float,
                  allowance: int) -> list[TimedMove]:
-    """Moves joined by flown corners timed in one pass each (the others keep their timing).
-
-    A chain that ends later than its moves stopping at every corner (a jerk limit's uniform
-    stretch can cost more than the corners save) keeps the stop-to-stop timing; its corners are
-    then reported as not flown, with both durations (``blends`` is updated in place).
-    """
+    """Moves joined by flown corners timed in one pass each (the others keep their timing);
+    ``blends`` is updated in place where a corner is stopped at after all (:func:`_time_chain`)."""
     out: list[TimedMove] = []
     for group in chains(planned, blends):
-        alone = [timed[i] for i in group]
-        if len(group) == 1:
-            out.extend(alone)
-            continue
-        members = [planned[i] for i in group]
-        cmap = chain_map(members, blends)
-        limits = chain_limits(members, cmap)
-        try:
-            tm = time_move(cmap, limits, period_s, group[0], allowance)
-        except TimingError as exc:
-            move, where = describe_chain_point(cmap, members, exc.u)
-            raise TimingError(move, exc.u, exc.reason, kind=planned[move].kind, where=where) from exc
-        stop_s = sum(t.duration_s for t in alone)
-        if tm.duration_s <= stop_s:
-            out.extend(split(cmap, tm, limits, period_s))
-            continue
-        out.extend(alone)
-        why = " (the jerk limit's uniform slowing spans the whole chain)" if limits.jerk_rad_s3 is not None else ""
-        for i in group[:-1]:
-            blends[i] = Blend(i, blends[i].requested_m, 0.0, f"not flown by: moves {group[0]}-{group[-1]} flown "
-                                                            f"through take {tm.duration_s:.3f} s, stopping at "
-                                                            f"every corner {stop_s:.3f} s{why}")
+        out.extend(_time_chain(planned, timed, blends, group, period_s, allowance))
     return out
+
+
+def _time_chain(planned: list[PlannedMove], timed: list[TimedMove], blends: dict[int, Blend], group: list[int],
+                period_s: float, allowance: int) -> list[TimedMove]:
+    """One chain timed in one pass. Where a move between two corners gets no sample of its own
+    path, the corner into it is stopped at; where the chain ends later than its moves stopping at
+    every corner (a jerk limit's uniform stretch spans the whole chain), its middle corner is;
+    either way each part is timed again, and the corner's reason reported."""
+    if len(group) == 1:
+        return [timed[group[0]]]
+    members = [planned[i] for i in group]
+    cmap = chain_map(members, blends)
+    limits = chain_limits(members, cmap)
+    try:
+        tm = time_move(cmap, limits, period_s, group[0], allowance)
+    except TimingError as exc:
+        move, where = describe_chain_point(cmap, members, exc.u)
+        raise TimingError(move, exc.u, exc.reason, kind=planned[move].kind, where=where) from exc
+    stop_s = sum(timed[i].duration_s for i in group)
+    short = starved(cmap, tm)
+    if short is None and tm.duration_s <= stop_s:
+        return split(cmap, tm, limits, period_s)
+    if short is not None:
+        cut = group.index(short)
+        reason = f"move {short}'s own path between its corners is shorter than one period at its speed"
+    else:
+        cut = len(group) // 2
+        why = " (the jerk limit's uniform slowing spans the whole chain)" if limits.jerk_rad_s3 is not None else ""
+        reason = (f"moves {group[0]}-{group[-1]} flown through take {tm.duration_s:.3f} s, stopping at every corner "
+                  f"{stop_s:.3f} s{why}: stopped here and the parts timed apart")
+    blends[group[cut - 1]] = stopped(blends[group[cut - 1]], reason)
+    return (_time_chain(planned, timed, blends, group[:cut], period_s, allowance)
+            + _time_chain(planned, timed, blends, group[cut:], period_s, allowance))
 
 
 def _timed(robot: Robot, pm: PlannedMove, period_s: float, max_samples: int) -> TimedMove:

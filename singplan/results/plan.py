@@ -51,8 +51,10 @@ _ROUND_OFF = 1e-9  # a metric ratio this far over 1 is round-off, more is a viol
 
 def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: list[TimedMove],
                    traj: Trajectory) -> None:
-    """The last gate: no plan is returned whose own samples break a limit (whatever the cause)."""
+    """The last gate: no plan is returned whose own samples break a limit or leave the path
+    (whatever the cause)."""
     _check_positions(robot, planned, timed, traj)
+    _check_path(task, planned, timed, traj)
     unlimited = () if task.limits.torque_scale is not None else ("max_torque_ratio",)  # reported, not a limit
     over = {k: v for k, v in traj.metrics.limit_ratios().items()  # `not <=`: a NaN ratio is a violation too
             if not v <= 1.0 + _ROUND_OFF and k not in unlimited}
@@ -85,6 +87,19 @@ def _check_positions(robot: Robot, planned: list[PlannedMove], timed: list[Timed
         f"{math.degrees(robot.upper_rad[j]):.1f}] deg, at {pm.describe(float(timed[m].u[k_move]))}",
         joint=robot.joint_names[j], value_rad=float(traj.q[k, j]), lower_rad=float(robot.lower_rad[j]),
         upper_rad=float(robot.upper_rad[j]), move=m)
+
+
+def _check_path(task: Task, planned: list[PlannedMove], timed: list[TimedMove], traj: Trajectory) -> None:
+    """Every output sample within the task's position tolerance of its path (fly-by corners excepted)."""
+    tol_mm = task.singularity.position_tolerance_mm
+    if traj.metrics.max_position_error_mm <= tol_mm * (1.0 + 1e-6) + 1e-9:
+        return
+    k = int(np.argmax(traj.samples["position_error_m"]))
+    m, k_move = _move_of_sample(timed, k)
+    pm = planned[m]
+    raise PlanningError(f"move {m} ({pm.kind}): sample {k} (t = {k * traj.period:.4f} s) is "
+                        f"{traj.metrics.max_position_error_mm:.4f} mm from the path, over the tolerance {tol_mm:g} mm, "
+                        f"at {pm.describe(float(timed[m].u[k_move]))}")
 
 
 def _move_of_sample(timed: list[TimedMove], k: int) -> tuple[int, int]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,15 @@ def robots() -> dict[str, Robot]:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261122)
+
+
+def erd_urdf(name: str) -> str:
+    """The URDF path ``example_robot_data.load(name).urdf`` gives, without building the model: load()
+    also parses every mesh (2.6 s for so101, 1 s for z1). tests/test_robot.py checks the two agree."""
+    import example_robot_data.robots_loader as loaders
+
+    loader = loaders.ROBOTS[name]
+    return os.path.join(loaders.getModelPath(loader.path), loader.path, loader.urdf_subpath, loader.urdf_filename)
 
 
 def random_q(robot: Robot, rng: np.random.Generator, n: int) -> np.ndarray:

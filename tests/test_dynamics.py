@@ -118,6 +118,7 @@ def _checker(folder: Path) -> subprocess.CompletedProcess[str]:
     return run_checker(folder / "task.yaml", folder / "out", "--quiet")
 
 
+@pytest.mark.slow  # three UR5 plans and the independent checker
 def test_torque_scale_binds_slows_the_plan_and_passes_the_checker(tmp_path: Path) -> None:
     free = plan(parse_task(UR5_TASK))
     bound = plan(parse_task(_with_scale(0.45)))

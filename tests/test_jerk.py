@@ -40,6 +40,7 @@ def _with_limits(task: Task, **changes: object) -> Task:
 
 
 @pytest.mark.parametrize("name", ["kuka_kr6_r900_2__jerk200_wrist_near_lin", "abb_irb2400__jerk1000_program"])
+@pytest.mark.slow  # public programs through the independent checker
 def test_public_jerk_program_passes_the_checker_and_reports_the_time_lost(name: str, tmp_path: Path) -> None:
     require(PROGRAMS)
     task_path = PROGRAMS / f"{name}.yaml"

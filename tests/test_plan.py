@@ -218,6 +218,7 @@ def test_replay_serve_runs_a_live_meshcat_server_on_loopback_until_stopped(tmp_p
         urllib.request.urlopen(url, timeout=5)
 
 
+@pytest.mark.slow  # a cold compile of every kernel in a fresh cache: ~10 s whatever the test does
 def test_the_first_run_says_it_compiles_and_later_runs_use_the_disk_cache(tmp_path: Path) -> None:
     import os
     import subprocess

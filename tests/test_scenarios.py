@@ -15,6 +15,7 @@ import pytest
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 RUNNER = SHARED / "verify" / "run_scenarios.py"
+pytestmark = pytest.mark.slow  # every public scenario, twice, through the independent checker: minutes
 
 if not RUNNER.is_file():
     if os.environ.get("CI") == "true":

@@ -31,6 +31,7 @@ DEMO = Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml"
 
 
 @pytest.mark.parametrize("name", ["kuka_kr6_r900_2__weave_lin_sine", "abb_irb2400__weave_circ_triangle"])
+@pytest.mark.slow  # public scenarios through the independent checker
 def test_the_public_weave_tasks_pass_the_independentrun_checker(tmp_path: Path, name: str) -> None:
     require(PROGRAMS)
     task = PROGRAMS / f"{name}.yaml"

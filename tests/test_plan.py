@@ -17,6 +17,8 @@ from singplan.kinematics.robot import load_robot
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
 
+from .conftest import ReplayServer
+
 DEMO = Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml"
 
 
@@ -193,27 +195,17 @@ def test_replay_is_written_self_contained_and_can_be_rebuilt_from_the_saved_traj
     assert "--serve" in err.getvalue()
 
 
-def test_replay_serve_runs_a_live_meshcat_server_on_loopback_until_stopped(tmp_path: Path) -> None:
-    import signal
-    import subprocess
-    import sys
+def test_replay_serve_runs_a_live_meshcat_server_on_loopback_until_stopped(replay_server: ReplayServer) -> None:
     import urllib.request
 
-    assert main(["plan", str(DEMO), "-o", str(tmp_path / "out"), "--quiet", "--no-report", "--no-replay"],
-                out=io.StringIO()) == 0
-    proc = subprocess.Popen([sys.executable, "-m", "singplan", "replay", str(tmp_path / "out"), "--serve"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        line = proc.stdout.readline()  # type: ignore[union-attr]
-        assert line.startswith("replay served at http://127.0.0.1:"), line + proc.stderr.read()  # type: ignore[union-attr]
-        url = line.split()[3]
-        with urllib.request.urlopen(url, timeout=20) as response:
-            assert response.status == 200
-            assert "meshcat" in response.read().decode().lower()
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        out, _ = proc.communicate(timeout=30)
-    assert proc.returncode == 0 and "stopped" in out
+    line = replay_server.line  # the server replays the demo (tests/conftest.py: planned_kuka)
+    assert line.startswith("replay served at http://127.0.0.1:"), line + replay_server.errors()
+    url = line.split()[3]
+    with urllib.request.urlopen(url, timeout=20) as response:
+        assert response.status == 200
+        assert "meshcat" in response.read().decode().lower()
+    out = replay_server.stop()
+    assert replay_server.proc.returncode == 0 and "stopped" in out
     with pytest.raises(OSError):  # the meshcat server went with it
         urllib.request.urlopen(url, timeout=5)
 

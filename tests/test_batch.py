@@ -131,6 +131,7 @@ def test_a_batch_plans_every_task_and_a_failing_one_stops_none(tmp_path: Path) -
     assert "6 task(s) (4 exit 0, 1 exit 2, 1 exit 3)" in stdout
 
 
+@pytest.mark.slow
 def test_quiet_prints_no_progress_and_all_planned_exits_0(tmp_path: Path) -> None:
     task = _task(tmp_path, "one.yaml")
     code, stdout, stderr = _batch(task, "-o", tmp_path / "out", "--workers", "1", "--quiet", "--no-report",

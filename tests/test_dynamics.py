@@ -110,7 +110,8 @@ def _plan_cli(task: dict[str, Any], folder: Path) -> tuple[int, str]:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "task.yaml").write_text(yaml.safe_dump(task, sort_keys=False))
     err = io.StringIO()
-    code = main(["plan", str(folder / "task.yaml"), "-o", str(folder / "out"), "--quiet"], out=io.StringIO(), err=err)
+    argv = ["plan", str(folder / "task.yaml"), "-o", str(folder / "out"), "--quiet", "--no-replay"]  # no test reads it
+    code = main(argv, out=io.StringIO(), err=err)
     return code, err.getvalue()
 
 

@@ -1,4 +1,8 @@
-"""Five-axis arms (SEEDS 002, reduced order): loading, reduced IK, planning, exit codes."""
+"""Five-axis arms (SEEDS 002, reduced order): loading, reduced IK, planning, exit codes.
+
+The plans (numeric IK at every path sample, most judged by the independent checker) and the
+brute-force IK references take seconds each: they are marked slow (CI: ``python -m pytest -q -m slow``).
+"""
 
 from __future__ import annotations
 

@@ -224,6 +224,7 @@ def test_save_streams_the_same_bytes_as_one_json_dump_and_load_keeps_the_series(
     np.testing.assert_array_equal(again.q, traj.q)
 
 
+@pytest.mark.slow  # tracemalloc traces every allocation of a 20 000-sample save
 def test_saving_needs_little_memory_beyond_the_arrays(tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setattr(trajectory_module, "_CHUNK_ROWS", 512)  # small chunks: the fixed part stays small
     traj = _synthetic(20_000)

@@ -56,7 +56,7 @@ def _demo_with_weave(method: str, weave: dict[str, Any]) -> dict[str, Any]:
     return doc
 
 
-@pytest.mark.parametrize("method", ["exact", "auto"])
+@pytest.mark.parametrize("method", ["exact", pytest.param("auto", marks=pytest.mark.slow)])  # auto plans 4 methods
 def test_a_woven_path_through_a_wrist_singularity_is_detected_crossed_and_checked(tmp_path: Path,
                                                                                   method: str) -> None:
     doc = _demo_with_weave(method, {"pattern": "sine", "amplitude_mm": 3.0, "wavelength_mm": 20.0})
@@ -239,6 +239,7 @@ def test_the_weave_survives_the_tasks_mapping() -> None:
                                                             "wavelength_mm": 8.0}
 
 
+@pytest.mark.slow  # a three-move example through the independent checker
 def test_the_weave_seam_example_plans_and_its_triangle_corners_keep_the_acceleration_limit(tmp_path: Path) -> None:
     """examples/weave_seam.yaml: a sine LIN, a triangle CIRC (corners where the joint velocities
     jump: with 32 uniform samples a period and no corner samples this move failed the acceleration

@@ -181,7 +181,8 @@ def test_out_of_range_and_odd_values_are_named(tmp_path: Path, snippet: str, rep
     (b"robot: abb_irb2400\n---\nrobot: ur5\n", "more than one YAML document"),
     (b"just a scalar\n", "mapping"),
     (b"robot: \xc3\x28\n", "UTF-8"),
-    (b"x: [" + b",".join([b"0"] * 500_001) + b"]\n", "500000 YAML nodes"),
+    pytest.param(b"x: [" + b",".join([b"0"] * 500_001) + b"]\n", "500000 YAML nodes",
+                 marks=pytest.mark.slow),  # parsing half a million nodes up to the cap takes seconds
 ])
 def test_unusable_files_name_the_file(tmp_path: Path, content: bytes, words: str) -> None:
     path = tmp_path / "odd.yaml"

@@ -3,8 +3,8 @@
 The local tasks are short LINs on the bundled KUKA KR 6 R900-2 (well under a second each). The
 comparison with one-at-a-time planning uses public scenarios from ../shared (skipped when absent,
 required under CI=true) and a Dask LocalCluster of two worker processes. Each worker process
-imports singplan (seconds on a loaded machine): the tests that start several, or a Python
-subprocess, are marked slow (CI runs them: ``python -m pytest -q -m slow``).
+imports singplan (seconds on a loaded machine): the tests that start worker processes or a Python
+subprocess are marked slow (CI runs them: ``python -m pytest -q -m slow``).
 """
 
 from __future__ import annotations

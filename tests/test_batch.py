@@ -2,7 +2,9 @@
 
 The local tasks are short LINs on the bundled KUKA KR 6 R900-2 (well under a second each). The
 comparison with one-at-a-time planning uses public scenarios from ../shared (skipped when absent,
-required under CI=true) and a Dask LocalCluster of two worker processes.
+required under CI=true) and a Dask LocalCluster of two worker processes. Each worker process
+imports singplan (seconds on a loaded machine): the tests that start worker processes or a Python
+subprocess are marked slow (CI runs them: ``python -m pytest -q -m slow``).
 """
 
 from __future__ import annotations
@@ -92,6 +94,7 @@ def test_folder_names_are_the_file_names_made_unique_in_order() -> None:
     assert folder_names(["d/..yaml", "d/...yaml", "task.yaml"]) == ["task", "task-2", "task-3"]  # never . or ..
 
 
+@pytest.mark.slow
 def test_a_batch_plans_every_task_and_a_failing_one_stops_none(tmp_path: Path) -> None:
     good = [_task(tmp_path / "tasks", f"lin{i}.yaml", speed=0.1 * (i + 1)) for i in range(3)]
     bad = _task(tmp_path / "tasks", "bad.yaml", speed=-1)
@@ -128,6 +131,7 @@ def test_a_batch_plans_every_task_and_a_failing_one_stops_none(tmp_path: Path) -
     assert "6 task(s) (4 exit 0, 1 exit 2, 1 exit 3)" in stdout
 
 
+@pytest.mark.slow
 def test_quiet_prints_no_progress_and_all_planned_exits_0(tmp_path: Path) -> None:
     task = _task(tmp_path, "one.yaml")
     code, stdout, stderr = _batch(task, "-o", tmp_path / "out", "--workers", "1", "--quiet", "--no-report",
@@ -135,6 +139,7 @@ def test_quiet_prints_no_progress_and_all_planned_exits_0(tmp_path: Path) -> Non
     assert code == 0 and stderr == "" and stdout.startswith("batch done: 1 task(s) (1 exit 0)")
 
 
+@pytest.mark.slow
 def test_a_worker_that_dies_loses_only_its_task(tmp_path: Path) -> None:
     tasks = [_task(tmp_path, "crash.yaml"), _task(tmp_path, "a.yaml"), _task(tmp_path, "crash_again.yaml"),
              _task(tmp_path, "b.yaml"), _task(tmp_path, "crash_into_mine.yaml")]
@@ -149,6 +154,7 @@ def test_a_worker_that_dies_loses_only_its_task(tmp_path: Path) -> None:
     assert _hidden(tmp_path / "out") == []  # the dead worker's temporary file is removed, and its empty folder
 
 
+@pytest.mark.slow
 def test_a_worker_killed_between_tasks_costs_no_task(tmp_path: Path) -> None:
     tasks = [_task(tmp_path, f"t{i}.yaml") for i in range(3)]
 
@@ -162,6 +168,7 @@ def test_a_worker_killed_between_tasks_costs_no_task(tmp_path: Path) -> None:
     assert len({r.message for r in result.records}) == 2  # the first worker's pid, then its replacement's
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_the_workers_and_writes_the_summary_of_what_finished(tmp_path: Path) -> None:
     tasks = [_task(tmp_path, f"t{i}.yaml") for i in range(4)]
 
@@ -180,6 +187,7 @@ def test_ctrl_c_stops_the_workers_and_writes_the_summary_of_what_finished(tmp_pa
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["summary.csv", "summary.json", "t0"]
 
 
+@pytest.mark.slow
 def test_a_real_sigint_to_the_process_group_stops_every_process(tmp_path: Path) -> None:
     """Ctrl-C in a terminal signals the batch and its workers at once: the workers ignore it and are stopped."""
     tasks = [str(_task(tmp_path, f"t{i}.yaml")) for i in range(3)]
@@ -230,6 +238,7 @@ def test_batch_level_bad_input_exits_2_and_creates_nothing(tmp_path: Path, monke
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_plain_batch_does_not_import_dask(tmp_path: Path) -> None:
     task = _task(tmp_path, "a.yaml")
     code = ("import sys; from singplan.cli import main; "
@@ -240,6 +249,7 @@ def test_plain_batch_does_not_import_dask(tmp_path: Path) -> None:
     assert run.stdout.splitlines()[-1] == "0 []", run.stdout + run.stderr
 
 
+@pytest.mark.slow
 def test_a_script_read_from_stdin_can_run_a_batch(tmp_path: Path) -> None:
     """Workers are normally started from a server that re-imports the main script; stdin cannot be re-read."""
     task = _task(tmp_path, "a.yaml")
@@ -250,6 +260,7 @@ def test_a_script_read_from_stdin_can_run_a_batch(tmp_path: Path) -> None:
     assert run.stdout == "0 planned\n", run.stdout + run.stderr[-2000:]
 
 
+@pytest.mark.slow
 def test_workers_that_cannot_start_stop_the_batch_with_a_clear_message(tmp_path: Path) -> None:
     """A script without the `__main__` guard: each worker re-runs it and dies; no task can run anywhere."""
     tasks = [str(_task(tmp_path, f"{n}.yaml")) for n in "abc"]
@@ -323,6 +334,7 @@ def _check_same(result: batch.BatchResult, one_at_a_time: dict[str, tuple[int, P
     assert sorted(r.exit_code for r in result.records) == [0, 0, 0, 0, 2, 3]
 
 
+@pytest.mark.slow
 def test_two_local_workers_give_the_same_results_as_one_at_a_time(scenarios: list[Path], one_at_a_time,
                                                                   tmp_path: Path) -> None:
     result = plan_many(scenarios, tmp_path / "out", workers=2, report=False, replay=False)
@@ -330,6 +342,7 @@ def test_two_local_workers_give_the_same_results_as_one_at_a_time(scenarios: lis
     assert result.exit_code == 3
 
 
+@pytest.mark.slow
 def test_a_dask_cluster_gives_the_same_results_as_one_at_a_time(scenarios: list[Path], one_at_a_time,
                                                                 dask_cluster: str, tmp_path: Path) -> None:
     code, _, err = _batch(*scenarios, "-o", tmp_path / "out", "--scheduler", dask_cluster, "--no-report",
@@ -340,6 +353,7 @@ def test_a_dask_cluster_gives_the_same_results_as_one_at_a_time(scenarios: list[
     _check_same(batch.BatchResult(tmp_path / "out", records, False, doc["wall_s"]), one_at_a_time)
 
 
+@pytest.mark.slow
 def test_a_dask_worker_that_dies_loses_only_its_task(dask_cluster: str, tmp_path: Path) -> None:
     tasks = [_task(tmp_path, "crash.yaml"), _task(tmp_path, "a.yaml")]
     result = plan_many(tasks, tmp_path / "out", scheduler=dask_cluster, report=False, replay=False,

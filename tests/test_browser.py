@@ -26,6 +26,7 @@ CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-
                  "--disable-component-update", "--disable-sync", "--use-gl=swiftshader", "--enable-unsafe-swiftshader"]
 SHARED_TASK = Path(__file__).resolve().parents[2] / "shared" / "scenarios" / "kuka_kr6_r900_2__wrist_near_lin.yaml"
 EXAMPLE_TASK = Path(__file__).resolve().parents[1] / "examples" / "abb_near_miss_auto.yaml"
+pytestmark = pytest.mark.slow  # a real browser
 
 
 def _missing() -> str | None:

@@ -99,6 +99,7 @@ def _write(tmp_path: Path, doc: dict[str, Any]) -> Path:
 
 
 @pytest.mark.parametrize("command", ["plan", "check"])
+@pytest.mark.slow  # singplan in a guarded subprocess
 def test_far_via_circ_is_refused_quickly(tmp_path: Path, command: str) -> None:
     """The issue's CIRC (radius ~18 km: 57 M path samples) grew to 23.6 GB; now exit 2 in seconds."""
     args = [command, str(_write(tmp_path, FAR_VIA))] + (["-o", str(tmp_path / "out")] if command == "plan" else [])
@@ -125,6 +126,7 @@ def test_sample_cap_counts_all_moves_together() -> None:
     assert "moves[2]" in str(info.value) and "output.period" in str(info.value)
 
 
+@pytest.mark.slow  # singplan in a guarded subprocess
 def test_memory_budget_names_the_move_where_it_is_crossed(tmp_path: Path) -> None:
     doc = _three_slow_lins(4.1e6)
     with pytest.raises(BudgetError) as info:
@@ -211,6 +213,7 @@ def test_the_budget_edge_is_where_the_model_reaches_the_budget() -> None:
     assert "MB" in str(info.value) and "output.period" in str(info.value)
 
 
+@pytest.mark.slow  # 0.2 M samples with every output, in a subprocess whose peak RSS is measured
 def test_the_model_bounds_the_measured_peak_with_every_output(tmp_path: Path) -> None:
     """plan with its default outputs (files, report, replay) on 0.2 M samples: the budget's estimate
     is an upper bound of the measured peak RSS, and the replay page stays small."""

@@ -110,7 +110,8 @@ def _plan_cli(task: dict[str, Any], folder: Path) -> tuple[int, str]:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "task.yaml").write_text(yaml.safe_dump(task, sort_keys=False))
     err = io.StringIO()
-    code = main(["plan", str(folder / "task.yaml"), "-o", str(folder / "out"), "--quiet"], out=io.StringIO(), err=err)
+    argv = ["plan", str(folder / "task.yaml"), "-o", str(folder / "out"), "--quiet", "--no-replay"]  # no test reads it
+    code = main(argv, out=io.StringIO(), err=err)
     return code, err.getvalue()
 
 
@@ -118,6 +119,7 @@ def _checker(folder: Path) -> subprocess.CompletedProcess[str]:
     return run_checker(folder / "task.yaml", folder / "out", "--quiet")
 
 
+@pytest.mark.slow  # three UR5 plans and the independent checker
 def test_torque_scale_binds_slows_the_plan_and_passes_the_checker(tmp_path: Path) -> None:
     free = plan(parse_task(UR5_TASK))
     bound = plan(parse_task(_with_scale(0.45)))

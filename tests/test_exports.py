@@ -142,11 +142,15 @@ def _planning_scenarios() -> list[str]:
     return sorted(name for name, spec in expect.items() if isinstance(spec, dict) and spec.get("exit") == 0)
 
 
-_FAST = {"ur5__wrist_near_lin", "fanuc_lrmate200id__wrist_near_lin", "abb_irb2400__program"}
+_FAST = {"ur5__wrist_near_lin", "fanuc_lrmate200id__wrist_near_lin"}
+_SLOW = {"abb_irb2400__program"}  # a 4.6 s program: seconds to plan and write in every format
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=() if n in _FAST else pytest.mark.soak)
-                                  for n in _planning_scenarios()])
+def _export_mark(name: str) -> tuple[pytest.MarkDecorator, ...]:
+    return () if name in _FAST else (pytest.mark.slow,) if name in _SLOW else (pytest.mark.soak,)
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=_export_mark(n)) for n in _planning_scenarios()])
 def test_every_public_scenario_exports(name: str, tmp_path: Path) -> None:
     assert SCENARIOS is not None
     folder = save(plan(load_task(SCENARIOS / f"{name}.yaml")), tmp_path / name)

@@ -1,4 +1,8 @@
-"""Five-axis arms (SEEDS 002, reduced order): loading, reduced IK, planning, exit codes."""
+"""Five-axis arms (SEEDS 002, reduced order): loading, reduced IK, planning, exit codes.
+
+The plans (numeric IK at every path sample, most judged by the independent checker) and the
+brute-force IK references take seconds each: they are marked slow (CI: ``python -m pytest -q -m slow``).
+"""
 
 from __future__ import annotations
 
@@ -20,6 +24,7 @@ from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.reduced import free_joints, z_angles
 from singplan.kinematics.robot import load_robot, robots_dir
 
+from .conftest import erd_urdf
 from .shared import run_checker
 
 DATA = Path(__file__).parent / "data"
@@ -36,8 +41,8 @@ def test_scorbot_loads_as_five_with_the_roll_free() -> None:
 
 @pytest.mark.parametrize("name", ["so100", "so101"])
 def test_so_arms_leave_the_gripper_joint_out_of_the_chain(name: str) -> None:
-    example_robot_data = pytest.importorskip("example_robot_data")
-    robot = load_robot(example_robot_data.load(name).urdf)
+    pytest.importorskip("example_robot_data")
+    robot = load_robot(erd_urdf(name))
     assert robot.family == "five" and "gripper" not in robot.joint_names
     assert robot.tip in ("gripper", "gripper_frame_link")  # the default rule for a URDF by path
     assert load_robot(name).tip == {"so100": "wrist_roll", "so101": "gripper_frame_link"}[name]  # by name
@@ -64,6 +69,7 @@ def _plan(task: Path, out: Path) -> dict:
 
 
 @pytest.mark.parametrize("task", ["five_scorbot_moves.yaml", "five_scorbot_stretched.yaml"])
+@pytest.mark.slow
 def test_scorbot_tasks_plan_and_pass_the_checker(task: str, tmp_path: Path) -> None:
     shutil.copy(SCORBOT, tmp_path / SCORBOT.name)
     path = tmp_path / task
@@ -85,6 +91,7 @@ def _so_task(task: str, tmp_path: Path) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_so100_passes_near_the_shoulder_singularity(tmp_path: Path) -> None:
     path = _so_task("five_so100_shoulder.yaml", tmp_path)
     traj = _plan(path, tmp_path / "out")
@@ -95,6 +102,7 @@ def test_so100_passes_near_the_shoulder_singularity(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("name", ["so100", "so101"])
+@pytest.mark.slow
 def test_so_arm_tasks_plan_ignore_the_roll_and_pass_the_checker(name: str, tmp_path: Path) -> None:
     path = _so_task(f"five_{name}_moves.yaml", tmp_path)
     traj = _plan(path, tmp_path / "out")
@@ -113,6 +121,7 @@ def test_so_arm_tasks_plan_ignore_the_roll_and_pass_the_checker(name: str, tmp_p
         assert traj["q"][-1][4] == pytest.approx(traj["q"][0][4], abs=1e-12)
 
 
+@pytest.mark.slow
 def test_stretched_task_reports_the_elbow_zone(tmp_path: Path) -> None:
     shutil.copy(SCORBOT, tmp_path / SCORBOT.name)
     path = tmp_path / "task.yaml"
@@ -129,6 +138,7 @@ def _task(tmp_path: Path, body: str) -> Path:
     return path
 
 
+@pytest.mark.slow  # the numeric all-branch IK searches every sample up to the edge of reach (~8 s)
 def test_unreachable_target_exits_3(tmp_path: Path) -> None:
     path = _task(tmp_path, "start: {pose: {xyz: [0.40, 0.0, 0.15], rpy_deg: [180, 0, 0]}}\n"
                            "moves:\n  - lin: {to: {xyz: [0.90, 0.0, 0.15]}, speed: 0.1}\n")
@@ -197,6 +207,7 @@ def _same(a: np.ndarray, b: np.ndarray, skip: tuple[int, ...]) -> bool:
 
 
 @pytest.mark.parametrize("name", ["scorbot", "so101"])
+@pytest.mark.slow  # a brute-force reference search
 def test_ik_finds_every_branch_a_brute_force_search_finds(name: str) -> None:
     robot = load_robot(str(SCORBOT)) if name == "scorbot" else load_robot(name)
     free = free_joints(robot)

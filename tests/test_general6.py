@@ -3,7 +3,9 @@
 Test arms: the bundled ABB IRB 2400 with axis 6 moved 10 mm along axis 5 (a wrist offset, no
 closed form), and real public URDFs from example-robot-data: the Reach Bravo 7 (its continuous
 joints declared revolute over +-2 turns, as docs/robots.md tells users) and the Unitree Z1.
-Each plan is written by the CLI and judged by the independent checker.
+Each plan is written by the CLI and judged by the independent checker. The four crossing tests
+plan each task with four methods on arms without a closed form (the numeric all-branch IK at
+every path sample: 5-30 s a test), so they are marked slow (CI runs them: ``-m slow``).
 """
 
 from __future__ import annotations
@@ -25,9 +27,10 @@ from singplan.cli import main
 from singplan.kinematics.ik import numeric as ik_numeric
 from singplan.kinematics.robot import Robot, load_robot
 
+from .conftest import erd_urdf
 from .shared import run_checker
 
-erd = pytest.importorskip("example_robot_data")
+pytest.importorskip("example_robot_data")
 
 
 def _checker(folder: Path) -> subprocess.CompletedProcess[str]:
@@ -48,7 +51,7 @@ def offset_wrist(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def bravo7(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """example-robot-data's Bravo 7 with its continuous joints declared revolute over +-1 turn."""
-    tree = ET.parse(erd.load("bravo7_no_ee").urdf)
+    tree = ET.parse(erd_urdf("bravo7_no_ee"))
     for joint in tree.getroot().iter("joint"):
         if joint.get("type") == "continuous":
             joint.set("type", "revolute")
@@ -125,6 +128,7 @@ def _plan_all(task: dict[str, Any], tmp_path: Path, planned: tuple[str, ...]) ->
     return out
 
 
+@pytest.mark.slow
 def test_offset_wrist_near_miss_is_crossed_faster_than_exact(offset_wrist: Path, tmp_path: Path) -> None:
     robot = load_robot(offset_wrist)
     assert robot.family == "general6" and all(why == "" for why in robot.recognition.crossing_methods().values())
@@ -140,6 +144,7 @@ def test_offset_wrist_near_miss_is_crossed_faster_than_exact(offset_wrist: Path,
         plans["auto"]["metrics"]["duration_s"]
 
 
+@pytest.mark.slow
 def test_offset_wrist_shoulder_near_miss_is_crossed_by_axis(offset_wrist: Path, tmp_path: Path) -> None:
     """Past the shoulder the offset wrist's branch folds back (the seeded solve stops): the tracker
     goes on in the nearest other branch, exact and wrist-joint refuse that jump (exit 3) and axis
@@ -153,6 +158,7 @@ def test_offset_wrist_shoulder_near_miss_is_crossed_by_axis(offset_wrist: Path, 
     assert "no continuous joint motion follows the path at s = " in plans["refused:exact"]
 
 
+@pytest.mark.slow
 def test_bravo7_wrist_near_miss_is_crossed_by_axis(bravo7: Path, tmp_path: Path) -> None:
     """A non-spherical wrist: wrist-joint's orientation deviation (3.8 deg) is over the 1.5 deg
     tolerance, so it is infeasible (exit 3 alone); axis keeps it under and auto takes it."""
@@ -172,10 +178,11 @@ def test_bravo7_wrist_near_miss_is_crossed_by_axis(bravo7: Path, tmp_path: Path)
     assert not reasons["wrist-joint"]["feasible"] and "over the tolerance" in reasons["wrist-joint"]["reason"]
 
 
+@pytest.mark.slow
 def test_z1_shoulder_near_miss_is_crossed_by_axis(tmp_path: Path) -> None:
     """The Unitree Z1 (axes 2-4 parallel, 70 mm between axes 4 and 5: no closed form here) passing
     1 mm beside its shoulder singularity; exact would swing joint 4 past its limit."""
-    urdf = erd.load("z1").urdf
+    urdf = erd_urdf("z1")
     robot = load_robot(urdf, tip="link06")
     assert robot.family == "general6"
     task = _near_miss(urdf, [10, 55, -90, 0, 30, 20], [0, 4, 4, 0, 0, 0], 0.0, speed=0.1, tip="link06",
@@ -192,7 +199,7 @@ def test_kinova_with_revolute_joints_is_opw_whatever_its_tip(tip: str | None, tm
     """The Kinova j2s6s200 (spherical wrist) once its continuous joints are declared revolute: its
     default tip (a finger tip, off axis 6) and its end effector (turned about axis 6) are folded
     into the OPW closed form, which reproduces the file's FK."""
-    tree = ET.parse(erd.load("kinova").urdf)
+    tree = ET.parse(erd_urdf("kinova"))
     for joint in tree.getroot().iter("joint"):
         if joint.get("type") == "continuous":
             joint.set("type", "revolute")
@@ -209,7 +216,7 @@ def test_kinova_with_revolute_joints_is_opw_whatever_its_tip(tip: str | None, tm
 @pytest.mark.parametrize("name", ["kinova", "bravo7_no_ee"])
 def test_continuous_joints_are_bad_input_naming_the_joint(name: str) -> None:
     err = io.StringIO()
-    assert main(["info", erd.load(name).urdf], out=io.StringIO(), err=err) == 2
+    assert main(["info", erd_urdf(name)], out=io.StringIO(), err=err) == 2
     assert "is continuous; singplan needs position limits" in err.getvalue()
 
 
@@ -233,12 +240,13 @@ def _same_branches(a: list[np.ndarray], b: list[np.ndarray]) -> bool:
 
 
 @pytest.mark.parametrize(("arm", "count"), [("offset", 5), ("z1", 3), ("bravo", 3)])
+@pytest.mark.slow  # Levenberg-Marquardt from 300 seeds per pose
 def test_numeric_ik_finds_the_branches_a_brute_force_search_finds(arm: str, count: int, offset_wrist: Path,
                                                                  bravo7: Path) -> None:
     """Seeded random poses (and one 0.3 deg from the offset wrist's singularity, one with two Z1
     branches): the all-branch
     search gives exactly the branches of Levenberg-Marquardt from 300 uniform random seeds."""
-    robot = {"offset": lambda: load_robot(offset_wrist), "z1": lambda: load_robot(erd.load("z1").urdf, tip="link06"),
+    robot = {"offset": lambda: load_robot(offset_wrist), "z1": lambda: load_robot(erd_urdf("z1"), tip="link06"),
              "bravo": lambda: load_robot(bravo7)}[arm]()
     rng = np.random.default_rng(3)
     q_all = rng.uniform(np.maximum(robot.lower_rad, -math.pi), np.minimum(robot.upper_rad, math.pi),

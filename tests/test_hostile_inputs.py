@@ -218,7 +218,11 @@ def assert_refused(code: int, text: str, words: tuple[str, ...]) -> None:
         assert word in text, f"{word!r} not in {text!r}"
 
 
-@pytest.mark.parametrize("name", CASES)
+# parsing half a million nodes up to the cap takes seconds: with the slow tests
+_SLOW_CASES = {"over 500 000 YAML nodes"}
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in _SLOW_CASES else n for n in CASES])
 def test_plan_refuses(name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     case = CASES[name]
     task = _write_case(case, tmp_path)
@@ -228,7 +232,8 @@ def test_plan_refuses(name: str, tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert not out_dir.exists()
 
 
-@pytest.mark.parametrize("name", [name for name, case in CASES.items() if case.check_too])
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in _SLOW_CASES else n
+                                  for n, case in CASES.items() if case.check_too])
 def test_check_refuses(name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     case = CASES[name]
     code, text = run_cli(["check", str(_write_case(case, tmp_path))], capsys)

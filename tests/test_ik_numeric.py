@@ -122,6 +122,7 @@ def test_offset_wrist_is_not_spherical(offset_wrist_robot: Robot) -> None:
     assert gap_m > 0.01
 
 
+@pytest.mark.slow  # a brute-force reference search at 30 poses
 def test_finds_every_reference_branch_of_an_offset_wrist_arm(offset_wrist_robot: Robot) -> None:
     """At 30 random reachable poses the solver finds every branch the brute force finds."""
     robot = offset_wrist_robot
@@ -140,7 +141,7 @@ def test_finds_every_reference_branch_of_an_offset_wrist_arm(offset_wrist_robot:
     assert found_total == reference_total, f"found {found_total} of {reference_total} reference branches"
 
 
-@pytest.mark.parametrize("name", ["fanuc_m10ia", "kuka_kr6_r900_2"])
+@pytest.mark.parametrize("name", [pytest.param("fanuc_m10ia", marks=pytest.mark.slow), "kuka_kr6_r900_2"])
 def test_same_branches_as_the_closed_form_on_opw_arms(name: str) -> None:
     """On OPW arms the numeric solver returns exactly the closed form's branches inside the limits."""
     robot = load_robot(name)

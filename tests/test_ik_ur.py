@@ -101,6 +101,7 @@ def _ur_shoulder_q(robot, q):
     return None
 
 
+@pytest.mark.slow  # 85 unseeded and seeded solve_all calls on +-360 deg joints (whole-turn variants)
 def test_ur_closed_form_solves_every_reach_boundary() -> None:
     """Straight elbow, all-zero joints, q5 = 0 and +-1e-9, exact shoulder singularity; seeded random q."""
     robot = load_robot("ur5")

@@ -85,6 +85,7 @@ def _assert_pause_keeps_pose(task_file: Path, out: Path, kind: str) -> None:
 
 
 @pytest.mark.parametrize("name", sorted(PUBLIC))
+@pytest.mark.slow  # public scenarios through the independent checker
 def test_public_null_space_task_plans_keeps_the_pose_and_passes_the_checker(name: str, tmp_path: Path) -> None:
     task_file = require(PROGRAMS / f"{name}.yaml")
     assert _plan(task_file, tmp_path / "out") == 0
@@ -122,6 +123,7 @@ def _narrow_a6_task(tmp_path: Path) -> Path:
     return out
 
 
+@pytest.mark.slow  # every alternative of the move is planned before the refusal
 def test_refusal_names_the_joint_when_no_turn_keeps_the_limits(tmp_path: Path,
                                                                capsys: pytest.CaptureFixture[str]) -> None:
     assert _plan(_narrow_a6_task(tmp_path), tmp_path / "out") == 3
@@ -182,6 +184,7 @@ GENERATED = {
 
 
 @pytest.mark.parametrize("case", sorted(GENERATED))
+@pytest.mark.slow  # plans and checks a generated task on each arm
 def test_generated_singular_hit_on_other_opw_arms(case: str, tmp_path: Path) -> None:
     arm, kind, joints_deg, step_deg = GENERATED[case]
     task_file = tmp_path / "hit.yaml"

@@ -8,9 +8,6 @@ from __future__ import annotations
 import io
 import json
 import os
-import signal
-import subprocess
-import sys
 import tracemalloc
 from dataclasses import replace
 from pathlib import Path
@@ -25,6 +22,8 @@ from singplan.results import files as outputs
 from singplan.results import trajectory as trajectory_module
 from singplan.results.metrics import Metrics
 from singplan.results.trajectory import Trajectory, load, save, write_csv, write_json
+
+from .conftest import ReplayServer
 
 ROBOT_URDF = Path(__file__).resolve().parents[1] / "robots" / "urdf" / "kuka_kr6_r900_2.urdf"
 START_DEG = [10, -80, 95, 20, 40, 0]
@@ -227,6 +226,7 @@ def test_save_streams_the_same_bytes_as_one_json_dump_and_load_keeps_the_series(
     np.testing.assert_array_equal(again.q, traj.q)
 
 
+@pytest.mark.slow  # tracemalloc traces every allocation of a 20 000-sample save
 def test_saving_needs_little_memory_beyond_the_arrays(tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setattr(trajectory_module, "_CHUNK_ROWS", 512)  # small chunks: the fixed part stays small
     traj = _synthetic(20_000)
@@ -283,39 +283,17 @@ def test_an_interrupt_is_one_line_and_exit_130(tmp_path: Path, monkeypatch) -> N
     assert sorted(p.name for p in tmp_path.iterdir()) == ["task.yaml"]
 
 
-def _listening_ports() -> dict[int, set[str]]:
-    """Listening TCP ports of this machine -> their local addresses (hex, from /proc/net/tcp*)."""
-    ports: dict[int, set[str]] = {}
-    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
-        if not os.path.exists(table):
-            continue
-        for line in Path(table).read_text().splitlines()[1:]:
-            fields = line.split()
-            address, port = fields[1].split(":")
-            if fields[3] == "0A":  # LISTEN
-                ports.setdefault(int(port, 16), set()).add(address)
-    return ports
-
-
 @pytest.mark.skipif(not os.path.exists("/proc/net/tcp"), reason="reads Linux's socket tables")
-def test_replay_serve_listens_on_loopback_only(tmp_path: Path) -> None:
-    code, _, err = _plan(_task(tmp_path), tmp_path / "out", "--no-report", "--no-replay")
-    assert code == 0, err
-    before = _listening_ports()
-    proc = subprocess.Popen([sys.executable, "-m", "singplan", "replay", str(tmp_path / "out"), "--serve"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        line = proc.stdout.readline()  # type: ignore[union-attr]
-        assert line.startswith("replay served at http://127.0.0.1:"), line + proc.stderr.read()  # type: ignore[union-attr]
-        web_port = int(line.split(":")[2].split("/")[0])
-        opened = {port: addresses for port, addresses in _listening_ports().items() if port not in before}
-        assert web_port in opened
-        loopback = {"0100007F", "00000000000000000000000001000000"}  # 127.0.0.1 and ::1
-        assert all(addresses <= loopback for addresses in opened.values()), opened
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        proc.communicate(timeout=30)
-    assert proc.returncode == 0
+def test_replay_serve_listens_on_loopback_only(replay_server: ReplayServer) -> None:
+    line = replay_server.line
+    assert line.startswith("replay served at http://127.0.0.1:"), line + replay_server.errors()
+    web_port = int(line.split(":")[2].split("/")[0])
+    opened = {port: addresses for port, addresses in replay_server.ports_serving.items()
+              if port not in replay_server.ports_before}
+    assert web_port in opened
+    loopback = {"0100007F", "00000000000000000000000001000000"}  # 127.0.0.1 and ::1
+    assert all(addresses <= loopback for addresses in opened.values()), opened
+    # that SIGTERM stops this server with exit 0 is checked in tests/test_plan.py (the same server)
 
 
 def test_replay_host_that_cannot_be_served_is_bad_input(tmp_path: Path) -> None:

@@ -17,6 +17,8 @@ from singplan.kinematics.robot import load_robot
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
 
+from .conftest import ReplayServer
+
 DEMO = Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml"
 
 
@@ -25,6 +27,15 @@ def demo():
     calls: list[tuple[int, int]] = []
     traj = plan(DEMO, progress=lambda done, total: calls.append((done, total)))
     return traj, calls
+
+
+@pytest.fixture(scope="module")
+def demo_cli(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    """`singplan plan DEMO -o OUT` with every default output, run once: the folder and the summary printed."""
+    folder = tmp_path_factory.mktemp("demo_cli") / "out"
+    out = io.StringIO()
+    assert main(["plan", str(DEMO), "-o", str(folder)], out=out) == 0
+    return folder, out.getvalue()
 
 
 def _robot_for(traj):
@@ -97,10 +108,9 @@ def test_the_through_crossing_is_reported(demo) -> None:
     assert traj.metrics["crossings"][0]["method"] == "exact"
 
 
-def test_outputs_follow_the_contract(tmp_path: Path) -> None:
-    out = io.StringIO()
-    assert main(["plan", str(DEMO), "-o", str(tmp_path / "out")], out=out) == 0
-    doc = json.loads((tmp_path / "out" / "trajectory.json").read_text())
+def test_outputs_follow_the_contract(demo_cli: tuple[Path, str]) -> None:
+    folder, summary = demo_cli
+    doc = json.loads((folder / "trajectory.json").read_text())
     for key in ("format", "robot", "urdf", "tip", "tool", "task", "joint_names", "period", "t", "q", "qd", "qdd",
                 "segments", "events", "metrics"):
         assert key in doc
@@ -109,9 +119,9 @@ def test_outputs_follow_the_contract(tmp_path: Path) -> None:
                 "max_joint_accel_ratio", "duration_s", "planning_time_s", "crossings"):
         assert key in doc["metrics"]
     assert parse_task(doc["task"]).robot == "kuka_kr6_r900_2"
-    csv = (tmp_path / "out" / "trajectory.csv").read_text().splitlines()
+    csv = (folder / "trajectory.csv").read_text().splitlines()
     assert csv[0] == "t," + ",".join(doc["joint_names"]) and len(csv) == len(doc["t"]) + 1
-    assert "wrist zone" in out.getvalue()
+    assert "wrist zone" in summary
 
 
 def _variant(tmp_path: Path, edit) -> Path:
@@ -156,9 +166,8 @@ def test_check_lists_the_zone_and_demo_writes_its_folder(tmp_path: Path, monkeyp
     assert (tmp_path / "singplan-demo" / "trajectory.json").is_file()
 
 
-def test_report_is_self_contained_with_every_plot(tmp_path: Path) -> None:
-    assert main(["plan", str(DEMO), "-o", str(tmp_path / "out")], out=io.StringIO()) == 0
-    page = (tmp_path / "out" / "report.html").read_text()
+def test_report_is_self_contained_with_every_plot(demo_cli: tuple[Path, str], tmp_path: Path) -> None:
+    page = (demo_cli[0] / "report.html").read_text()
     for key in ("joints", "speed", "distances", "deviation", "tcp", "stopping"):
         assert f'id="plot-{key}"' in page
     assert page.count("<svg") == 6
@@ -168,56 +177,48 @@ def test_report_is_self_contained_with_every_plot(tmp_path: Path) -> None:
     assert not (tmp_path / "bare" / "report.html").exists()
 
 
-def test_replay_is_written_self_contained_and_can_be_rebuilt_from_the_saved_trajectory(tmp_path: Path) -> None:
+def test_replay_is_written_self_contained_and_can_be_rebuilt_from_the_saved_trajectory(demo, demo_cli: tuple[Path, str],
+                                                                                     tmp_path: Path) -> None:
     import singplan
     from singplan.results.trajectory import load
 
-    assert main(["plan", str(DEMO), "-o", str(tmp_path / "out"), "--no-report"], out=io.StringIO()) == 0
-    page = (tmp_path / "out" / "replay.html").read_text()
+    folder = demo_cli[0]
+    page = (folder / "replay.html").read_text()
     assert len(page.encode()) < 5_000_000  # the demo's replay stays small enough to mail around
     assert 'src="http' not in page and 'href="http' not in page and "<link" not in page  # nothing fetched
     assert "new MeshCat.Viewer" in page and "window.singplan = " in page and "__DATA__" not in page
-    saved = load(tmp_path / "out")
-    again = plan(DEMO)
+    saved = load(folder)
+    again, _ = demo  # plan(DEMO) in this process
     np.testing.assert_allclose(saved.q, again.q, atol=1e-12)  # trajectory.json round-trips
     assert [s.kind for s in saved.segments] == [s.kind for s in again.segments]
     out = io.StringIO()
-    assert main(["replay", str(tmp_path / "out"), "--html", str(tmp_path / "again.html")], out=out) == 0
+    assert main(["replay", str(folder), "--html", str(tmp_path / "again.html")], out=out) == 0
     assert (tmp_path / "again.html").stat().st_size > 100_000
     assert singplan.replay(saved, html=tmp_path / "api.html").is_file()
     err = io.StringIO()
     assert main(["replay", str(tmp_path / "nowhere"), "--html", str(tmp_path / "x.html")], err=err) == 2
     assert "cannot read a trajectory" in err.getvalue()
     err = io.StringIO()
-    assert main(["replay", str(tmp_path / "out")], err=err) == 2  # neither --html nor --serve
+    assert main(["replay", str(folder)], err=err) == 2  # neither --html nor --serve
     assert "--serve" in err.getvalue()
 
 
-def test_replay_serve_runs_a_live_meshcat_server_on_loopback_until_stopped(tmp_path: Path) -> None:
-    import signal
-    import subprocess
-    import sys
+def test_replay_serve_runs_a_live_meshcat_server_on_loopback_until_stopped(replay_server: ReplayServer) -> None:
     import urllib.request
 
-    assert main(["plan", str(DEMO), "-o", str(tmp_path / "out"), "--quiet", "--no-report", "--no-replay"],
-                out=io.StringIO()) == 0
-    proc = subprocess.Popen([sys.executable, "-m", "singplan", "replay", str(tmp_path / "out"), "--serve"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        line = proc.stdout.readline()  # type: ignore[union-attr]
-        assert line.startswith("replay served at http://127.0.0.1:"), line + proc.stderr.read()  # type: ignore[union-attr]
-        url = line.split()[3]
-        with urllib.request.urlopen(url, timeout=20) as response:
-            assert response.status == 200
-            assert "meshcat" in response.read().decode().lower()
-    finally:
-        proc.send_signal(signal.SIGTERM)
-        out, _ = proc.communicate(timeout=30)
-    assert proc.returncode == 0 and "stopped" in out
+    line = replay_server.line  # the server replays the demo (tests/conftest.py: planned_kuka)
+    assert line.startswith("replay served at http://127.0.0.1:"), line + replay_server.errors()
+    url = line.split()[3]
+    with urllib.request.urlopen(url, timeout=20) as response:
+        assert response.status == 200
+        assert "meshcat" in response.read().decode().lower()
+    out = replay_server.stop()
+    assert replay_server.proc.returncode == 0 and "stopped" in out
     with pytest.raises(OSError):  # the meshcat server went with it
         urllib.request.urlopen(url, timeout=5)
 
 
+@pytest.mark.slow  # a cold compile of every kernel in a fresh cache: ~10 s whatever the test does
 def test_the_first_run_says_it_compiles_and_later_runs_use_the_disk_cache(tmp_path: Path) -> None:
     import os
     import subprocess

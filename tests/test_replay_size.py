@@ -166,6 +166,7 @@ def test_long_trajectory_page_is_bounded_and_keeps_peaks(program: Trajectory) ->
     assert np.allclose(labels, expected, atol=1e-9)
 
 
+@pytest.mark.slow  # plans 60 moves (30 crossings) and builds their page
 def test_sixty_move_program_page_is_small(tmp_path: Path) -> None:
     """30 LINs through the wrist singularity and 30 PTPs back: 60 moves, 30 crossings."""
     task = yaml.safe_load((EXAMPLES / "kuka_program.yaml").read_text())

@@ -12,7 +12,7 @@ import yaml
 from singplan.errors import RobotModelError, UnknownNameError
 from singplan.kinematics.robot import MAX_URDF_BYTES, SUPPORTED_JOINT_COUNTS, bundled_robots, load_robot, robots_dir
 
-from .conftest import OPW_NAMES, random_q
+from .conftest import OPW_NAMES, erd_urdf, random_q
 
 
 def test_registry_lists_every_bundled_arm_and_the_two_example_robots() -> None:
@@ -56,6 +56,13 @@ def test_example_robot_data_arms_load_as_chains() -> None:
     panda = load_robot("panda")
     assert panda.n_joints == 7  # fingers locked away: only the arm chain remains
     assert panda.tip == "panda_hand"
+
+
+def test_erd_urdf_is_the_path_example_robot_data_loads() -> None:
+    import example_robot_data
+
+    for name in ("xarm7", "bravo7_no_ee"):  # two whose load() is quick
+        assert erd_urdf(name) == example_robot_data.load(name).urdf
 
 
 def test_unknown_robot_lists_valid_names() -> None:

@@ -1,5 +1,6 @@
 """7-axis arms: a held redundant joint (task key `redundancy`), minimum-norm tracking without it,
-no configuration labels, `singplan ik --hold`; plans judged by the independent checker."""
+no configuration labels, `singplan ik --hold`; plans judged by the independent checker (those
+marked slow: CI runs them with ``python -m pytest -q -m slow``)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,6 @@ import math
 from pathlib import Path
 from typing import Any
 
-import example_robot_data
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -23,6 +23,7 @@ from singplan.planning.redundancy import HeldJoint, hold_joint
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
 
+from .conftest import erd_urdf
 from .shared import run_checker
 
 HELD_TOL_RAD = 1e-9
@@ -67,7 +68,7 @@ def _held_error_rad(traj: dict[str, Any], joint: str, value_deg: float) -> float
 
 
 def test_xarm7_from_example_robot_data_loads_and_holds_a_joint() -> None:
-    xarm = load_robot(example_robot_data.load("xarm7").urdf)
+    xarm = load_robot(erd_urdf("xarm7"))
     assert xarm.n_joints == 7 and xarm.family == "seven"
     assert np.all(np.isfinite(xarm.lower_rad)) and np.all(xarm.lower_rad < xarm.upper_rad)
     held = hold_joint(xarm, "joint3", math.radians(20.0))
@@ -85,6 +86,7 @@ def _smallest_singular_value(held: HeldJoint, q: np.ndarray) -> float:
     return min(float(np.linalg.svd(held.reduced.jacobian(held.reduce(qk)), compute_uv=False)[-1]) for qk in q)
 
 
+@pytest.mark.slow
 def test_held_lin_through_the_singular_region_passes_the_checker(tmp_path: Path) -> None:
     panda = load_robot("panda")
     task = _panda_task([{"lin": {"to": _pose(panda, PANDA_THROUGH), "speed": 0.1}}])
@@ -100,6 +102,7 @@ def test_held_lin_through_the_singular_region_passes_the_checker(tmp_path: Path)
     assert _smallest_singular_value(held, np.array(traj["q"])) < 0.005  # the path really passes the singularity
 
 
+@pytest.mark.slow
 def test_held_circ_and_ptp_pass_the_checker(tmp_path: Path) -> None:
     panda = load_robot("panda")
     task = _panda_task([{"circ": {"via": {"xyz": _pose(panda, PANDA_VIA)["xyz"]}, "to": _pose(panda, PANDA_THROUGH),
@@ -112,8 +115,9 @@ def test_held_circ_and_ptp_pass_the_checker(tmp_path: Path) -> None:
     assert any(s["kind"] == "crossing" and s["move"] == 0 for s in traj["segments"])
 
 
+@pytest.mark.slow
 def test_xarm7_held_lin_passes_the_checker(tmp_path: Path) -> None:
-    xarm = load_robot(example_robot_data.load("xarm7").urdf)
+    xarm = load_robot(erd_urdf("xarm7"))
     start = [0.0, 20.0, 30.0, 60.0, 0.0, 40.0, 0.0]
     task = {"robot": str(xarm.urdf_path), "start": {"joints_deg": start},
             "redundancy": {"joint": "joint3", "value_deg": 30.0},
@@ -135,6 +139,7 @@ def _min_norm_reference(robot: Robot, poses: np.ndarray, q0: np.ndarray) -> np.n
     return np.array(out)
 
 
+@pytest.mark.slow  # plans a LIN and differentiates every sample
 def test_lin_without_redundancy_follows_the_minimum_norm_joint_velocity() -> None:
     start = [0.0, -45.0, 0.0, -135.0, 0.0, 90.0, 45.0]
     task = parse_task({"robot": "panda", "start": {"joints_deg": start},

@@ -5,7 +5,8 @@ The tasks come from tests/task_strategies.py (every bundled arm, LIN / CIRC / PT
 The checker is ../shared/verify/verify_trajectory.py, which shares no code with singplan; it sits
 next to the project in development and CI, so without it these tests skip, except under CI=true.
 
-The default run is a few derandomized examples. The soak (marker ``soak``, deselected by default, run by
+A few derandomized examples run with the slow tests (marker ``slow``, deselected by default, run by
+CI: ``python -m pytest -q -m slow``). The soak (marker ``soak``, deselected by default, run by
 CI) plans ``SINGPLAN_SOAK_EXAMPLES`` tasks (default 300): ``python -m pytest -q -m soak``.
 """
 
@@ -73,6 +74,7 @@ def plan_and_judge(task: dict[str, Any], folder: Path) -> None:
     assert result["ok"], f"checker: {result['failures']}; {context}"
 
 
+@pytest.mark.slow  # 12 random tasks planned and judged by the checker
 @settings(max_examples=DEFAULT_EXAMPLES, derandomize=True, deadline=None, database=None,
           phases=(Phase.explicit, Phase.generate), suppress_health_check=[HealthCheck.too_slow])
 @given(task=valid_tasks())

@@ -31,6 +31,7 @@ DEMO = Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml"
 
 
 @pytest.mark.parametrize("name", ["kuka_kr6_r900_2__weave_lin_sine", "abb_irb2400__weave_circ_triangle"])
+@pytest.mark.slow  # public scenarios through the independent checker
 def test_the_public_weave_tasks_pass_the_independentrun_checker(tmp_path: Path, name: str) -> None:
     require(PROGRAMS)
     task = PROGRAMS / f"{name}.yaml"
@@ -55,7 +56,7 @@ def _demo_with_weave(method: str, weave: dict[str, Any]) -> dict[str, Any]:
     return doc
 
 
-@pytest.mark.parametrize("method", ["exact", "auto"])
+@pytest.mark.parametrize("method", ["exact", pytest.param("auto", marks=pytest.mark.slow)])  # auto plans 4 methods
 def test_a_woven_path_through_a_wrist_singularity_is_detected_crossed_and_checked(tmp_path: Path,
                                                                                   method: str) -> None:
     doc = _demo_with_weave(method, {"pattern": "sine", "amplitude_mm": 3.0, "wavelength_mm": 20.0})
@@ -238,6 +239,7 @@ def test_the_weave_survives_the_tasks_mapping() -> None:
                                                             "wavelength_mm": 8.0}
 
 
+@pytest.mark.slow  # a three-move example through the independent checker
 def test_the_weave_seam_example_plans_and_its_triangle_corners_keep_the_acceleration_limit(tmp_path: Path) -> None:
     """examples/weave_seam.yaml: a sine LIN, a triangle CIRC (corners where the joint velocities
     jump: with 32 uniform samples a period and no corner samples this move failed the acceleration

@@ -184,6 +184,7 @@ def test_every_pair_of_move_kinds_flies_by(tmp_path: Path, kinds: tuple[str, str
     _check(tmp_path, doc, traj)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["abb_irb2400__flyby_pick_place", "fanuc_lrmate200id__flyby_seam_lin_circ_lin",
                                   "kuka_kr6_r900_2__flyby_corner_near_wrist", "ur5__flyby_palletise"])
 def test_the_public_fly_by_programs_pass_and_beat_stop_to_stop_by_20_percent(tmp_path: Path, name: str) -> None:
@@ -251,6 +252,7 @@ def _check(tmp_path: Path, doc: dict[str, Any], traj: Trajectory) -> None:
     assert run.returncode == 0, run.stdout + run.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("example, hold", [("so100_lin", True), ("panda_redundancy", False),
                                            pytest.param("panda_redundancy", True, marks=pytest.mark.soak)])
 def test_five_and_seven_axis_arms_fly_by(tmp_path: Path, example: str, hold: bool) -> None:

@@ -189,12 +189,10 @@ def main(argv: list[str] | None = None) -> int:
     rows = measure_scenarios(args.scenarios, args.repeat)
     program = measure_program(args.scenarios, args.lins)
     text = report(rows, program, args.lins, args.repeat)
-    sys.stdout.write(text + "\n")
-    if args.write:
-        sys.path.insert(0, str(HERE))
-        from bench_ik import write_section
+    sys.path.insert(0, str(HERE))
+    from bench_ik import emit
 
-        write_section(args.write, text, MARK)
+    emit(text, args.write, MARK)
     return 0
 
 

@@ -25,7 +25,7 @@ import yaml
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from bench_ik import machine, write_section  # noqa: E402  (one definition for every benchmark)
+from bench_ik import emit, machine  # noqa: E402  (one definition for every benchmark)
 from bench_jerk import run_one  # noqa: E402
 
 MARK = "bench_flyby"
@@ -90,9 +90,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--write", type=Path, default=None)
     args = parser.parse_args(argv)
     text = table(measure(args.shared, args.jerk), args.jerk)
-    sys.stdout.write(text + "\n")
-    if args.write:
-        write_section(args.write, text, MARK)
+    emit(text, args.write, MARK)
     return 0
 
 

@@ -117,6 +117,13 @@ def table(robot_name: str, rows: list[dict[str, float]]) -> str:
     return "\n".join(lines)
 
 
+def emit(text: str, path: Path | None, mark: str) -> None:
+    """Print a benchmark's table and, when asked, write it into its section of the results file."""
+    sys.stdout.write(text + "\n")
+    if path is not None:
+        write_section(path, text, mark)
+
+
 def write_section(path: Path, text: str, mark: str = "bench_ik") -> None:
     """Replace one benchmark's section of the results file (between its markers), keeping the others."""
     begin, end = f"<!-- {mark}:begin -->", f"<!-- {mark}:end -->"

@@ -127,12 +127,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--write", type=Path, default=None)
     args = parser.parse_args(argv)
     text = table(measure(args.shared, args.jerk), args.jerk)
-    sys.stdout.write(text + "\n")
-    if args.write:
-        sys.path.insert(0, str(HERE))
-        from bench_ik import write_section
+    sys.path.insert(0, str(HERE))
+    from bench_ik import emit
 
-        write_section(args.write, text, MARK)
+    emit(text, args.write, MARK)
     return 0
 
 

@@ -161,12 +161,10 @@ def main(argv: list[str] | None = None) -> int:
     program = measure_program(args.repeat)
     demo = measure_demo(args.demo_repeat)
     text = table(program, demo, (load_before, os.getloadavg()[0]))
-    sys.stdout.write(text + "\n")
-    if args.write:
-        sys.path.insert(0, str(HERE))
-        from bench_ik import write_section
+    sys.path.insert(0, str(HERE))
+    from bench_ik import emit
 
-        write_section(args.write, text, MARK)
+    emit(text, args.write, MARK)
     return 0
 
 

@@ -1,11 +1,14 @@
-"""Time-parameterisation of one move with TOPP-RA, and resampling at the controller period.
+"""Time-parameterisation of one move (or one chain of moves joined by fly-by corners,
+:mod:`singplan.planning.chain`) with TOPP-RA, and resampling at the controller period.
 
 TOPP-RA (Pham and Pham, "A new approach to time-optimal path parameterization based on
 reachability analysis", IEEE T-RO 2018) finds the fastest path speed profile under joint
 velocity and acceleration limits. The path handed to it is the move's joint map sampled at
 its reference points, extended by one coordinate ``s = u * L`` (arc length [m]) whose
 velocity limit is the programmed TCP speed: that caps the TCP speed and, where joints would
-exceed their limits, slows the path instead of leaving it (SEEDS 002's speed scaleback).
+exceed their limits, slows the path instead of leaving it (SEEDS 002's speed scaleback). Along
+a chain the joint speed limits are each move's own and the TCP cap follows a clock (time at the
+programmed speeds) whose rate bounds the path speed directly: both vary along the path.
 
 The output samples are uniform at the period from t = 0. The duration is rounded up to whole
 periods by slowing the profile uniformly. Each sample's joints come from the joint map's own

@@ -185,33 +185,27 @@ def split(chain: ChainMap, timed: TimedMove, limits: MoveLimits, period_s: float
     (its ``blend_from`` marks where that corner starts); neighbours share that sample. Every
     move's own stretch must hold a sample (:func:`starved`)."""
     w = timed.u
+    u = np.ones(len(w))  # a corner's samples: the incoming move's end
     starts: dict[int, int] = {}
-    ends: dict[int, int] = {}
     blend_from: dict[int, int] = {}
-    u = np.empty(len(w))
     for p in chain.pieces:
-        inside = (w >= p.w0 - 1e-15) & (w <= p.w1 + 1e-15)
         if p.blend is None:
-            u[inside] = p.x_of(w[inside])
-            starts.setdefault(p.move, int(np.argmax(inside)))
-            ends[p.move] = int(len(w) - 1 - np.argmax(inside[::-1]))
+            inside = np.flatnonzero((w >= p.w0 - 1e-15) & (w <= p.w1 + 1e-15))
+            u[inside] = np.minimum(p.x_of(w[inside]), 1.0)
+            starts.setdefault(p.move, int(inside[0]))
         else:
-            strictly = (w > p.w0) & (w < p.w1)
-            u[strictly] = 1.0
             blend_from[p.move] = int(np.flatnonzero(w <= p.w0)[-1])
     moves = sorted(starts)
-    for n, m in enumerate(moves[:-1]):  # a move runs until the next one's first sample on its path
-        ends[m] = starts[moves[n + 1]]
+    # a move runs until the next one's first sample on its own path, the last to the chain's end
+    ends = dict(zip(moves, [starts[m] for m in moves[1:]] + [len(w) - 1], strict=True))
     total = timed.optimal_duration_s if timed.optimal_duration_s is not None else timed.duration_s
     out = []
     for m in moves:
         a, b = starts[m], ends[m]
         q = timed.q[a:b + 1]
         uu = u[a:b + 1].copy()
-        if m in blend_from:
+        if m in blend_from:  # its corner's samples, the last shared with the next move
             uu[blend_from[m] - a + 1:] = 1.0
-        else:
-            uu[-1] = min(uu[-1], 1.0)
         speed, accel = sample_ratios(q, period_s, limits.step_velocities(w[a:b + 1]), limits.acceleration_rad_s2)
         duration = (b - a) * period_s
         share = duration * total / timed.duration_s if timed.duration_s > 0 else duration

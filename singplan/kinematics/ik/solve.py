@@ -151,18 +151,31 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
         rows, branches = _closed_form_candidates(robot, T_base_tcp, seed)
     else:
         rows, branches = _numeric_candidates(robot, T_base_tcp, seed)
-    q_list: list[np.ndarray] = []
-    branch_list: list[int] = []
+    found: list[tuple[np.ndarray, int]] = []
     for q, branch in zip(rows, branches, strict=True):
         variants = ([_nearest_variant(q, seed, robot.lower_rad, robot.upper_rad)] if seed is not None
                     else _shift_variants(q, robot.lower_rad, robot.upper_rad))
-        for v in variants:
-            if v is not None and not any(np.allclose(v, w, atol=1e-9) for w in q_list):
-                q_list.append(v)
-                branch_list.append(branch)
-    q_all = np.array(q_list).reshape(-1, robot.n_joints)
+        found += [(v, branch) for v in variants if v is not None]
+    kept = _distinct([v for v, _ in found])
+    q_all = np.array([found[k][0] for k in kept]).reshape(-1, robot.n_joints)
+    branch_list = [found[k][1] for k in kept]
     labels = tuple(classify(robot, q).label for q in q_all)
     return IkSolutions(q=q_all, labels=labels, branches=np.array(branch_list, dtype=int))
+
+
+def _distinct(rows: list[np.ndarray]) -> list[int]:
+    """Indices of the rows (in order) that differ from every earlier kept row by more than
+    ``np.allclose(atol=1e-9)`` does; one vectorised comparison per row (a UR pose has up to
+    8 x 64 whole-turn variants, which pairwise ``allclose`` calls made seconds)."""
+    if not rows:
+        return []
+    table = np.array(rows)  # (M, n)
+    kept: list[int] = []
+    for k, row in enumerate(table):
+        earlier = table[kept]
+        if not np.any(np.all(np.abs(row - earlier) <= 1e-9 + 1e-5 * np.abs(earlier), axis=1)):
+            kept.append(k)
+    return kept
 
 
 def closed_form_branches(robot: Robot, T_base_tcp: np.ndarray, seeds: np.ndarray | None = None) -> np.ndarray:

@@ -18,7 +18,8 @@ from hypothesis import strategies as st
 from singplan.cli import main
 from singplan.errors import TaskError
 from singplan.kinematics.robot import load_robot
-from singplan.planning.blending import ramps
+from singplan.planning import planner as planner_module
+from singplan.planning.blending import RAMPS, Ramp, ramps
 from singplan.planning.chain import chain_map
 from singplan.planning.planner import plan_moves
 from singplan.results.plan import plan, trajectory_of
@@ -93,10 +94,10 @@ def test_blend_mm_round_trips_through_the_validated_mapping() -> None:
 
 # --- geometry and seams --------------------------------------------------------------------------
 
-@given(st.floats(0.0, 1.0), st.floats(0.0, math.pi))
-def test_superposed_straight_lines_stay_inside_the_sphere(v: float, angle: float) -> None:
+@given(st.floats(0.0, 1.0), st.floats(0.0, math.pi), st.sampled_from(RAMPS))
+def test_superposed_straight_lines_stay_inside_the_sphere(v: float, angle: float, ramp: Ramp) -> None:
     """|-(1 - alpha) a + beta b| <= r for unit a, b at any angle: the ramps sum to at most 1."""
-    alpha, beta = ramps(np.array([v]))
+    alpha, beta = ramps(np.array([v]), ramp)
     a, b = np.array([1.0, 0.0, 0.0]), np.array([math.cos(angle), math.sin(angle), 0.0])
     offset = -(1.0 - alpha[0]) * a + beta[0] * b  # from the corner, radius 1
     assert np.linalg.norm(offset) <= 1.0 + 1e-12
@@ -305,3 +306,17 @@ def test_a_corner_that_cannot_be_flown_says_why(radius_mm: float, second: list[f
     doc = _fanuc([[0.33, -0.04, 0.25], second, [0.25, -0.04, 0.25]], [radius_mm, 0, 0])
     traj = plan(parse_task(doc))
     assert not traj.metrics.blends[0].flown and reason in traj.metrics.blends[0].reduced
+
+
+def test_both_ramps_are_tried_and_the_faster_program_kept(monkeypatch: pytest.MonkeyPatch) -> None:
+    example = Path(__file__).resolve().parents[1] / "examples" / "flyby_pick_place.yaml"
+    task = parse_task(yaml.safe_load(example.read_text()))
+    alone = {}
+    for ramp in RAMPS:
+        monkeypatch.setattr(planner_module, "RAMPS", (ramp,))
+        alone[ramp] = plan(task).duration_s
+    monkeypatch.undo()
+    traj = plan(task)
+    assert traj.duration_s == min(alone.values())
+    kept = {s.details["ramp"] for s in traj.segments if s.kind == "blend"}
+    assert kept == {min(alone, key=lambda r: alone[r])}

@@ -9,11 +9,14 @@ accelerating ramp beta(v) = 1 - alpha(1 - v), v in [0, 1]:
     X(v) = X_i(alpha(v)) (+) X_c^-1 (+) X_j(beta(v))
 
 (positions added as offsets from the corner, orientations composed as rotations relative to
-the corner's). ``alpha(v) = 2 v - 2 v^3 + v^4`` is the quartic with alpha' = 2 at the start,
-alpha' = 0 at the end and alpha'' = 0 at both: with the chain's shares of its parameter
-(:mod:`singplan.planning.chain`) the joint path is C2 at the seams, so neither the acceleration
-nor (with a jerk limit) the jerk jumps where the corner begins or ends. alpha is concave, so
-beta <= alpha and the weights of the two offsets, (1 - alpha) + beta, never exceed 1: along
+the corner's). Two ramps are offered (:func:`ramps`), both with alpha' = 2 at the start and
+alpha' = 0 at the end, so that with the chain's shares of its parameter
+(:mod:`singplan.planning.chain`) the joint path is C1 at the seams: the quartic
+``alpha(v) = 2 v - 2 v^3 + v^4`` also has alpha'' = 0 at both ends (C2: neither the acceleration
+nor, with a jerk limit, the jerk jumps where the corner begins or ends), the quadratic
+``alpha(v) = 1 - (1 - v)^2`` (the parabolic blend) curves less sharply in the middle; the planner
+times the program with each and keeps the faster. Both are concave, so beta <= alpha and the
+weights of the two offsets, (1 - alpha) + beta, never exceed 1: along
 straight lines the TCP stays inside the sphere of radius r and the orientation no further from
 the corner's than at the ends (the checker's rules); other geometry is verified sample by
 sample and the radius shrinks until it holds. One timing pass runs through the corner without
@@ -32,6 +35,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 import pinocchio as pin
@@ -50,9 +54,17 @@ _LEAST_RADIUS_M = 1e-6  # below this a corner is stopped at
 _OWN_PATH = 0.05  # the least part of a move's parameter left on its own path between two corners
 
 
-def ramps(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The superposition ramps (alpha, beta) at blend parameters v (N,)."""
+Ramp = Literal["quartic", "quadratic"]
+RAMPS: tuple[Ramp, ...] = ("quartic", "quadratic")
+
+
+def ramps(v: np.ndarray, kind: Ramp = "quartic") -> tuple[np.ndarray, np.ndarray]:
+    """The superposition ramps (alpha, beta) at blend parameters v (N,): the quartic (C2 seams) or
+    the quadratic ``alpha = 1 - (1 - v)^2`` (the parabolic blend: a constant acceleration between
+    the seams, where it steps)."""
     w = 1.0 - v
+    if kind == "quadratic":
+        return 1.0 - w**2, v**2
     return 2.0 * v - 2.0 * v**3 + v**4, 1.0 - (2.0 * w - 2.0 * w**3 + w**4)
 
 
@@ -93,16 +105,18 @@ class Blend:
     length_m: float = 0.0
     speed_m_s: float | None = None
     arc_m: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (N,) TCP path length at v = linspace(0, 1, N)
+    ramp: Ramp = "quartic"  # the superposition's weights (:func:`ramps`)
 
 
 class SuperposedJoints(JointMap):
     """A blend with a PTP side: ``q(v) = q_i(alpha) + q_j(beta) - q_corner``, evaluated exactly."""
 
-    def __init__(self, robot: Robot, incoming: JointMap, outgoing: JointMap, u_leave: float, u_join: float) -> None:
+    def __init__(self, robot: Robot, incoming: JointMap, outgoing: JointMap, u_leave: float, u_join: float,
+                 ramp: Ramp) -> None:
         v = np.linspace(0.0, 1.0, _CHECK_POINTS)
         super().__init__(robot, None, [JointPart("ptp", v, np.zeros((len(v), robot.n_joints)))])
         self.incoming, self.outgoing = incoming, outgoing
-        self.u_leave, self.u_join = u_leave, u_join
+        self.u_leave, self.u_join, self.ramp = u_leave, u_join, ramp
         self.q_corner = outgoing.evaluate(np.array([0.0]))[0]
         self.parts = [JointPart("ptp", v, self.evaluate(v))]
 
@@ -111,19 +125,19 @@ class SuperposedJoints(JointMap):
         return False
 
     def evaluate(self, u: np.ndarray) -> np.ndarray:
-        alpha, beta = ramps(np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0))
+        alpha, beta = ramps(np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0), self.ramp)
         q_i = self.incoming.evaluate(self.u_leave + alpha * (1.0 - self.u_leave))
         q_j = self.outgoing.evaluate(beta * self.u_join)
         return q_i + q_j - self.q_corner
 
 
 def superposed_poses(robot: Robot, incoming: JointMap, outgoing: JointMap, u_leave: float,
-                     u_join: float) -> Callable[[np.ndarray], np.ndarray]:
+                     u_join: float, ramp: Ramp) -> Callable[[np.ndarray], np.ndarray]:
     """The blend's TCP poses (N, 4, 4) as a function of v (N,): both moves' actual poses superposed."""
     T_c = np.asarray(robot.fk(outgoing.evaluate(np.array([0.0]))[0]).homogeneous)
 
     def poses(v: np.ndarray) -> np.ndarray:
-        alpha, beta = ramps(np.asarray(v, dtype=float))
+        alpha, beta = ramps(np.asarray(v, dtype=float), ramp)
         T_i = _fk_all(robot, incoming.evaluate(u_leave + alpha * (1.0 - u_leave)))
         T_j = _fk_all(robot, outgoing.evaluate(beta * u_join))
         out = np.empty_like(T_i)
@@ -172,7 +186,7 @@ def crossing_parameter(robot: Robot, jmap: JointMap, corner_m: np.ndarray, radiu
 
 
 def blend_corner(robot: Robot, move: int, requested_m: float, incoming: Side, outgoing: Side,
-                 u_floor: float) -> Blend:
+                 u_floor: float, ramp: Ramp = "quartic") -> Blend:
     """The fly-by corner after ``move``, its radius reduced until it fits and holds.
 
     ``u_floor``: where the incoming move's own path begins (the end of the blend into it), so
@@ -203,7 +217,8 @@ def blend_corner(robot: Robot, move: int, requested_m: float, incoming: Side, ou
         failure = f"it overlaps the fly-by into move {move}" if u_leave <= u_floor + _OWN_PATH else None
         blend = None
         if failure is None:
-            blend, failure = _built(robot, move, requested_m, radius, note, incoming, outgoing, u_leave, u_join)
+            blend, failure = _built(robot, move, requested_m, radius, note, incoming, outgoing, u_leave, u_join,
+                                    ramp)
         if blend is not None:
             return blend
         radius *= 0.5
@@ -212,25 +227,25 @@ def blend_corner(robot: Robot, move: int, requested_m: float, incoming: Side, ou
 
 
 def _built(robot: Robot, move: int, requested_m: float, radius_m: float, note: str, incoming: Side,
-           outgoing: Side, u_leave: float, u_join: float) -> tuple[Blend | None, str]:
+           outgoing: Side, u_leave: float, u_join: float, ramp: Ramp) -> tuple[Blend | None, str]:
     """The blend at one radius, or None and what went wrong."""
     if incoming.cartesian and outgoing.cartesian:
-        poses = superposed_poses(robot, incoming.jmap, outgoing.jmap, u_leave, u_join)
-        joints = SuperposedJoints(robot, incoming.jmap, outgoing.jmap, u_leave, u_join)
+        poses = superposed_poses(robot, incoming.jmap, outgoing.jmap, u_leave, u_join, ramp)
+        joints = SuperposedJoints(robot, incoming.jmap, outgoing.jmap, u_leave, u_join, ramp)
         jmap = _pose_kept(robot, poses, joints)
         if jmap is None:
             return None, "no continuous joint motion follows it (a singular point or a branch change inside)"
         speeds = [s for s in (incoming.speed_m_s, outgoing.speed_m_s) if s is not None]
         speed = max(speeds) if speeds else None
     else:
-        jmap, speed = SuperposedJoints(robot, incoming.jmap, outgoing.jmap, u_leave, u_join), None
+        jmap, speed = SuperposedJoints(robot, incoming.jmap, outgoing.jmap, u_leave, u_join, ramp), None
     v = np.linspace(0.0, 1.0, 4 * _CHECK_POINTS)
     q = jmap.evaluate(v)
     failure = _violation(robot, q, robot.fk(outgoing.jmap.evaluate(np.array([0.0]))[0]), radius_m)
     if failure:
         return None, failure
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(robot.tcp_positions(q), axis=0), axis=1))])
-    return Blend(move, requested_m, radius_m, note, u_leave, u_join, jmap, float(arc[-1]), speed, arc), ""
+    return Blend(move, requested_m, radius_m, note, u_leave, u_join, jmap, float(arc[-1]), speed, arc, ramp), ""
 
 
 def _pose_kept(robot: Robot, poses: Callable[[np.ndarray], np.ndarray], joints: SuperposedJoints) -> JointMap | None:
@@ -269,7 +284,7 @@ def _violation(robot: Robot, q: np.ndarray, T_corner: pin.SE3, radius_m: float) 
 
 
 def corners(robot: Robot, moves: list[tuple[JointMap, bool, float | None, str]],
-            requested_m: list[float]) -> dict[int, Blend]:
+            requested_m: list[float], ramp: Ramp = "quartic") -> dict[int, Blend]:
     """The fly-by corners of a task's moves, in order, each fitted between its neighbours.
 
     ``moves``: per move its joint map, whether it is a LIN / CIRC, its TCP speed and why it must
@@ -288,7 +303,7 @@ def corners(robot: Robot, moves: list[tuple[JointMap, bool, float | None, str]],
             out[i] = Blend(i, r, 0.0, f"not flown by: move {resting[0]} {moves[resting[0]][3]}")
             u_floor = 0.0
             continue
-        out[i] = blend_corner(robot, i, r, sides[i], sides[i + 1], u_floor)
+        out[i] = blend_corner(robot, i, r, sides[i], sides[i + 1], u_floor, ramp)
         u_floor = out[i].u_join if out[i].jmap is not None else 0.0
     return out
 

@@ -23,7 +23,7 @@ import pinocchio as pin
 
 from singplan.errors import PlanningError
 from singplan.kinematics.robot import Robot
-from singplan.planning.blending import Blend, corners, stopped
+from singplan.planning.blending import RAMPS, Blend, corners, stopped
 from singplan.planning.budget import BudgetError, check_task
 from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
 from singplan.planning.checks import check_config, check_tolerances
@@ -93,13 +93,30 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
         T = pm.piece.T_end if pm.piece is not None else robot.fk(q)
         if progress is not None:
             progress(i + 1, len(task.moves))
-    blends = corners(robot, [(pm.jmap, pm.piece is not None, pm.limits.tcp_speed_m_s, _at_rest(pm)) for pm in planned],
-                     [m.blend_mm / 1e3 for m in arm_task.moves])
-    if any(b.jmap is not None for b in blends.values()):
-        timed = _time_chains(planned, timed, blends, task.period_s, allowance)
+    timed, blends = _fly_by(robot, planned, timed, [m.blend_mm / 1e3 for m in arm_task.moves], task.period_s,
+                            allowance)
     return PlannedTask(task, task.singularity.method if chosen is None else chosen.name,
                        full, robot, held, tuple(planned), tuple(timed), time.perf_counter() - started,
                        tuple(blends.values()))
+
+
+def _fly_by(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], requested_m: list[float],
+            period_s: float, allowance: int) -> tuple[list[TimedMove], dict[int, Blend]]:
+    """The fly-by corners, and the moves timed through them: with each ramp shape of
+    :func:`~singplan.planning.blending.ramps` (the quartic's smooth seams win on some corners, the
+    quadratic's tighter curve on others), the one whose program ends sooner kept."""
+    moves = [(pm.jmap, pm.piece is not None, pm.limits.tcp_speed_m_s, _at_rest(pm)) for pm in planned]
+    best: tuple[float, list[TimedMove], dict[int, Blend]] | None = None
+    for ramp in RAMPS:
+        blends = corners(robot, moves, requested_m, ramp)
+        if not any(b.jmap is not None for b in blends.values()):
+            return timed, blends  # nothing flown: the ramp makes no difference
+        flown = _time_chains(planned, timed, blends, period_s, allowance)
+        total_s = sum(tm.duration_s for tm in flown)
+        if best is None or total_s < best[0]:
+            best = (total_s, flown, blends)
+    assert best is not None
+    return best[1], best[2]
 
 
 def _at_rest(pm: PlannedMove) -> str:

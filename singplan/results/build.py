@@ -220,7 +220,7 @@ def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: flo
     assert blend is not None
     own = _path_segments(pm, tm, tm.blend_from, seg, period, pos_err, ori_err) if tm.blend_from > 0 else []
     return [*own, seg("blend", tm.blend_from, k1 - k0,
-                      details=BlendFigures(blend.radius_m * 1e3, blend.requested_m * 1e3, blend.note))]
+                      details=BlendFigures(blend.radius_m * 1e3, blend.requested_m * 1e3, blend.note, blend.ramp))]
 
 
 SegmentMaker = Callable[..., Segment]

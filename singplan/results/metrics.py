@@ -65,19 +65,21 @@ class CrossingFigures(JsonRecord):
 @dataclass(frozen=True, eq=False)
 class BlendFigures(JsonRecord):
     """A fly-by corner (the incoming move's ``blend`` segment): the radius used, the radius asked
-    for [mm], and why they differ ("" when they do not)."""
+    for [mm], why they differ ("" when they do not), and the ramp of the superposition."""
 
     radius_mm: float
     requested_mm: float
     reduced: str = ""
+    ramp: str = "quartic"  # the superposition's weights: "quartic" or "quadratic"
 
     def to_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"radius_mm": self.radius_mm, "requested_mm": self.requested_mm}
+        out: dict[str, Any] = {"radius_mm": self.radius_mm, "requested_mm": self.requested_mm, "ramp": self.ramp}
         return {**out, "reduced": self.reduced} if self.reduced else out
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> BlendFigures:
-        return cls(_f(doc["radius_mm"]), _f(doc["requested_mm"]), str(doc.get("reduced", "")))
+        return cls(_f(doc["radius_mm"]), _f(doc["requested_mm"]), str(doc.get("reduced", "")),
+                   str(doc.get("ramp", "quartic")))
 
 
 @dataclass(frozen=True, eq=False)

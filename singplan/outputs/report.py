@@ -98,25 +98,24 @@ def _joints(traj: Trajectory, robot: Robot, shaded: Callable[[], Panel]) -> _Dra
 
 
 def _speed_ratio(traj: Trajectory, vmax: np.ndarray, shaded: Callable[[], Panel]) -> _Draw:
-    def draw() -> list[Panel]:
-        panel = shaded()
-        panel.xlabel, panel.ylabel, panel.legend = "t [s]", "|qd| / limit", True
-        for j, name in enumerate(traj.joint_names):
-            _curve(panel, traj.t[1:], np.abs(np.diff(traj.q[:, j])) / traj.period / vmax[j], label=name, width=1.0)
-        panel.hline(1.0)
-        return [panel]
-    return draw
+    return _joint_ratios(traj, traj.t[1:], lambda j: np.abs(np.diff(traj.q[:, j])) / traj.period / vmax[j],
+                         "|qd| / limit", shaded)
 
 
 def _torque_ratio(traj: Trajectory, robot: Robot, scale: float, shaded: Callable[[], Panel]) -> _Draw:
     _, ratios = trajectory_torques(robot, traj.q, traj.period, effort_limits_nm(robot) * scale, series=True)
     assert ratios is not None
+    return _joint_ratios(traj, traj.t, lambda j: ratios[:, j], "|tau| / limit", shaded)
 
+
+def _joint_ratios(traj: Trajectory, t: np.ndarray, ratio: Callable[[int], np.ndarray], ylabel: str,
+                  shaded: Callable[[], Panel]) -> _Draw:
+    """One panel of each joint's ratio to its limit (``ratio(j)``, (K,)) against t (K,), and the limit line."""
     def draw() -> list[Panel]:
         panel = shaded()
-        panel.xlabel, panel.ylabel, panel.legend = "t [s]", "|tau| / limit", True
-        for j, name in enumerate(traj.joint_names):
-            _curve(panel, traj.t, ratios[:, j], label=name, width=1.0)
+        panel.xlabel, panel.ylabel, panel.legend = "t [s]", ylabel, True
+        for j, name in enumerate(traj.joint_names):  # a joint at a time: a million samples stay small
+            _curve(panel, t, ratio(j), label=name, width=1.0)
         panel.hline(1.0)
         return [panel]
     return draw

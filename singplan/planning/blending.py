@@ -73,7 +73,6 @@ class Side:
     """One neighbour of a corner as the blend sees it: its joint map and where its TCP is."""
 
     jmap: JointMap
-    tcp_length_m: float  # the TCP's path length along the move
     cap_m: float  # the largest radius that fits: the distance from the move's midpoint to its ends
     cartesian: bool  # a LIN / CIRC (its pose is kept); False: a PTP
     speed_m_s: float | None  # the programmed TCP speed (LIN / CIRC)
@@ -91,7 +90,6 @@ class Blend:
         u_leave: the incoming move's parameter where the blend starts.
         u_join: the outgoing move's parameter where the blend ends.
         jmap: the blend's joints over v in [0, 1] (None when the corner is stopped at).
-        length_m: the TCP's path length along the blend [m].
         speed_m_s: the TCP speed cap inside the blend (the faster move's; None with a PTP side).
     """
 
@@ -102,9 +100,8 @@ class Blend:
     u_leave: float = 1.0
     u_join: float = 0.0
     jmap: JointMap | None = None
-    length_m: float = 0.0
     speed_m_s: float | None = None
-    arc_m: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (N,) TCP path length at v = linspace(0, 1, N)
+    arc_m: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (N,) TCP path length [m] at v = linspace(0, 1, N)
     ramp: Ramp = "quartic"  # the superposition's weights (:func:`ramps`)
 
 
@@ -112,13 +109,11 @@ class SuperposedJoints(JointMap):
     """A blend with a PTP side: ``q(v) = q_i(alpha) + q_j(beta) - q_corner``, evaluated exactly."""
 
     def __init__(self, robot: Robot, incoming: JointMap, outgoing: JointMap, u_leave: float, u_join: float,
-                 ramp: Ramp) -> None:
-        v = np.linspace(0.0, 1.0, _CHECK_POINTS)
-        super().__init__(robot, None, [JointPart("ptp", v, np.zeros((len(v), robot.n_joints)))])
+                 ramp: Ramp, q_corner: np.ndarray) -> None:
         self.incoming, self.outgoing = incoming, outgoing
-        self.u_leave, self.u_join, self.ramp = u_leave, u_join, ramp
-        self.q_corner = outgoing.evaluate(np.array([0.0]))[0]
-        self.parts = [JointPart("ptp", v, self.evaluate(v))]
+        self.u_leave, self.u_join, self.ramp, self.q_corner = u_leave, u_join, ramp, q_corner
+        v = np.linspace(0.0, 1.0, _CHECK_POINTS)
+        super().__init__(robot, None, [JointPart("ptp", v, self.evaluate(v))])
 
     @property
     def straight(self) -> bool:
@@ -132,9 +127,9 @@ class SuperposedJoints(JointMap):
 
 
 def superposed_poses(robot: Robot, incoming: JointMap, outgoing: JointMap, u_leave: float,
-                     u_join: float, ramp: Ramp) -> Callable[[np.ndarray], np.ndarray]:
+                     u_join: float, ramp: Ramp, T_corner: pin.SE3) -> Callable[[np.ndarray], np.ndarray]:
     """The blend's TCP poses (N, 4, 4) as a function of v (N,): both moves' actual poses superposed."""
-    T_c = np.asarray(robot.fk(outgoing.evaluate(np.array([0.0]))[0]).homogeneous)
+    T_c = np.asarray(T_corner.homogeneous)
 
     def poses(v: np.ndarray) -> np.ndarray:
         alpha, beta = ramps(np.asarray(v, dtype=float), ramp)
@@ -154,13 +149,10 @@ def _fk_all(robot: Robot, q: np.ndarray) -> np.ndarray:
 
 
 def side_of(robot: Robot, jmap: JointMap, cartesian: bool, speed_m_s: float | None) -> Side:
-    """What a corner needs to know of a move: its TCP length and the radius that fits."""
-    u = np.linspace(0.0, 1.0, _CHECK_POINTS)
-    p = robot.tcp_positions(jmap.evaluate(u))
-    length = float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1)))
-    mid = p[len(p) // 2]
-    cap = min(float(np.linalg.norm(mid - p[0])), float(np.linalg.norm(mid - p[-1])))
-    return Side(jmap, length, cap, cartesian, speed_m_s)
+    """What a corner needs to know of a move: the radius that fits."""
+    p = robot.tcp_positions(jmap.evaluate(np.array([0.0, 0.5, 1.0])))
+    cap = min(float(np.linalg.norm(p[1] - p[0])), float(np.linalg.norm(p[1] - p[2])))
+    return Side(jmap, cap, cartesian, speed_m_s)
 
 
 def crossing_parameter(robot: Robot, jmap: JointMap, corner_m: np.ndarray, radius_m: float, leaving: bool) -> float:
@@ -199,7 +191,9 @@ def blend_corner(robot: Robot, move: int, requested_m: float, incoming: Side, ou
         return Blend(move, requested_m, 0.0, f"not flown by: move {which} has no TCP travel to fly by in")
     if cap < radius:
         radius, note = cap, f"reduced to half of move {which}'s length ({2 * cap * 1e3:.3f} mm)"
-    corner = robot.tcp_positions(outgoing.jmap.evaluate(np.array([0.0])))[0]
+    q_corner = outgoing.jmap.evaluate(np.array([0.0]))[0]
+    T_corner = robot.fk(q_corner)
+    corner = T_corner.translation
     if u_floor > 0:  # the fly-by into the incoming move takes its start: keep some of its own path
         room = float(np.linalg.norm(robot.tcp_positions(incoming.jmap.evaluate(np.array([u_floor + _OWN_PATH])))[0]
                                     - corner))
@@ -218,7 +212,7 @@ def blend_corner(robot: Robot, move: int, requested_m: float, incoming: Side, ou
         blend = None
         if failure is None:
             blend, failure = _built(robot, move, requested_m, radius, note, incoming, outgoing, u_leave, u_join,
-                                    ramp)
+                                    ramp, q_corner, T_corner)
         if blend is not None:
             return blend
         radius *= 0.5
@@ -227,25 +221,26 @@ def blend_corner(robot: Robot, move: int, requested_m: float, incoming: Side, ou
 
 
 def _built(robot: Robot, move: int, requested_m: float, radius_m: float, note: str, incoming: Side,
-           outgoing: Side, u_leave: float, u_join: float, ramp: Ramp) -> tuple[Blend | None, str]:
+           outgoing: Side, u_leave: float, u_join: float, ramp: Ramp, q_corner: np.ndarray,
+           T_corner: pin.SE3) -> tuple[Blend | None, str]:
     """The blend at one radius, or None and what went wrong."""
+    joints = SuperposedJoints(robot, incoming.jmap, outgoing.jmap, u_leave, u_join, ramp, q_corner)
     if incoming.cartesian and outgoing.cartesian:
-        poses = superposed_poses(robot, incoming.jmap, outgoing.jmap, u_leave, u_join, ramp)
-        joints = SuperposedJoints(robot, incoming.jmap, outgoing.jmap, u_leave, u_join, ramp)
+        poses = superposed_poses(robot, incoming.jmap, outgoing.jmap, u_leave, u_join, ramp, T_corner)
         jmap = _pose_kept(robot, poses, joints)
         if jmap is None:
             return None, "no continuous joint motion follows it (a singular point or a branch change inside)"
         speeds = [s for s in (incoming.speed_m_s, outgoing.speed_m_s) if s is not None]
         speed = max(speeds) if speeds else None
     else:
-        jmap, speed = SuperposedJoints(robot, incoming.jmap, outgoing.jmap, u_leave, u_join, ramp), None
-    v = np.linspace(0.0, 1.0, 4 * _CHECK_POINTS)
-    q = jmap.evaluate(v)
-    failure = _violation(robot, q, robot.fk(outgoing.jmap.evaluate(np.array([0.0]))[0]), radius_m)
+        jmap, speed = joints, None
+    q = jmap.evaluate(np.linspace(0.0, 1.0, 4 * _CHECK_POINTS))
+    T = _fk_all(robot, q)  # (N, 4, 4): the samples' poses, once for the checks and the arc length
+    failure = _violation(robot, q, T, T_corner, radius_m)
     if failure:
         return None, failure
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(robot.tcp_positions(q), axis=0), axis=1))])
-    return Blend(move, requested_m, radius_m, note, u_leave, u_join, jmap, float(arc[-1]), speed, arc, ramp), ""
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(T[:, :3, 3], axis=0), axis=1))])
+    return Blend(move, requested_m, radius_m, note, u_leave, u_join, jmap, speed, arc, ramp), ""
 
 
 def _pose_kept(robot: Robot, poses: Callable[[np.ndarray], np.ndarray], joints: SuperposedJoints) -> JointMap | None:
@@ -268,39 +263,39 @@ def _pose_kept(robot: Robot, poses: Callable[[np.ndarray], np.ndarray], joints: 
     return JointMap(robot, poses, [JointPart("track", tracked.u, tracked.q)])
 
 
-def _violation(robot: Robot, q: np.ndarray, T_corner: pin.SE3, radius_m: float) -> str:
-    """What the blend's samples q (N, n) break: the joint limits, the sphere or the orientation
-    bound (no further from the corner's orientation than at the blend's ends); "" for none."""
+def _violation(robot: Robot, q: np.ndarray, T: np.ndarray, T_corner: pin.SE3, radius_m: float) -> str:
+    """What the blend's samples q (N, n), at poses T (N, 4, 4), break: the joint limits, the sphere
+    or the orientation bound (no further from the corner's orientation than at the blend's ends);
+    "" for none."""
     if np.any(q < robot.lower_rad - 1e-9) or np.any(q > robot.upper_rad + 1e-9):
         return "it leaves the joint limits"
-    far = float(np.max(np.linalg.norm(robot.tcp_positions(q[1:-1]) - T_corner.translation, axis=1), initial=0.0))
+    far = float(np.max(np.linalg.norm(T[1:-1, :3, 3] - T_corner.translation, axis=1), initial=0.0))
     if far > radius_m * _SPHERE_MARGIN + 1e-9:
         return f"it leaves the sphere ({far * 1e3:.3f} mm from the corner)"
-    turn = np.array([rotation_angle(robot.fk(qk).rotation, T_corner.rotation) for qk in q])
+    turn = np.array([rotation_angle(R, T_corner.rotation) for R in T[:, :3, :3]])
     if float(turn.max()) > max(turn[0], turn[-1]) + _ORIENTATION_SLACK_RAD:
         return (f"it turns the tool {math.degrees(float(turn.max())):.4f} deg from the corner's orientation, "
                 f"more than at its ends")
     return ""
 
 
-def corners(robot: Robot, moves: list[tuple[JointMap, bool, float | None, str]],
-            requested_m: list[float], ramp: Ramp = "quartic") -> dict[int, Blend]:
+def corners(robot: Robot, sides: list[Side], at_rest: list[str], requested_m: list[float],
+            ramp: Ramp = "quartic") -> dict[int, Blend]:
     """The fly-by corners of a task's moves, in order, each fitted between its neighbours.
 
-    ``moves``: per move its joint map, whether it is a LIN / CIRC, its TCP speed and why it must
-    start and end at rest ("" when it need not: a null-space pause, the quintic PTP law);
-    ``requested_m``: per move ``blend_mm`` [m] (0: none).
+    Per move: ``sides`` (:func:`side_of`), why it must start and end at rest in ``at_rest`` (""
+    when it need not; a null-space pause, the quintic PTP law), ``blend_mm`` [m] in
+    ``requested_m`` (0: none).
     """
-    sides = [side_of(robot, jmap, cartesian, speed) for jmap, cartesian, speed, _ in moves]
     out: dict[int, Blend] = {}
     u_floor = 0.0
     for i, r in enumerate(requested_m[:-1]):
         if r <= 0:
             u_floor = 0.0
             continue
-        resting = [k for k in (i, i + 1) if moves[k][3]]
+        resting = [k for k in (i, i + 1) if at_rest[k]]
         if resting:
-            out[i] = Blend(i, r, 0.0, f"not flown by: move {resting[0]} {moves[resting[0]][3]}")
+            out[i] = Blend(i, r, 0.0, f"not flown by: move {resting[0]} {at_rest[resting[0]]}")
             u_floor = 0.0
             continue
         out[i] = blend_corner(robot, i, r, sides[i], sides[i + 1], u_floor, ramp)

@@ -13,6 +13,7 @@ takes the lower of its two moves'.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -61,6 +62,8 @@ class ChainMap(JointMap):
     def __init__(self, pieces: list[Piece]) -> None:
         super().__init__(pieces[0].jmap.robot, None, [])
         self.pieces = pieces
+        self._ends = np.array([p.w1 for p in pieces[:-1]])  # (P - 1,) the inner piece boundaries
+        self._velocity = np.array([p.velocity_rad_s for p in pieces])  # (P, n)
 
     @property
     def straight(self) -> bool:
@@ -68,18 +71,22 @@ class ChainMap(JointMap):
 
     def piece_at(self, w: np.ndarray) -> np.ndarray:
         """Index of the piece each w (N,) falls in."""
-        ends = np.array([p.w1 for p in self.pieces[:-1]])
-        return np.searchsorted(ends, w, side="left")
+        return np.searchsorted(self._ends, w, side="left")
 
-    def evaluate(self, u: np.ndarray) -> np.ndarray:
+    def _per_piece(self, u: np.ndarray, of: Callable[[Piece, np.ndarray], np.ndarray],
+                   shape: tuple[int, ...]) -> np.ndarray:
+        """``of(piece, x)`` at each parameter u (N,), x being u in the piece's own parameter."""
         w = np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0)
-        out = np.empty((len(w), self.robot.n_joints))
+        out = np.empty((len(w), *shape))
         which = self.piece_at(w)
         for k in np.unique(which):
             mask = which == k
             piece = self.pieces[int(k)]
-            out[mask] = piece.jmap.evaluate(piece.x_of(w[mask]))
+            out[mask] = of(piece, piece.x_of(w[mask]))
         return out
+
+    def evaluate(self, u: np.ndarray) -> np.ndarray:
+        return self._per_piece(u, lambda piece, x: piece.jmap.evaluate(x), (self.robot.n_joints,))
 
     def reference(self) -> tuple[np.ndarray, np.ndarray]:
         ws, qs = [], []
@@ -99,20 +106,11 @@ class ChainMap(JointMap):
     def velocities(self, u: np.ndarray) -> np.ndarray:
         """Joint speed limits (N, n) [rad/s] at parameters u (N,): each move's own; a corner the
         lower of its two moves'."""
-        w = np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0)
-        table = np.array([p.velocity_rad_s for p in self.pieces])
-        return table[self.piece_at(w)]
+        return self._velocity[self.piece_at(np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0))]
 
     def clock(self, u: np.ndarray) -> np.ndarray:
         """The chain's TCP clock (N,) [s] at parameters u (N,)."""
-        w = np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0)
-        out = np.empty(len(w))
-        which = self.piece_at(w)
-        for k in np.unique(which):
-            mask = which == k
-            piece = self.pieces[int(k)]
-            out[mask] = piece.clock(piece.x_of(w[mask]))
-        return out
+        return self._per_piece(u, lambda piece, x: piece.clock(x), ())
 
 
 def chains(planned: list[PlannedMove], blends: dict[int, Blend]) -> list[list[int]]:

@@ -23,7 +23,7 @@ import pinocchio as pin
 
 from singplan.errors import PlanningError
 from singplan.kinematics.robot import Robot
-from singplan.planning.blending import RAMPS, Blend, corners, stopped
+from singplan.planning.blending import RAMPS, Blend, corners, side_of, stopped
 from singplan.planning.budget import BudgetError, check_task
 from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
 from singplan.planning.checks import check_config, check_tolerances
@@ -105,10 +105,11 @@ def _fly_by(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], re
     """The fly-by corners, and the moves timed through them: with each ramp shape of
     :func:`~singplan.planning.blending.ramps` (the quartic's smooth seams win on some corners, the
     quadratic's tighter curve on others), the one whose program ends sooner kept."""
-    moves = [(pm.jmap, pm.piece is not None, pm.limits.tcp_speed_m_s, _at_rest(pm)) for pm in planned]
+    sides = [side_of(robot, pm.jmap, pm.piece is not None, pm.limits.tcp_speed_m_s) for pm in planned]
+    at_rest = [_at_rest(pm) for pm in planned]
     best: tuple[float, list[TimedMove], dict[int, Blend]] | None = None
     for ramp in RAMPS:
-        blends = corners(robot, moves, requested_m, ramp)
+        blends = corners(robot, sides, at_rest, requested_m, ramp)
         if not any(b.jmap is not None for b in blends.values()):
             return timed, blends  # nothing flown: the ramp makes no difference
         flown = _time_chains(planned, timed, blends, period_s, allowance)

@@ -128,13 +128,10 @@ class MoveLimits:
     # velocity_rad_s everywhere (which is then the largest of them)
     velocity_at: Callable[[np.ndarray], np.ndarray] | None = None
 
-    def velocities(self, u: np.ndarray) -> np.ndarray:
-        """Joint speed limits [rad/s] at parameters u (N,): (N, n), or (n,) where they do not vary."""
-        return self.velocity_at(u) if self.velocity_at is not None else self.velocity_rad_s
-
     def step_velocities(self, u: np.ndarray) -> np.ndarray:
-        """Joint speed limits of the steps between samples at u (K + 1,): (K, n) or (n,)."""
-        return self.velocities(0.5 * (u[:-1] + u[1:])) if self.velocity_at is not None else self.velocity_rad_s
+        """Joint speed limits [rad/s] of the steps between samples at u (K + 1,): (K, n), or (n,)
+        where they do not vary."""
+        return self.velocity_at(0.5 * (u[:-1] + u[1:])) if self.velocity_at is not None else self.velocity_rad_s
 
     def tcp_clock(self, u: np.ndarray) -> np.ndarray | None:
         """The time [s] the TCP needs at its programmed speed to reach each u (N,); None: no TCP speed cap."""
@@ -216,7 +213,7 @@ def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tup
     # so the coordinate keeps the size of an arc length
     # (a chain's clock kinks where its moves' speeds change, which a spline would ring at: there the
     # coordinate is u itself and the clock's rate caps its speed in the varying bounds)
-    clock = limits.tcp_clock(u) if limits.velocity_at is None else None
+    clock = limits.tcp_clock(u) if limits.clock is None else None
     ref = limits.tcp_speed_m_s or 1.0
     extra = clock * ref if clock is not None else u * length  # no cap: a coordinate of the move's size
     path = ta.SplineInterpolator(u, np.hstack([q - q[0], extra[:, None]]) / length)  # from 0: no digits lost

@@ -22,8 +22,15 @@ import numpy as np
 from singplan.kinematics.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.kinematics.robot import Robot
 from singplan.outputs.svgplot import Panel, envelope, figure_svg
-from singplan.outputs.timeline import Stretch, TcpTrack, segments_by_move, tcp_track, timeline
+from singplan.outputs.timeline import Stretch, TcpTrack, speed_limits, tcp_track, timeline
 from singplan.results.trajectory import Trajectory
+from singplan.task.schema import (
+    DEFAULT_ORIENTATION_TOLERANCE_DEG,
+    DEFAULT_POSITION_TOLERANCE_MM,
+    DEFAULT_ZONE_ELBOW_DEG,
+    DEFAULT_ZONE_SHOULDER_MM,
+    DEFAULT_ZONE_WRIST_DEG,
+)
 
 _PLOT_BUCKETS = 1000  # a curve longer than two points a bucket is drawn as its min/max envelope (> 1 a pixel)
 _SHADED = {"crossing": 0.18, "weave": 0.10, "blend": 0.16, "pause": 0.30}  # stretch kinds shaded on time plots
@@ -163,7 +170,7 @@ def _tcp_speed(traj: Trajectory, step_m: np.ndarray, shaded: Callable[[], Panel]
         panel = shaded()
         panel.xlabel, panel.ylabel = "t [s]", "[m/s]"
         _curve(panel, traj.t[1:], step_m / traj.period, label="TCP speed")
-        by_move = segments_by_move(traj)
+        by_move = traj.segments_by_move()
         for i, move in enumerate(traj.task["moves"]):
             kind, spec = next(iter(move.items()))
             segs = by_move.get(i)
@@ -209,7 +216,7 @@ def _table(header: list[str], rows: list[list[Any]]) -> str:
 
 def _tables(traj: Trajectory) -> str:
     moves = []
-    by_move = segments_by_move(traj)
+    by_move = traj.segments_by_move()
     for i, move in enumerate(traj.task["moves"]):
         kind = next(iter(move))
         segs = by_move.get(i)
@@ -243,7 +250,7 @@ def report_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -
     shaded = _shaded(stretches, traj.duration_s)
     sing = traj.task.get("singularity", {})
     zone = sing.get("zone", {})
-    vmax = robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", 1.0))
+    vmax = speed_limits(traj, robot)
     s_mm = track.length_m * 1e3
     figures: list[tuple[str, str, _Draw, int, float]] = [
         ("joints", "Joint positions [deg] with their limits (dashed); crossings shaded.",
@@ -253,12 +260,13 @@ def report_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -
     if "distances" in traj.samples:  # none for an arm without labels (7 joints)
         figures.append(("distances", "Signed singular distances with the detection thresholds, against time (bottom) "
                                      "and path length (top).",
-                        _distances(traj, [zone.get("wrist_deg", 5.0), zone.get("shoulder_mm", 20.0),
-                                          zone.get("elbow_deg", 5.0)], s_mm, shaded), 3, 3.3))
+                        _distances(traj, [zone.get("wrist_deg", DEFAULT_ZONE_WRIST_DEG),
+                                          zone.get("shoulder_mm", DEFAULT_ZONE_SHOULDER_MM),
+                                          zone.get("elbow_deg", DEFAULT_ZONE_ELBOW_DEG)], s_mm, shaded), 3, 3.3))
     figures += [
         ("deviation", "Deviation from the programmed path with the tolerances, against time and path length.",
-         _deviation(traj, sing.get("position_tolerance_mm", 0.01), sing.get("orientation_tolerance_deg", 5.0), s_mm,
-                    shaded), 2, 3.3),
+         _deviation(traj, sing.get("position_tolerance_mm", DEFAULT_POSITION_TOLERANCE_MM),
+                    sing.get("orientation_tolerance_deg", DEFAULT_ORIENTATION_TOLERANCE_DEG), s_mm, shaded), 2, 3.3),
         ("tcp", "TCP speed against the programmed speed (dashed).", _tcp_speed(traj, track.step_m, shaded), 1, 3.0),
     ]
     if "stopping_distance_m" in traj.samples:

@@ -136,10 +136,14 @@ class RobotScene:
             shown.append(name)
         return shown
 
-    def _placements(self, q: np.ndarray) -> list[np.ndarray]:
+    def _update(self, q: np.ndarray) -> list[pin.SE3]:
+        """The visuals' placements at joints q (n,)."""
         pin.forwardKinematics(self.model, self.data, self.full(q))
         pin.updateGeometryPlacements(self.model, self.data, self.visual, self.visual_data)
-        return [m.homogeneous for m in self.visual_data.oMg]
+        return list(self.visual_data.oMg)
+
+    def _placements(self, q: np.ndarray) -> list[np.ndarray]:
+        return [m.homogeneous for m in self._update(q)]
 
     def poses(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Positions [m] (m, G, 3) and unit quaternions (x, y, z, w) (m, G, 4) of the G visuals at
@@ -147,9 +151,7 @@ class RobotScene:
         count = len(self.visual.geometryObjects)
         xyz, quat = np.empty((len(q), count, 3)), np.empty((len(q), count, 4))
         for k, qk in enumerate(q):
-            pin.forwardKinematics(self.model, self.data, self.full(qk))
-            pin.updateGeometryPlacements(self.model, self.data, self.visual, self.visual_data)
-            for g, m in enumerate(self.visual_data.oMg):
+            for g, m in enumerate(self._update(qk)):
                 xyz[k, g] = m.translation
                 quat[k, g] = pin.Quaternion(m.rotation).coeffs()
         return xyz, quat
@@ -253,9 +255,13 @@ def _packed_keys(frames: np.ndarray, values: np.ndarray) -> bytes:
     records["value"], records["n"] = b"\xa5value", 0x90 | d
     for c in range(d):
         records[f"tag{c}"], records[f"v{c}"] = 0xCA, values[:, c]
-    header = bytes([0x90 | m]) if m < 16 else (b"\xdc" + m.to_bytes(2, "big") if m < 65536
-                                              else b"\xdd" + m.to_bytes(4, "big"))
-    return header + records.tobytes()
+    return _array_header(m) + records.tobytes()
+
+
+def _array_header(n: int) -> bytes:
+    """msgpack's header of an array of n items (fixarray, array 16 or array 32)."""
+    return bytes([0x90 | n]) if n < 16 else (b"\xdc" + n.to_bytes(2, "big") if n < 65536
+                                             else b"\xdd" + n.to_bytes(4, "big"))
 
 
 def _pack(value: Any) -> bytes:
@@ -267,8 +273,5 @@ def _pack(value: Any) -> bytes:
         head = bytes([0x80 | n]) if n < 16 else b"\xde" + n.to_bytes(2, "big")
         return head + b"".join(_pack(k) + _pack(v) for k, v in value.items())
     if isinstance(value, list):
-        n = len(value)
-        head = bytes([0x90 | n]) if n < 16 else (b"\xdc" + n.to_bytes(2, "big") if n < 65536
-                                                else b"\xdd" + n.to_bytes(4, "big"))
-        return head + b"".join(_pack(v) for v in value)
+        return _array_header(len(value)) + b"".join(_pack(v) for v in value)
     return bytes(umsgpack.packb(value))

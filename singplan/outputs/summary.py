@@ -15,8 +15,9 @@ def summary(traj: Trajectory, task: Task) -> str:
     """Multi-line text: one line per move, one per crossing, then the metrics."""
     lines = [f"{traj.robot} (tip {traj.tip}): {len(task.moves)} move(s), {traj.duration_s:.3f} s, "
              f"{len(traj.t)} samples at {traj.period * 1e3:g} ms"]
+    by_move = traj.segments_by_move()
     for i, move in enumerate(task.moves):
-        segs = [s for s in traj.segments if s.move == i]
+        segs = by_move[i]
         t0, t1 = segs[0].t0, segs[-1].t1
         what = f"{move.speed_m_s:g} m/s" if move.kind != "ptp" else f"velocity x{move.velocity_scale:g}"
         lines.append(f"  move {i} {move.kind:4s} {t0:8.3f} .. {t1:8.3f} s  {what:16s} "

@@ -18,6 +18,7 @@ import numpy as np
 from singplan.kinematics.robot import Robot
 from singplan.planning.weave import woven_moves
 from singplan.results.trajectory import Segment, Trajectory
+from singplan.task.schema import DEFAULT_VELOCITY_SCALE
 
 # one colour per stretch kind, for the report's shading and the replay's path and legend
 SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575,
@@ -87,12 +88,9 @@ def sample_range(traj: Trajectory, seg: Segment) -> tuple[int, int]:
     return min(last, max(0, round(seg.t0 / traj.period))), min(last, max(0, round(seg.t1 / traj.period)))
 
 
-def segments_by_move(traj: Trajectory) -> dict[int, list[Segment]]:
-    """Each move's segments in time order (a move of a record without segments maps to none)."""
-    out: dict[int, list[Segment]] = {}
-    for seg in traj.segments:
-        out.setdefault(seg.move, []).append(seg)
-    return out
+def speed_limits(traj: Trajectory, robot: Robot) -> np.ndarray:
+    """The joint speed limits (n,) [rad/s] the trajectory was planned under (URDF x ``limits.velocity_scale``)."""
+    return robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", DEFAULT_VELOCITY_SCALE))
 
 
 def display_kind(seg: Segment, woven: frozenset[int]) -> str:

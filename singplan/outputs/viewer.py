@@ -48,7 +48,7 @@ from singplan.outputs.timeline import (
     display_kind,
     kind_colour,
     sample_range,
-    segments_by_move,
+    speed_limits,
     tcp_track,
     timeline,
 )
@@ -211,7 +211,7 @@ def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
     task mapping's targets, as the planner built it from the same numbers; a PTP as executed."""
     points = []
     T = robot.fk(traj.q[0])
-    by_move = segments_by_move(traj)
+    by_move = traj.segments_by_move()
     for i, move in enumerate(traj.task["moves"]):
         (kind, spec), = move.items()
         segs = by_move.get(i)
@@ -298,7 +298,7 @@ def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Str
             text = (f"{title.split(': ', 1)[1]}; {d.get('max_position_error_mm', 0.0):.3f} mm / "
                     f"{d.get('max_orientation_error_deg', 0.0):.2f} deg")
             labels.append({"text": text, "xyz": tcp.at(_midpoint(traj, seg)).tolist()})
-    vmax = robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", 1.0))
+    vmax = speed_limits(traj, robot)
     ratio = np.concatenate([np.max(np.abs(traj.qd[c:c + _CHUNK]) / vmax, axis=1)
                             for c in range(0, len(traj.t), _CHUNK)])  # (K,)
     keep = _extremes(ratio, _STRIP_POINTS)

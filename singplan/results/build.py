@@ -63,12 +63,7 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     flown = {b.move: b for b in blends if b.jmap is not None}
     for pm, tm in zip(planned, timed, strict=True):
         k1 = k0 + len(tm.q) - 1
-        # a move flown into a fly-by corner has other samples than the ones checked: measured afresh
-        measured = (pm.deviations.of(tm.u, tm.q) if pm.deviations is not None and tm.blend_from is None
-                    else None)
-        pos_err, ori_err = measured if measured is not None else sample_deviations(robot, pm.piece, tm.u, tm.q)
-        if tm.blend_from is not None:  # a fly-by corner leaves the path on purpose: its own figures
-            pos_err[tm.blend_from + 1:] = ori_err[tm.blend_from + 1:] = 0.0
+        pos_err, ori_err = _deviations(robot, pm, tm)
         pos_all.append(pos_err[1:])
         ori_all.append(ori_err[1:])
         worst_pos = max(worst_pos, float(pos_err.max(initial=0.0)))
@@ -110,7 +105,7 @@ def _move_records(robot: Robot, task: Task, segments: list[Segment], q: np.ndarr
                  for (i, segs), v in zip(spans.items(), vendor, strict=True))
 
 
-_CHUNK = 65_536  # programmed poses formed at once (128 bytes a sample)
+_CHUNK = 65_536  # samples whose ratios and differences are formed at once
 
 
 def _jerk_metrics(robot: Robot, task: Task, q: np.ndarray, timed: list[TimedMove]) -> JerkFigures | None:
@@ -202,6 +197,19 @@ def _merged_spans(pm: PlannedMove, tm: TimedMove, last: int) -> list[tuple[int, 
         else:
             spans.append((a, b, [zone]))
     return spans
+
+
+def _deviations(robot: Robot, pm: PlannedMove, tm: TimedMove) -> tuple[np.ndarray, np.ndarray]:
+    """Each sample's position [m] and orientation [rad] deviation from the move's path: the ones
+    measured when the move was checked where its samples are those; a fly-by corner's samples leave
+    the path on purpose (their own figures) and count 0."""
+    measured = pm.deviations.of(tm.u, tm.q) if pm.deviations is not None else None
+    if measured is not None:
+        return measured
+    own = len(tm.q) if tm.blend_from is None else tm.blend_from + 1
+    pos, ori = np.zeros(len(tm.q)), np.zeros(len(tm.q))
+    pos[:own], ori[:own] = sample_deviations(robot, pm.piece, tm.u[:own], tm.q[:own])
+    return pos, ori
 
 
 def _blend_reports(blends: tuple[Blend, ...]) -> tuple[BlendReport, ...]:

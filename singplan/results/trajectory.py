@@ -141,6 +141,13 @@ class Trajectory:
     def duration_s(self) -> float:
         return float(self.t[-1])
 
+    def segments_by_move(self) -> dict[int, list[Segment]]:
+        """Each move's segments in time order (a move of a record without segments maps to none)."""
+        out: dict[int, list[Segment]] = {}
+        for seg in self.segments:
+            out.setdefault(seg.move, []).append(seg)
+        return out
+
     def to_json(self) -> dict[str, Any]:
         """The trajectory.json document as plain Python values."""
         return _listed(self.document())

@@ -272,6 +272,12 @@ class Robot:
         J[:3] -= pin.skew(r) @ J[3:]
         return J
 
+    def fk_and_joint(self, q: np.ndarray, joint: int) -> tuple[pin.SE3, pin.SE3]:
+        """``T_base_tcp`` and the placement of joint frame ``joint`` (1..n) in the base frame, from one
+        forward-kinematics pass (copies: ``data`` changes on the next call)."""
+        T_tcp = self.fk(q)
+        return T_tcp, self.data.oMi[joint].copy()
+
     def joint_placements(self, q: np.ndarray) -> list[pin.SE3]:
         """Placements of the joint frames 1..n in the base frame (copies: ``data`` changes on the next call)."""
         pin.forwardKinematics(self.model, self.data, q)

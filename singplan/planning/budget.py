@@ -138,7 +138,7 @@ def check_task(task: Task, robot: Robot, q_start: np.ndarray, step_m: float, ste
         out_total += m.output_samples if timed else 0
         path_total += m.path_samples
         path_largest = max(path_largest, m.path_samples)
-        _check_path(task, m, path_total)
+        _check_path(m, path_total)
         _check_output(task, m, out_total, max_output_samples)
         used = memory_mb(out_total, path_largest, path_total)
         if used > budget_mb:
@@ -161,7 +161,7 @@ def check_move_samples(move_index: int, count: int, remaining: int, duration_s: 
                       f"task", move_index, count, remaining)
 
 
-def _check_path(task: Task, m: MoveEstimate, path_total: int) -> None:
+def _check_path(m: MoveEstimate, path_total: int) -> None:
     if path_total <= MAX_PATH_SAMPLES:
         return
     raise BudgetError(f"moves[{m.index}].{m.kind}", f"the path up to move {m.index} ({m.length_m:.1f} m in this "

@@ -123,10 +123,6 @@ class CartesianPiece:
         radial = self.poses(np.array([u]))[0, :3, 3] - self.center
         return np.concatenate([cross3(self.arc_rad * self.normal, radial), w])
 
-    def pose(self, u: float) -> pin.SE3:
-        T = self.poses(np.array([u]))[0]
-        return pin.SE3(T[:3, :3], T[:3, 3])
-
     def describe(self, u: float) -> str:
         """A point of the path for messages: arc length and position."""
         p = self.positions(np.array([u]))[0]

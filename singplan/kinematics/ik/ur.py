@@ -224,8 +224,8 @@ def ur_arm_for_point(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.n
 
 def _tcp_in_joint3(robot: Robot, q: np.ndarray) -> np.ndarray:
     """The TCP in the closed form's joint-3 frame (the URDF's, or its layout's: T_joint3_closed)."""
-    frame3 = robot.joint_placements(q)[2] * pin.SE3(robot.recognition.T_joint3_closed)
-    return np.asarray(frame3.actInv(robot.fk(q).translation))
+    T_tcp, joint3 = robot.fk_and_joint(q, 3)
+    return np.asarray((joint3 * pin.SE3(robot.recognition.T_joint3_closed)).actInv(T_tcp.translation))
 
 
 @jit

@@ -12,8 +12,7 @@ from singplan.planning.checks import check_tracked
 from singplan.planning.jointmap import JointMap, JointPart
 from singplan.planning.move_plan import STEP_M, STEP_RAD, refiner
 from singplan.planning.pieces import move_piece
-from singplan.planning.redundancy import hold_for_task
-from singplan.planning.targets import load_task_robot, ptp_target, start_joints
+from singplan.planning.targets import ptp_target, task_arm
 from singplan.planning.tracking import track
 from singplan.planning.weave import path_grid
 from singplan.planning.zones import Zone, distances_along, find_zones
@@ -40,11 +39,9 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     """
     if not isinstance(task, Task):
         task = load_task(task)
-    full = load_task_robot(task)
-    held = hold_for_task(task, full)
-    robot, task = (held.reduced, held.reduce_task(task)) if held is not None else (full, task)
+    arm = task_arm(task)
+    robot, task, q = arm.robot, arm.task, arm.q_start
     thresholds = task.singularity.zone.si()
-    q = start_joints(task, robot)
     check_task(task, robot, q, STEP_M, STEP_RAD, timed=False)  # before any path is sampled
     T = robot.fk(q)
     out = []

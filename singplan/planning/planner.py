@@ -32,9 +32,9 @@ from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.nullspace import time_with_pauses
 from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_move
 from singplan.planning.records import PlannedMove
-from singplan.planning.redundancy import HeldJoint, hold_for_task
+from singplan.planning.redundancy import HeldJoint
 from singplan.planning.select import best_of
-from singplan.planning.targets import load_task_robot, start_joints
+from singplan.planning.targets import task_arm
 from singplan.planning.timing import TimedMove, TimingError, time_move
 from singplan.task.load import load_task
 from singplan.task.schema import Move, Task
@@ -74,10 +74,8 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     chosen = None if method is None or isinstance(method, str) else method  # a method object: on every move
     if isinstance(method, str):
         task = task.with_method(method)
-    full = load_task_robot(task)
-    held = hold_for_task(task, full)  # with `redundancy`, the 6R chain is planned like any 6-joint arm
-    robot, arm_task = (held.reduced, held.reduce_task(task)) if held is not None else (full, task)
-    q = start_joints(arm_task, robot)
+    arm = task_arm(task)
+    robot, arm_task, q = arm.robot, arm.task, arm.q_start
     allowance = check_task(arm_task, robot, q, STEP_M, STEP_RAD).output_allowance  # before anything large
     T = robot.fk(q)
     planned: list[PlannedMove] = []
@@ -96,7 +94,7 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     timed, blends = _fly_by(robot, planned, timed, [m.blend_mm / 1e3 for m in arm_task.moves], task.period_s,
                             allowance)
     return PlannedTask(task, task.singularity.method if chosen is None else chosen.name,
-                       full, robot, held, tuple(planned), tuple(timed), time.perf_counter() - started,
+                       arm.full, robot, arm.held, tuple(planned), tuple(timed), time.perf_counter() - started,
                        tuple(blends.values()))
 
 

@@ -4,6 +4,8 @@ each PTP's target joints (IK, in the requested configuration), and each move's t
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pinocchio as pin
 
@@ -14,6 +16,7 @@ from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import Robot, load_robot
 from singplan.planning.path import move_target
+from singplan.planning.redundancy import HeldJoint, hold_for_task
 from singplan.planning.timing import MoveLimits
 from singplan.task.load import check_against_robot
 from singplan.task.schema import Move, Task
@@ -28,6 +31,33 @@ def load_task_robot(task: Task) -> Robot:
     if task.limits.torque_scale is not None:
         require_dynamics(robot)
     return robot.with_acceleration(np.asarray(task.limits.acceleration_rad_s2, dtype=float))
+
+
+@dataclass(frozen=True)
+class TaskArm:
+    """The arm a task is planned on.
+
+    Attributes:
+        full: the task's robot.
+        held: with ``redundancy`` (7 joints), the held joint; None otherwise.
+        robot: the chain planned: ``full``, or the 6R chain with the held joint locked.
+        task: the task as that chain sees it (the held joint's values dropped).
+        q_start: the start joints of ``robot`` [rad].
+    """
+
+    full: Robot
+    held: HeldJoint | None
+    robot: Robot
+    task: Task
+    q_start: np.ndarray  # (n,)
+
+
+def task_arm(task: Task) -> TaskArm:
+    """The robot, the chain planned and the start joints of a task (the setup planning and detection share)."""
+    full = load_task_robot(task)
+    held = hold_for_task(task, full)  # with `redundancy`, the 6R chain is planned like any 6-joint arm
+    robot, arm_task = (held.reduced, held.reduce_task(task)) if held is not None else (full, task)
+    return TaskArm(full, held, robot, arm_task, start_joints(arm_task, robot))
 
 
 def start_joints(task: Task, robot: Robot) -> np.ndarray:

@@ -83,7 +83,8 @@ def test_auto_prefers_a_crossing_and_reports_the_runner_up() -> None:
     assert feasible[0]["method"] == crossing.method
     assert feasible[0]["duration_s"] == pytest.approx(traj.duration_s)
     exact = next(a for a in alternatives if a["method"] == "exact")
-    assert exact["duration_s"] > traj.duration_s  # the swing costs exact tracking time
+    # the swing costs exact tracking time: its duration, or the bound that spared timing it, is longer
+    assert (exact["duration_s"] if exact["feasible"] else exact["at_least_s"]) > traj.duration_s
 
 
 def _shoulder_near_miss(miss_m: float) -> dict:

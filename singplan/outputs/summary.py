@@ -73,7 +73,8 @@ def _segment_lines(s: Segment) -> list[str]:
 
 
 def _choice(alternatives: Sequence[Alternative]) -> str:
-    """'auto chose X (n s); runner-up Y (m s), k s saved; infeasible: Z' from a crossing's alternatives."""
+    """'auto chose X (n s); runner-up Y (m s), k s saved; infeasible: Z' from a crossing's
+    alternatives (a runner-up not timed is given by its bound: '>= m s')."""
     feasible = [a for a in alternatives if a.feasible and a.duration_s is not None]
     if len(alternatives) < 2 or not feasible:
         return ""
@@ -83,11 +84,20 @@ def _choice(alternatives: Sequence[Alternative]) -> str:
 
     best = feasible[0]
     text = f"auto chose {name(best)} ({best.duration_s:.3f} s move)"
-    others = [a for a in feasible[1:] if a.method != best.method] or feasible[1:]
+    ranked = sorted(feasible[1:] + [a for a in alternatives if a.feasible is None], key=_seconds)
+    others = [a for a in ranked if a.method != best.method] or ranked
     if others:
-        saved = float(others[0].duration_s or 0.0) - float(best.duration_s or 0.0)
-        text += f"; runner-up {name(others[0])} ({others[0].duration_s:.3f} s), {saved:.3f} s saved"
-    infeasible = sorted({a.method for a in alternatives if not a.feasible})
+        at_least = ">= " if others[0].feasible is None else ""
+        saved = _seconds(others[0]) - float(best.duration_s or 0.0)
+        text += (f"; runner-up {name(others[0])} ({at_least}{_seconds(others[0]):.3f} s"
+                 f"{', not timed' if at_least else ''}), {at_least}{saved:.3f} s saved")
+    infeasible = sorted({a.method for a in alternatives if a.feasible is False})
     if infeasible:
         text += f"; infeasible: {', '.join(infeasible)}"
     return text
+
+
+def _seconds(a: Alternative) -> float:
+    """A candidate's duration [s], or for one not timed the bound that ruled it out."""
+    seconds = a.duration_s if a.feasible else a.at_least_s
+    return float(seconds or 0.0)

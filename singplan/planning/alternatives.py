@@ -40,24 +40,34 @@ class Alternative(JsonRecord):
 
     Attributes:
         method: the method's name.
-        feasible: it planned the move within the limits and tolerances.
+        feasible: it planned the move within the limits and tolerances; None: not timed, because
+            no timing of its joint map could end sooner than the chosen one's (``at_least_s``).
         variant: which of the method's variants (e.g. the wrist-joint blend window), "" for none.
         duration_s: the move's duration with it [s] (feasible ones).
-        reason: why it could not plan the move (infeasible ones).
+        reason: why it could not plan the move (infeasible ones), or why it was not timed.
+        at_least_s: the lower bound on its duration that ruled it out [s] (those not timed).
     """
 
     method: str
-    feasible: bool
+    feasible: bool | None
     variant: str = ""
     duration_s: float | None = None
     reason: str = ""
+    at_least_s: float | None = None
 
     def to_json(self) -> dict[str, Any]:
         if self.feasible:
             return {"method": self.method, "variant": self.variant, "duration_s": self.duration_s, "feasible": True}
-        return {"method": self.method, "feasible": False, "reason": self.reason}
+        if self.feasible is None:
+            return {"method": self.method, "variant": self.variant, "feasible": None, "at_least_s": self.at_least_s,
+                    "reason": self.reason}
+        return {"method": self.method, "variant": self.variant, "feasible": False, "reason": self.reason}
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Alternative:
-        return cls(str(doc["method"]), bool(doc["feasible"]), str(doc.get("variant", "")),
-                   None if doc.get("duration_s") is None else float(doc["duration_s"]), str(doc.get("reason", "")))
+        def number(key: str) -> float | None:
+            return None if doc.get(key) is None else float(doc[key])
+
+        feasible = doc["feasible"]
+        return cls(str(doc["method"]), None if feasible is None else bool(feasible), str(doc.get("variant", "")),
+                   number("duration_s"), str(doc.get("reason", "")), number("at_least_s"))

@@ -27,18 +27,49 @@ def check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove) -
     if pm.piece is None:
         return None
     pos, ori = sample_deviations(robot, pm.piece, tm.u, tm.q)
+    error = _over_tolerance(task, pm, tm.u, pos, ori)
+    if error is not None:
+        raise error
+    return SampleDeviations(tm.u, tm.q, pos, ori)
+
+
+def refusal(robot: Robot, task: Task, move: Move, pm: PlannedMove) -> PlanningError | None:
+    """Why no timing of the move can be kept, told before timing; None when only the samples can tell.
+
+    The configuration its joint map ends in (the first and last samples of any timing are its
+    ends), or a crossing whose own joints (its reference samples, between which it interpolates)
+    leave the path by more than the tolerances: its motion leaves the tolerance band there, whether
+    or not a sample would land on that point.
+    """
+    u = np.array([0.0, 1.0])
+    try:
+        check_config(robot, move, pm, u, pm.jmap.evaluate(u))
+    except PlanningError as exc:
+        return exc
+    parts = [part for crossing in pm.crossings for part in crossing.parts]
+    if pm.piece is None or not parts:
+        return None
+    u = np.concatenate([part.u for part in parts])
+    pos, ori = sample_deviations(robot, pm.piece, u, np.concatenate([part.q for part in parts]))
+    return _over_tolerance(task, pm, u, pos, ori)
+
+
+def _over_tolerance(task: Task, pm: PlannedMove, u: np.ndarray, pos: np.ndarray,
+                    ori: np.ndarray) -> SingularityError | None:
+    """The error naming the point furthest over the tolerances, if any is (errors (K,) [m] [rad] at u (K,))."""
+    assert pm.piece is not None
     pos_tol = task.singularity.position_tolerance_mm / 1e3
     ori_tol = math.radians(task.singularity.orientation_tolerance_deg)
     if pos.max(initial=0.0) <= pos_tol and ori.max(initial=0.0) <= ori_tol:
-        return SampleDeviations(tm.u, tm.q, pos, ori)
+        return None
     k = int(np.argmax(np.maximum(pos / pos_tol, ori / ori_tol)))
-    zone = min(pm.zones, key=lambda z: abs(z.u_closest - tm.u[k])) if pm.zones else None
+    zone = min(pm.zones, key=lambda z: abs(z.u_closest - u[k])) if pm.zones else None
     where = f"in the {zone.kind} zone " if zone else ""
-    raise SingularityError(
+    return SingularityError(
         f"move {pm.index} ({pm.kind}): the crossing {where}deviates {pos[k] * 1e3:.4f} mm / "
-        f"{math.degrees(ori[k]):.4f} deg at {pm.piece.describe(float(tm.u[k]))}, over the tolerance "
+        f"{math.degrees(ori[k]):.4f} deg at {pm.piece.describe(float(u[k]))}, over the tolerance "
         f"{task.singularity.position_tolerance_mm:g} mm / {task.singularity.orientation_tolerance_deg:g} deg",
-        move=pm.index, kind=zone.kind if zone else "path", s_m=float(tm.u[k]) * pm.piece.length_m)
+        move=pm.index, kind=zone.kind if zone else "path", s_m=float(u[k]) * pm.piece.length_m)
 
 
 def check_tracked(robot: Robot, i: int, move: Move, piece: CartesianPiece, tracked: TrackedPath) -> None:
@@ -78,19 +109,20 @@ def check_limits(robot: Robot, i: int, move: Move, piece: CartesianPiece, u: np.
         joint=robot.joint_names[j], value_rad=float(q[k, j]), lower_rad=float(lo), upper_rad=float(hi), move=i)
 
 
-def check_config(robot: Robot, move: Move, pm: PlannedMove, tm: TimedMove) -> None:
+def check_config(robot: Robot, move: Move, pm: PlannedMove, u: np.ndarray, q: np.ndarray) -> None:
+    """The move's samples (u (K,), q (K, n)) keep the configuration the move asks for."""
     if move.config == "auto":
         return
     i = pm.index
-    labels = labels_from_distances(distances_batch(robot, tm.q))  # closed form for OPW and UR arms
+    labels = labels_from_distances(distances_batch(robot, q))  # closed form for OPW and UR arms
     first, last = labels[0], labels[-1]
     if move.config == "keep":
         changed = [k for k, label in enumerate(labels) if label != first]
         if changed:
             k = changed[0]
-            s_m = float(tm.u[k]) * (pm.piece.length_m if pm.piece is not None else 0.0)
+            s_m = float(u[k]) * (pm.piece.length_m if pm.piece is not None else 0.0)
             raise SingularityError(f"move {i} ({move.kind}): config 'keep', but the motion changes the "
-                                   f"configuration from {first} to {labels[k]} at {pm.describe(float(tm.u[k]))}",
+                                   f"configuration from {first} to {labels[k]} at {pm.describe(float(u[k]))}",
                                    move=i, kind="config", s_m=s_m)
         return
     wanted = parse_configuration(move.config).label

@@ -24,18 +24,19 @@ import pinocchio as pin
 from singplan.errors import PlanningError
 from singplan.kinematics.robot import Robot
 from singplan.planning.blending import RAMPS, Blend, corners, side_of, stopped
+from singplan.planning.bound import duration_bound_s
 from singplan.planning.budget import BudgetError, check_task
 from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
-from singplan.planning.checks import check_config, check_tolerances
+from singplan.planning.checks import check_config, check_tolerances, refusal
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.nullspace import time_with_pauses
 from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_move
 from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint
-from singplan.planning.select import best_of
+from singplan.planning.select import Candidate, best_of
 from singplan.planning.targets import task_arm
-from singplan.planning.timing import TimedMove, TimingError, time_move
+from singplan.planning.timing import TimedMove, TimingError, TimingPath, time_move, timing_path
 from singplan.task.load import load_task
 from singplan.task.schema import Move, Task
 
@@ -170,35 +171,56 @@ def _time_chain(planned: list[PlannedMove], timed: list[TimedMove], blends: dict
             + _time_chain(planned, timed, blends, group[cut:], period_s, allowance))
 
 
-def _timed(robot: Robot, pm: PlannedMove, period_s: float, max_samples: int) -> TimedMove:
-    """time_move, with a failure's path parameter turned into the point on the move."""
+def _timed(pm: PlannedMove, period_s: float, max_samples: int, path: TimingPath | None = None) -> TimedMove:
+    """time_move (``path``: the joint map's timing path, where made), a failure located on the move."""
     try:
         if any(c.pause is not None for c in pm.crossings):  # the TCP waits: timed in pieces
             return time_with_pauses(pm.jmap, pm.crossings, pm.limits, period_s, pm.index, max_samples)
-        return time_move(pm.jmap, pm.limits, period_s, pm.index, max_samples)
+        return time_move(pm.jmap, pm.limits, period_s, pm.index, max_samples, path)
     except TimingError as exc:
-        raise TimingError(pm.index, exc.u, exc.reason, kind=pm.kind, where=pm.describe(exc.u)) from exc
+        raise _located(pm, exc) from exc
+
+
+def _timing_path(pm: PlannedMove) -> TimingPath:
+    try:
+        return timing_path(pm.jmap, pm.limits, pm.index)
+    except TimingError as exc:
+        raise _located(pm, exc) from exc
+
+
+def _located(pm: PlannedMove, exc: TimingError) -> TimingError:
+    """The error with its path parameter turned into the point on the move."""
+    return TimingError(pm.index, exc.u, exc.reason, kind=pm.kind, where=pm.describe(exc.u))
 
 
 def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
              methods: list[CrossingMethod], max_samples: int) -> tuple[PlannedMove, TimedMove]:
-    """Plan, time and check the move with each method; :func:`select.best_of` keeps the fastest.
+    """Plan each method's joint map, then time and check the candidates that can still win;
+    :func:`select.best_of` keeps the fastest.
 
     The candidates share the move's tracking (:class:`MoveTracking`); a candidate whose joint map
     equals an earlier one's (wrist-joint hands a shoulder zone to exact) takes that one's outcome.
     """
-    tracking: list[MoveTracking] = []  # made by the first attempt, inside it (a bad piece fails every method alike)
+    tracking: list[MoveTracking] = []  # made by the first candidate, inside it (a bad piece fails every method alike)
     outcomes: list[tuple[PlannedMove, TimedMove | PlanningError | BudgetError]] = []
 
-    def attempt(method: CrossingMethod) -> tuple[PlannedMove, TimedMove]:
+    def prepare(method: CrossingMethod, order: int) -> Candidate:
         if move.kind != "ptp" and not tracking:
             tracking.append(MoveTracking(robot, task, i, move, T))
         pm = plan_move(robot, task, i, move, T, q, method, tracking[0] if tracking else None)
+        if any(c.pause is not None for c in pm.crossings):
+            return Candidate(method, order, pm, refusal=refusal(robot, task, move, pm))
+        path = _timing_path(pm)
+        return Candidate(method, order, pm, path, duration_bound_s(path, pm.limits, task.period_s),
+                         refusal(robot, task, move, pm))
+
+    def finish(c: Candidate) -> tuple[PlannedMove, TimedMove]:
+        pm = c.pm
         same = next(((seen, done) for seen, done in outcomes if _same_motion(seen, pm)), None)
         if same is None:
             try:
-                timed = _timed(robot, pm, task.period_s, max_samples)
-                check_config(robot, move, pm, timed)
+                timed = _timed(pm, task.period_s, max_samples, c.path)
+                check_config(robot, move, pm, timed.u, timed.q)
                 pm = replace(pm, deviations=check_tolerances(robot, task, pm, timed))
                 same = (pm, timed)
             except (PlanningError, BudgetError) as exc:
@@ -209,7 +231,7 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
             raise outcome
         return replace(pm, deviations=seen.deviations), outcome
 
-    return best_of(robot, i, move.kind, methods, attempt)
+    return best_of(robot, i, move.kind, methods, prepare, finish)
 
 
 def _same_motion(a: PlannedMove, b: PlannedMove) -> bool:

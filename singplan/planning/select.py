@@ -3,12 +3,18 @@
 A candidate that fails (a limit, a tolerance, the move's size budget) is listed with its reason;
 a method this arm's family cannot use is never run in disguise: it is listed as infeasible with
 the reason, and asked for alone it is refused where the move meets a zone.
+
+Every candidate's joint map is planned first and bounded (:mod:`~singplan.planning.bound`: no
+timing of it can end sooner); they are then timed and checked fastest bound first, and one whose
+bound cannot beat the best duration found so far is not timed at all. Ties go to the method asked
+for first, as if every candidate had been timed: the choice is the same, only the losers'
+durations are replaced by their bounds.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 from singplan.errors import PlanningError, SingularityError, UnreachableError
 from singplan.kinematics.robot import Robot
@@ -17,46 +23,117 @@ from singplan.planning.budget import BudgetError
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Exact
 from singplan.planning.records import PlannedMove
-from singplan.planning.timing import TimedMove
-
-Attempt = Callable[[CrossingMethod], tuple[PlannedMove, TimedMove]]  # plan, time and check one move
+from singplan.planning.timing import TimedMove, TimingPath
 
 
-def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod],
-            attempt: Attempt) -> tuple[PlannedMove, TimedMove]:
-    """Plan and time the move with each method; keep the fastest within the tolerances.
+@dataclass(frozen=True)
+class Candidate:
+    """One method's plan of a move, before it is timed.
+
+    Attributes:
+        method: the method.
+        order: its place among the methods asked for (a tie goes to the earlier).
+        pm: its joint map and what was found along it.
+        path: TOPP-RA's path of the joint map, made once for the bound and the timing (None: PTP
+            timing or a paused crossing, timed otherwise).
+        bound_s: no timing of the joint map ends sooner [s] (0: no bound known).
+        refusal: a failure certain before timing (the configuration the joint map ends in); the
+            candidate is timed only if no other one plans the move, so that the error is the full one.
+    """
+
+    method: CrossingMethod
+    order: int
+    pm: PlannedMove
+    path: TimingPath | None = None
+    bound_s: float = 0.0
+    refusal: PlanningError | None = None
+
+
+Prepare = Callable[[CrossingMethod, int], Candidate]  # plan one method's joint map and bound its duration
+Finish = Callable[[Candidate], tuple[PlannedMove, TimedMove]]  # time and check it
+_Failure = tuple[int, str, str, PlanningError | BudgetError]  # order, method name and variant, why
+
+
+def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prepare: Prepare,
+            finish: Finish) -> tuple[PlannedMove, TimedMove]:
+    """Plan the move with each method; keep the fastest within the tolerances.
 
     A method this arm's family cannot use is never run in disguise: it is listed as infeasible
     with the reason, and asked for alone it is refused where the move meets a zone.
     """
-    results: list[tuple[PlannedMove, TimedMove]] = []
-    failures: list[tuple[str, PlanningError | BudgetError]] = []
     serving, refused = _serving(robot, methods)
-    for method in serving or [Exact()]:  # with nothing to cross, any method gives exact's motion
-        if results and not results[0][0].zones:
-            break  # nothing to cross: every method gives this same motion
-        try:
-            pm, tm = attempt(method)
-        except (PlanningError, BudgetError) as exc:  # a slow method over the allowance: another may fit
-            failures.append((method.name, exc))
-            continue
-        results.append((replace(pm, method=method.name, variant=method.variant), tm))
-    if not serving and results and results[0][0].zones:
-        raise _refusal(robot, results[0][0], refused)
-    failures += [(name, PlanningError(f"{name} {why} (this arm is {robot.family})")) for name, why in refused.items()]
+    candidates, failures = _prepared(serving or [Exact()], prepare)  # nothing serves: exact's motion, if no zone
+    if not serving and candidates and candidates[0].pm.zones:
+        raise _refusal(robot, candidates[0].pm, refused)
+    results, skipped, timing_failures = _timed_best_first(candidates, finish)
+    failures = sorted(failures + timing_failures, key=lambda f: f[0])
+    failures += [(len(methods), name, "", PlanningError(f"{name} {why} (this arm is {robot.family})"))
+                 for name, why in refused.items()]
     if not results:
-        decisive: list[PlanningError | BudgetError] = [
-            exc for _, exc in failures if isinstance(exc, (UnreachableError, BudgetError))]
-        if len(failures) == 1 or decisive or len({str(exc) for _, exc in failures}) == 1:
-            # the path itself fails, or the task is too large, or every method met the same wall: no method can help
-            raise (decisive or [failures[0][1]])[0]
-        raise PlanningError(f"move {i} ({kind}): no method could plan it: "
-                            + "; ".join(f"{name}: {exc}" for name, exc in failures))
-    results.sort(key=lambda r: r[1].duration_s)
-    alternatives = tuple([Alternative(r[0].method, True, r[0].variant, r[1].duration_s) for r in results]
-                         + [Alternative(name, False, reason=str(exc)) for name, exc in failures])
-    best_pm, best_tm = results[0]
+        raise _no_plan(i, kind, failures)
+    results.sort(key=lambda r: (r[1].duration_s, r[2]))
+    best_pm, best_tm, _ = results[0]
+    alternatives = tuple([Alternative(pm.method, True, pm.variant, tm.duration_s) for pm, tm, _ in results]
+                         + [_untimed(c, best_tm.duration_s) for c in skipped if c.refusal is None]
+                         + [Alternative(name, False, variant, reason=str(exc)) for _, name, variant, exc in failures]
+                         + [Alternative(c.method.name, False, c.method.variant, reason=str(c.refusal)) for c in skipped
+                            if c.refusal is not None])
     return replace(best_pm, alternatives=alternatives if len(methods) > 1 else ()), best_tm
+
+
+def _prepared(methods: list[CrossingMethod], prepare: Prepare) -> tuple[list[Candidate], list[_Failure]]:
+    """Each method's candidate, or why it could not plan the joint map."""
+    candidates: list[Candidate] = []
+    failures: list[_Failure] = []
+    for order, method in enumerate(methods):
+        try:
+            candidate = prepare(method, order)
+        except (PlanningError, BudgetError) as exc:  # a slow method over the allowance: another may fit
+            failures.append((order, method.name, method.variant, exc))
+            continue
+        candidates.append(candidate)
+        if not candidate.pm.zones:
+            break  # nothing to cross: every method gives this same motion
+    return candidates, failures
+
+
+def _timed_best_first(candidates: list[Candidate], finish: Finish
+                      ) -> tuple[list[tuple[PlannedMove, TimedMove, int]], list[Candidate], list[_Failure]]:
+    """Time and check the candidates fastest bound first, skipping those that cannot win."""
+    results: list[tuple[PlannedMove, TimedMove, int]] = []
+    skipped: list[Candidate] = []
+    failures: list[_Failure] = []
+    best: tuple[float, int] | None = None  # the best (duration [s], order) so far
+    for c in sorted(candidates, key=lambda c: (c.refusal is not None, c.bound_s, c.order)):
+        if best is not None and (c.refusal is not None or (c.bound_s, c.order) > best):
+            skipped.append(c)
+            continue
+        try:
+            pm, tm = finish(c)
+        except (PlanningError, BudgetError) as exc:
+            failures.append((c.order, c.method.name, c.method.variant, exc))
+            continue
+        results.append((replace(pm, method=c.method.name, variant=c.method.variant), tm, c.order))
+        best = min(best or (tm.duration_s, c.order), (tm.duration_s, c.order))
+    return results, sorted(skipped, key=lambda c: (c.bound_s, c.order)), failures
+
+
+def _untimed(c: Candidate, best_s: float) -> Alternative:
+    tie = " (a tie goes to the method listed first)" if c.bound_s == best_s else ""
+    return Alternative(c.method.name, None, c.method.variant, at_least_s=c.bound_s,
+                       reason=f"not timed: no timing of its joint map ends before {c.bound_s:.3f} s, and the "
+                              f"chosen method's move takes {best_s:.3f} s{tie}")
+
+
+def _no_plan(i: int, kind: str, failures: list[_Failure]) -> PlanningError | BudgetError:
+    """The error when no method plans the move: the path's own or the task's size when that is why,
+    or the one wall every method met, else each method's reason."""
+    decisive: list[PlanningError | BudgetError] = [
+        exc for *_, exc in failures if isinstance(exc, (UnreachableError, BudgetError))]
+    if len(failures) == 1 or decisive or len({str(exc) for *_, exc in failures}) == 1:
+        return (decisive or [failures[0][3]])[0]
+    return PlanningError(f"move {i} ({kind}): no method could plan it: "
+                         + "; ".join(f"{name}: {exc}" for _, name, _, exc in failures))
 
 
 def _serving(robot: Robot, methods: list[CrossingMethod]) -> tuple[list[CrossingMethod], dict[str, str]]:

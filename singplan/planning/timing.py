@@ -26,7 +26,6 @@ records the acceleration-limited duration so the time the jerk limit costs can b
 
 from __future__ import annotations
 
-import itertools
 import logging
 import math
 from collections.abc import Callable
@@ -193,47 +192,81 @@ def path_scale(q: np.ndarray, limits: MoveLimits) -> float:
     return max(travel, limits.length_m)
 
 
-def _toppra_profile(u: np.ndarray, q: np.ndarray, limits: MoveLimits, scale: tuple[float, float, float, float],
-                    move_index: int) -> _Profile:
-    """TOPP-RA on the move made dimensionless.
+@dataclass(frozen=True)
+class TimingPath:
+    """A move's joint map as TOPP-RA is handed it, built once for its duration bound
+    (:mod:`~singplan.planning.bound`) and every tightening pass.
 
     TOPP-RA works in the squared path speed with absolute tolerances. Along u in [0, 1] a 10 um
     LIN has path derivatives of 1e-6 and path speeds of 1e4 / s, whose squares defeat those
-    tolerances ("not controllable"). So the joints (and the TCP's arc length) are divided by
-    the move's size L and time by ``tau = sqrt(L / a)``, the time the slowest-accelerating joint
-    needs to cover L: derivatives, path speeds and the duration are then all of order one
-    whatever the size of the move, and the result is exact in the original units. ``scale``
-    multiplies the joint velocity, TCP speed, acceleration and torque limits (the tightening passes).
+    tolerances ("not controllable"). So the joints (and the TCP's coordinate) are divided by the
+    move's size L, and time by ``tau = sqrt(L / a)`` (:meth:`scaled_limits`), the time the
+    slowest-accelerating joint needs to cover L: derivatives, path speeds and the duration are
+    then all of order one whatever the size of the move, and the result is exact in the original units.
     """
-    scale_v, scale_c, scale_a, scale_t = scale
+
+    u: np.ndarray  # (K,) the reference samples' path parameters
+    q: np.ndarray  # (K, n) their joints [rad]
+    length: float  # L: the largest travel of any joint [rad] or of the TCP [m] (path_scale)
+    spline: ta.SplineInterpolator | None  # u -> ((q - q[0]) / L, TCP coordinate / L), (n + 1,); None: L = 0
+    grid: np.ndarray  # (G,) TOPP-RA's grid points
+    tcp_capped: bool  # the last coordinate is the TCP's clock at a reference speed (a speed cap applies)
+
+    def scaled_limits(self, limits: MoveLimits, scale: tuple[float, float, float, float]
+                      ) -> tuple[float, np.ndarray, np.ndarray]:
+        """tau [s], and the velocity (n + 1,) and acceleration (n + 1,) limits in dimensionless units,
+        the joints' and TCP speed's times ``scale`` (velocity, TCP speed, acceleration, torque)."""
+        scale_v, scale_c, scale_a, _ = scale
+        amax = limits.acceleration_rad_s2 * scale_a
+        tau = math.sqrt(self.length / float(np.min(amax)))
+        ref = limits.tcp_speed_m_s or 1.0
+        vmax = np.append(limits.velocity_rad_s * scale_v, ref * scale_c if self.tcp_capped else _UNLIMITED)
+        return (tau, np.minimum(vmax * tau / self.length, _UNLIMITED),
+                np.append(amax * tau**2 / self.length, _UNLIMITED))
+
+
+def timing_path(jmap: JointMap, limits: MoveLimits, move_index: int) -> TimingPath:
+    """The joint map's reference samples and TOPP-RA's dimensionless path over them.
+
+    Raises TimingError where the joint map has no joint values (no IK solution).
+    """
+    u, q = _reference(jmap)
+    missing = np.flatnonzero(~np.all(np.isfinite(q), axis=1))
+    if len(missing):  # a joint map without IK somewhere: never hand NaN to TOPP-RA
+        raise TimingError(move_index, float(u[missing[0]]), "no joint values (no inverse kinematics solution)")
     length = path_scale(q, limits)
-    amax = limits.acceleration_rad_s2 * scale_a
-    tau = math.sqrt(length / float(np.min(amax)))
+    if length == 0.0:
+        return TimingPath(u, q, 0.0, None, u, False)
     # the TCP's clock (time at programmed speed, whose rate is capped at 1) times a reference speed,
     # so the coordinate keeps the size of an arc length
     # (a chain's clock kinks where its moves' speeds change, which a spline would ring at: there the
     # coordinate is u itself and the clock's rate caps its speed in the varying bounds)
     clock = limits.tcp_clock(u) if limits.clock is None else None
-    ref = limits.tcp_speed_m_s or 1.0
-    extra = clock * ref if clock is not None else u * length  # no cap: a coordinate of the move's size
-    path = ta.SplineInterpolator(u, np.hstack([q - q[0], extra[:, None]]) / length)  # from 0: no digits lost
-    vmax = np.append(limits.velocity_rad_s * scale_v, ref * scale_c if clock is not None else _UNLIMITED)
-    vmax_1 = np.minimum(vmax * tau / length, _UNLIMITED)
-    amax_1 = np.append(amax * tau**2 / length, _UNLIMITED)
-    grid = _grid(u)
-    constraints = [_velocity_constraint(limits, vmax_1, scale_v * tau / length, scale_c * tau, grid),
+    extra = clock * (limits.tcp_speed_m_s or 1.0) if clock is not None else u * length  # no cap: the move's size
+    spline = ta.SplineInterpolator(u, np.hstack([q - q[0], extra[:, None]]) / length)  # from 0: no digits lost
+    return TimingPath(u, q, length, spline, _grid(u), clock is not None)
+
+
+def _toppra_profile(path: TimingPath, limits: MoveLimits, scale: tuple[float, float, float, float],
+                    move_index: int) -> _Profile:
+    """TOPP-RA on the move made dimensionless (:class:`TimingPath`); ``scale`` multiplies the joint
+    velocity, TCP speed, acceleration and torque limits (the tightening passes)."""
+    scale_v, scale_c, _, scale_t = scale
+    assert path.spline is not None
+    tau, vmax_1, amax_1 = path.scaled_limits(limits, scale)
+    constraints = [_velocity_constraint(limits, vmax_1, scale_v * tau / path.length, scale_c * tau, path.grid),
                    ta_constraint.JointAccelerationConstraint(np.stack([-amax_1, amax_1], axis=1))]
     if limits.torque is not None:
-        constraints.append(_torque_constraint(limits.torque, q[0], length, tau, scale_t))
-    instance = ta_algo.TOPPRA(constraints, path, gridpoints=grid)
+        constraints.append(_torque_constraint(limits.torque, path.q[0], path.length, tau, scale_t))
+    instance = ta_algo.TOPPRA(constraints, path.spline, gridpoints=path.grid)
     instance.compute_parameterization(0.0, 0.0)
     data = instance.problem_data
     if data.return_code != ta_algo.ParameterizationReturnCode.Ok or data.sd_vec is None:
         if limits.torque is not None:
-            _check_holding_torque(limits.torque, u, q, move_index)
+            _check_holding_torque(limits.torque, path.u, path.q, move_index)
         at = _infeasible_at(data)
         where = "" if at is not None else "; TOPP-RA did not say where: the path's steepest point"
-        raise TimingError(move_index, at if at is not None else _steepest_at(u, q, vmax[:-1]),
+        raise TimingError(move_index, at if at is not None else _steepest_at(path.u, path.q, limits.velocity_rad_s),
                           f"TOPP-RA found no feasible time-parameterisation ({data.return_code.value}; the "
                           f"joint velocity{', acceleration and torque' if limits.torque else ' and acceleration'} "
                           f"limits cannot hold the path there{where})")
@@ -314,11 +347,16 @@ def _steepest_at(u: np.ndarray, q: np.ndarray, vmax: np.ndarray) -> float:
 
 def _grid(u: np.ndarray) -> np.ndarray:
     """Grid points: the reference samples, with long intervals split (at least 100 points)."""
-    target = max(100, len(u))
-    step = 1.0 / target
-    extra = [np.linspace(a, b, math.ceil((b - a) / step) + 1)[1:-1] for a, b in itertools.pairwise(u)
-             if b - a > step]
-    return np.unique(np.concatenate([u, *extra])) if extra else u
+    step = 1.0 / max(100, len(u))
+    width = np.diff(u)
+    pieces = np.where(width > step, np.ceil(width / step), 1.0).astype(int)  # equal pieces per interval
+    if np.all(pieces == 1):
+        return u
+    interval = np.repeat(np.arange(len(width)), pieces - 1)
+    k = np.arange(len(interval)) - np.repeat(np.cumsum(pieces - 1) - (pieces - 1), pieces - 1) + 1
+    # k * (width / pieces) + start, as np.linspace computes its points (the grid is bit for bit the same)
+    extra = k * (width / pieces)[interval] + u[:-1][interval]
+    return np.unique(np.concatenate([u, extra]))
 
 
 def _sample(profile: _Profile, period_s: float, move_index: int, max_samples: int) -> tuple[np.ndarray, float]:
@@ -358,24 +396,22 @@ def end_step_ratio(q: np.ndarray, period_s: float, amax: np.ndarray) -> float:
 
 
 def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int,
-              max_samples: int) -> TimedMove:
+              max_samples: int, path: TimingPath | None = None) -> TimedMove:
     """Fastest uniform sampling of the move within the limits, every sample on the path.
 
     ``max_samples``: what is left of the task's allowance of output samples (bad input if over).
+    ``path``: the joint map's :func:`timing_path`, where the caller already made it.
     """
-    u_ref, q_ref = _reference(jmap)
-    missing = np.flatnonzero(~np.all(np.isfinite(q_ref), axis=1))
-    if len(missing):  # a joint map without IK somewhere: never hand NaN to TOPP-RA
-        raise TimingError(move_index, float(u_ref[missing[0]]), "no joint values (no inverse kinematics solution)")
-    if path_scale(q_ref, limits) == 0.0:
+    path = path if path is not None else timing_path(jmap, limits, move_index)
+    if path.spline is None:
         logger.info("move %d changes nothing: one period at rest", move_index)
-        return TimedMove(np.array([0.0, 1.0]), q_ref[[0, -1]], period_s, 0.0, 0.0)
-    optimal, profile = _optimal(jmap, limits, period_s, move_index, max_samples, u_ref, q_ref)
+        return TimedMove(np.array([0.0, 1.0]), path.q[[0, -1]], period_s, 0.0, 0.0)
+    optimal, profile = _optimal(jmap, path, limits, period_s, move_index, max_samples)
     if limits.jerk_rad_s3 is None and not limits.quintic:
         return optimal
     laws: list[TimeLaw]
     if limits.quintic:
-        laws = [QuinticLaw(quintic_duration(np.abs(q_ref[-1] - q_ref[0]), limits.velocity_rad_s,
+        laws = [QuinticLaw(quintic_duration(np.abs(path.q[-1] - path.q[0]), limits.velocity_rad_s,
                                             limits.acceleration_rad_s2, limits.jerk_rad_s3))]
     else:
         assert limits.jerk_rad_s3 is not None
@@ -415,13 +451,13 @@ def _s_curves(profile: _Profile, limits: MoveLimits) -> list[SCurveLaw]:
     return [SCurveLaw(speed, accel, jerk * f) for f in _S_CURVE_JERKS]
 
 
-def _optimal(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int, max_samples: int,
-             u_ref: np.ndarray, q_ref: np.ndarray) -> tuple[TimedMove, _Profile]:
+def _optimal(jmap: JointMap, path: TimingPath, limits: MoveLimits, period_s: float, move_index: int,
+             max_samples: int) -> tuple[TimedMove, _Profile]:
     """The acceleration-limited samples (TOPP-RA, tightened until the samples keep the limits) and their profile."""
     # separate scales: on a chain of moves a TCP-speed slip on one move must not slow a PTP's joints
     scale_v = scale_c = scale_a = scale_t = 1.0
     for _ in range(_TIGHTEN_PASSES):
-        profile = _toppra_profile(u_ref, q_ref, limits, (scale_v, scale_c, scale_a, scale_t), move_index)
+        profile = _toppra_profile(path, limits, (scale_v, scale_c, scale_a, scale_t), move_index)
         u, duration = _sample(profile, period_s, move_index, max_samples)
         q = jmap.evaluate(u)
         speed, accel = sample_ratios(q, period_s, limits.step_velocities(u), limits.acceleration_rad_s2)

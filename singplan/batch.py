@@ -35,16 +35,16 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from singplan.errors import InputError, SingplanError
-from singplan.outputs.pages import build_pages
+from singplan.outputs.plan_folder import OUTPUT_FILES, plan_into
 from singplan.planning.budget import TASK_MEMORY_MB
-from singplan.planning.targets import load_task_robot
-from singplan.results.files import check_output_dir, write_files
-from singplan.results.plan import plan
-from singplan.results.trajectory import Trajectory, save
+from singplan.results.files import check_output_dir, remove_temporary_files, write_files
+from singplan.results.trajectory import Trajectory
 from singplan.task.load import load_task
 
 FORMAT = "singplan.batch/1"
-SUMMARY_FILES = ("summary.csv", "summary.json")
+SUMMARY_CSV = "summary.csv"
+SUMMARY_JSON = "summary.json"
+SUMMARY_FILES = (SUMMARY_CSV, SUMMARY_JSON)
 INTERRUPTED = 130  # the exit code of an interrupted batch, and of its tasks that did not finish
 DEAD_WORKER = 1  # a task whose worker died: no result, so an internal failure rather than 2 or 3
 _MESSAGE_CHARS = 2000  # a record travels through a pipe; an error message longer than this is cut
@@ -106,11 +106,11 @@ class BatchResult:
 
     @property
     def summary_csv(self) -> Path:
-        return self.out_dir / SUMMARY_FILES[0]
+        return self.out_dir / SUMMARY_CSV
 
     @property
     def summary_json(self) -> Path:
-        return self.out_dir / SUMMARY_FILES[1]
+        return self.out_dir / SUMMARY_JSON
 
 
 Runner = Callable[[TaskJob], TaskRecord]
@@ -124,18 +124,13 @@ def plan_task(job: TaskJob) -> TaskRecord:
     try:
         task = load_task(job.task)
         robot = task.robot
-        names = ["trajectory.csv", "trajectory.json", *(("report.html",) if job.report else ()),
-                 *(("replay.html",) if job.replay else ())]
-        check_output_dir(job.folder, names)
-        traj = plan(task, method=job.method)
-        pages, skipped = build_pages(traj, load_task_robot(task), report=job.report, replay=job.replay)
-        save(traj, job.folder, extra_files=pages)
+        done = plan_into(task, job.folder, method=job.method, report=job.report, replay=job.replay)
     except SingplanError as exc:
         return _failed(job, exc.exit_code, str(exc), robot, started)
     except Exception as exc:  # a bug: recorded like the CLI's internal error, and the batch goes on
         return _failed(job, 1, f"internal error: {type(exc).__name__}: {exc}", robot, started)
-    message = "planned" + "".join(f"; {name} not written: {why}" for name, why in skipped.items())
-    return _planned(job, traj, message, time.perf_counter() - started)
+    message = "planned" + "".join(f"; {name} not written: {why}" for name, why in done.skipped.items())
+    return _planned(job, done.traj, message, time.perf_counter() - started)
 
 
 def _planned(job: TaskJob, traj: Trajectory, message: str, wall_s: float) -> TaskRecord:
@@ -267,7 +262,7 @@ def write_summary(result: BatchResult) -> list[Path]:
         json.dump(doc, stream, indent=1, allow_nan=False)
         stream.write("\n")
 
-    return write_files(result.out_dir, {"summary.csv": write_csv, "summary.json": write_json})
+    return write_files(result.out_dir, {SUMMARY_CSV: write_csv, SUMMARY_JSON: write_json})
 
 
 def local_workers(workers: int | None, n_tasks: int) -> int:
@@ -445,11 +440,8 @@ def _dead(job: TaskJob, how: str, wall_s: float | None) -> TaskRecord:
 
 def _remove_leftovers(folder: Path, remove_folder: bool) -> None:
     """A killed worker cannot clean up: remove its temporary files, and the folder it created if left empty."""
-    names = ("trajectory.csv", "trajectory.json", "report.html", "replay.html")
     try:
-        for p in folder.glob(".*.singplan-tmp"):
-            if any(p.name.startswith(f".{name}.") for name in names):
-                p.unlink(missing_ok=True)
+        remove_temporary_files(folder, OUTPUT_FILES)
         if remove_folder:
             folder.rmdir()  # only an empty folder: one that holds anything else stays
     except OSError:

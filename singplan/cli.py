@@ -265,38 +265,29 @@ def _imports_frozen() -> Iterator[None]:
 
 def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from singplan.kinematics.ik.opw import kernels_cached
-    from singplan.outputs.pages import build_pages
+    from singplan.outputs.plan_folder import plan_into
     from singplan.outputs.summary import summary
-    from singplan.planning.planner import plan_moves
-    from singplan.results.files import check_output_dir
-    from singplan.results.plan import trajectory_of
-    from singplan.results.trajectory import save
     from singplan.task.load import load_task
 
-    with _imports_frozen():  # the modules above stay alive until exit: no collection needs to look at them
-        task = load_task(args.task)
-        names = ["trajectory.csv", "trajectory.json", *(() if args.no_report else ("report.html",)),
-                 *(() if args.no_replay else ("replay.html",))]
-        folder = check_output_dir(args.output, names)  # before planning: nobody waits for a plan that cannot be written
+    def note_compiling() -> None:
         if not args.quiet and not kernels_cached():
             err.write("singplan: first run after an install: compiling the planner's kernels "
                       "(about 10 s on two cores; cached on disk afterwards)\n")
-        planned = plan_moves(task, method=args.method, progress=_progress_printer(err, args.quiet))
-        traj = trajectory_of(planned)  # what singplan.plan returns; the pages reuse the robot the plan loaded
-        pages: dict[str, str] = {}
-        skipped: dict[str, str] = {}
-        if not (args.no_report and args.no_replay):
-            pages, skipped = build_pages(traj, planned.full, report=not args.no_report, replay=not args.no_replay)
-        for name, reason in skipped.items():
+
+    with _imports_frozen():  # the modules above stay alive until exit: no collection needs to look at them
+        task = load_task(args.task)
+        done = plan_into(task, args.output, method=args.method, report=not args.no_report,
+                         replay=not args.no_replay, progress=_progress_printer(err, args.quiet),
+                         before_planning=note_compiling)
+        for name, reason in done.skipped.items():
             err.write(f"singplan: warning: {name} not written (the plan succeeded): {reason}\n")
-        folder = save(traj, folder, extra_files=pages)
         if args.quiet:
-            out.write(f"planned {args.task}: {traj.duration_s:.3f} s, {len(traj.t)} samples -> {folder}\n")
+            out.write(f"planned {args.task}: {done.traj.duration_s:.3f} s, {len(done.traj.t)} samples -> "
+                      f"{done.folder}\n")
         else:
-            out.write(summary(traj, task))
-            written = ", ".join(str(folder / name) for name in ("trajectory.csv", "trajectory.json", *pages))
-            out.write(f"wrote {written}\n")
-            for name, reason in skipped.items():
+            out.write(summary(done.traj, task))
+            out.write(f"wrote {', '.join(str(done.folder / name) for name in done.files)}\n")
+            for name, reason in done.skipped.items():
                 out.write(f"not written: {name} ({reason})\n")
         return 0
 

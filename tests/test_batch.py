@@ -26,8 +26,9 @@ import pytest
 import yaml
 
 from singplan import batch
-from singplan.batch import TaskJob, TaskRecord, folder_names, plan_many, plan_task
+from singplan.batch import TaskJob, TaskRecord, folder_names, make_jobs, plan_many, plan_task
 from singplan.cli import main
+from singplan.planning import targets
 
 START_DEG = [10, -80, 95, 20, 40, 0]
 TARGET = {"xyz": [0.55, -0.08, 0.66], "rpy_deg": [-157.09, 31.93, -172.02]}  # ~40 mm from the start
@@ -377,3 +378,60 @@ def test_a_memory_warning_when_the_workers_budgets_exceed_the_machine() -> None:
     many = int(total_gb / 1.5) + 2  # their 1.5 GB budgets add up to more than the machine has
     warning = batch.memory_warning(many)
     assert warning is not None and f"{many} x 1500 MB" in warning and "--workers" in warning
+
+
+# plan_task in this process: the one task pipeline `singplan plan` runs, and its record
+
+
+def _job(tmp_path: Path, task: Path, report: bool = True, replay: bool = False) -> TaskJob:
+    return make_jobs([task], tmp_path / "out", report=report, replay=replay)[0]
+
+
+def test_plan_task_loads_the_robot_once_and_writes_what_singplan_plan_writes(tmp_path: Path, monkeypatch) -> None:
+    loads: list[str] = []
+    real_load = targets.load_robot
+
+    def counting(name: str, **kwargs: object) -> object:
+        loads.append(name)
+        return real_load(name, **kwargs)
+
+    monkeypatch.setattr(targets, "load_robot", counting)
+    task = _task(tmp_path, "lin.yaml")
+    record = plan_task(_job(tmp_path, task))
+    assert record.exit_code == 0, record.message
+    assert loads == ["kuka_kr6_r900_2"]  # planning and the report share the robot the plan loaded
+    out, err = io.StringIO(), io.StringIO()
+    assert main(["plan", str(task), "-o", str(tmp_path / "alone"), "--quiet", "--no-replay"], out=out, err=err) == 0
+    assert sorted(p.name for p in (tmp_path / "out" / "lin").iterdir()) == sorted(
+        p.name for p in (tmp_path / "alone").iterdir()) == ["report.html", "trajectory.csv", "trajectory.json"]
+    mine = json.loads((tmp_path / "out" / "lin" / "trajectory.json").read_text())
+    theirs = json.loads((tmp_path / "alone" / "trajectory.json").read_text())
+    np.testing.assert_allclose(np.asarray(mine["q"]), np.asarray(theirs["q"]), rtol=0, atol=SAME_TOL)
+    assert (record.task, record.folder, record.message, record.robot) == (str(task), "lin", "planned",
+                                                                           "kuka_kr6_r900_2")
+    assert record.duration_s == pytest.approx(mine["t"][-1], abs=SAME_TOL) and record.samples == len(mine["t"])
+    assert record.crossings == len(mine["metrics"]["crossings"])
+    assert record.max_position_error_mm == pytest.approx(mine["metrics"]["max_position_error_mm"], abs=SAME_TOL)
+    assert record.wall_s is not None and record.wall_s > 0
+
+
+def test_plan_task_records_a_failure_with_its_robot_and_leaves_no_folder(tmp_path: Path) -> None:
+    far = _task(tmp_path, "far.yaml", to={"xyz": [3.0, 0.0, 0.5], "rpy_deg": [180, 0, 0]})
+    record = plan_task(_job(tmp_path, far))
+    assert (record.exit_code, record.robot, record.folder) == (3, "kuka_kr6_r900_2", "far")
+    assert "move 0" in record.message and record.duration_s is None and record.wall_s is not None
+    bad = _task(tmp_path, "bad.yaml", speed=-1)
+    record = plan_task(_job(tmp_path, bad))
+    assert (record.exit_code, record.robot) == (2, "") and "speed" in record.message  # malformed: no robot named
+    assert not (tmp_path / "out").exists()
+
+
+def test_plan_task_names_a_page_it_could_not_build_and_keeps_the_trajectory(tmp_path: Path, monkeypatch) -> None:
+    def broken(*args: object) -> str:
+        raise ZeroDivisionError("in a plot")
+
+    monkeypatch.setattr("singplan.outputs.report.report_html", broken)
+    record = plan_task(_job(tmp_path, _task(tmp_path, "lin.yaml")))
+    assert record.exit_code == 0
+    assert record.message == "planned; report.html not written: ZeroDivisionError: in a plot"
+    assert sorted(p.name for p in (tmp_path / "out" / "lin").iterdir()) == ["trajectory.csv", "trajectory.json"]

@@ -18,6 +18,7 @@ import yaml
 
 from singplan.cli import main
 from singplan.errors import OutputPathError
+from singplan.outputs.plan_folder import OUTPUT_FILES, output_names
 from singplan.results import files as outputs
 from singplan.results import trajectory as trajectory_module
 from singplan.results.metrics import Metrics
@@ -104,7 +105,7 @@ def test_unusable_output_paths_exit_2_naming_the_path_before_planning(tmp_path: 
     def no_planning(*args: object, **kwargs: object) -> None:
         raise AssertionError("planned although the output path is unusable")
 
-    monkeypatch.setattr("singplan.planning.planner.plan_moves", no_planning)  # the planning stage `singplan plan` runs
+    monkeypatch.setattr("singplan.outputs.plan_folder.plan_moves", no_planning)  # the stage `singplan plan` runs
     for out in (tmp_path / "a_file", tmp_path / "a_file" / "sub", "/proc/singplan-x", "", task):
         code, _, err = _plan(task, out)
         assert code == 2, (out, err)
@@ -276,7 +277,7 @@ def test_an_interrupt_is_one_line_and_exit_130(tmp_path: Path, monkeypatch) -> N
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("singplan.planning.planner.plan_moves", interrupted)  # the planning stage `singplan plan` runs
+    monkeypatch.setattr("singplan.outputs.plan_folder.plan_moves", interrupted)  # the stage `singplan plan` runs
     stderr = io.StringIO()
     assert main(["plan", str(_task(tmp_path)), "-o", str(tmp_path / "o")], out=io.StringIO(), err=stderr) == 130
     assert stderr.getvalue() == "singplan: interrupted\n"
@@ -330,3 +331,25 @@ def _umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+def test_output_files_are_the_contracts_four_and_plan_into_checks_only_those_asked_for() -> None:
+    assert set(OUTPUT_FILES) == OURS and len(OUTPUT_FILES) == len(OURS)
+    assert output_names(report=False, replay=False) == ("trajectory.csv", "trajectory.json")
+    assert output_names(report=False, replay=True) == ("trajectory.csv", "trajectory.json", "replay.html")
+
+
+def test_temporary_files_a_killed_writer_left_are_removed_and_nothing_else(tmp_path: Path) -> None:
+    seen: list[str] = []
+
+    def peek(stream: io.TextIOBase) -> None:  # the real writer's temporary name, while it exists
+        seen.extend(p.name for p in tmp_path.iterdir() if p.name.startswith("."))
+
+    outputs.write_files(tmp_path, {"trajectory.json": peek})
+    assert len(seen) == 1 and seen[0].startswith(".trajectory.json.")
+    (tmp_path / seen[0]).write_text("half a file")  # as if the writer had been killed before its rename
+    (tmp_path / ".summary.csv.x1y2.singplan-tmp").write_text("not one of the names given")
+    (tmp_path / "mine.txt").write_text("keep")
+    outputs.remove_temporary_files(tmp_path, OUTPUT_FILES)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".summary.csv.x1y2.singplan-tmp", "mine.txt",
+                                                         "trajectory.json"]

@@ -18,6 +18,15 @@ from singplan.kinematics.robot import Robot
 from singplan.outputs.timeline import TcpTrack, tcp_track
 from singplan.results.trajectory import Trajectory
 
+REPORT_FILE = "report.html"
+REPLAY_FILE = "replay.html"
+PAGE_FILES = (REPORT_FILE, REPLAY_FILE)
+
+
+def page_names(report: bool, replay: bool) -> tuple[str, ...]:
+    """The file names of the pages asked for, in the order they are built and written."""
+    return tuple(name for name, asked in zip(PAGE_FILES, (report, replay), strict=True) if asked)
+
 
 def build_pages(traj: Trajectory, robot: Robot, report: bool, replay: bool) -> tuple[dict[str, str], dict[str, str]]:
     """The pages asked for ({file name: html}) and why any could not be built ({file name: reason}).
@@ -26,7 +35,7 @@ def build_pages(traj: Trajectory, robot: Robot, report: bool, replay: bool) -> t
     """
     pages: dict[str, str] = {}
     skipped: dict[str, str] = {}
-    wanted = [name for name, asked in (("report.html", report), ("replay.html", replay)) if asked]
+    wanted = page_names(report, replay)
     if not wanted:
         return pages, skipped
     try:
@@ -46,7 +55,7 @@ def _reason(exc: Exception) -> str:
 
 
 def _builder(name: str) -> Callable[[Trajectory, Robot, TcpTrack], str]:
-    if name == "report.html":
+    if name == REPORT_FILE:
         from singplan.outputs.report import report_html
 
         return report_html

@@ -188,13 +188,26 @@ def _probe(folder: Path) -> None:
 
 def _write_temp(folder: Path, name: str, write: Writer, temps: dict[str, Path]) -> None:
     """Write one file under a hidden temporary name, registered in ``temps`` before any byte."""
-    fd, temp = tempfile.mkstemp(prefix=f".{name[:64]}.", suffix=_TEMP_SUFFIX, dir=folder)  # short: any name fits
+    fd, temp = tempfile.mkstemp(prefix=_temp_prefix(name), suffix=_TEMP_SUFFIX, dir=folder)
     temps[name] = Path(temp)
     with os.fdopen(fd, "w", encoding="utf-8") as stream:
         os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes it private; the result is an ordinary file
         write(stream)
         stream.flush()
         os.fsync(fd)
+
+
+def _temp_prefix(name: str) -> str:
+    return f".{name[:64]}."  # short: any name fits
+
+
+def remove_temporary_files(folder: Path, names: Iterable[str]) -> None:
+    """Remove the temporary files of ``names`` left in ``folder`` by a writer killed before it could
+    (SIGKILL, the OOM killer); OSError when the folder cannot be read."""
+    prefixes = tuple(_temp_prefix(name) for name in names)
+    for p in folder.glob(f".*{_TEMP_SUFFIX}"):
+        if p.name.startswith(prefixes):
+            p.unlink(missing_ok=True)
 
 
 def _umask() -> int:

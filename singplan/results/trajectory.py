@@ -23,6 +23,9 @@ from singplan.results.files import Writer, text_writer, write_files
 from singplan.results.metrics import Metrics, NoFigures, SegmentFigures, figures_from_json
 
 FORMAT = "singplan.trajectory/1"
+CSV_FILE = "trajectory.csv"
+JSON_FILE = "trajectory.json"
+TRAJECTORY_FILES = (CSV_FILE, JSON_FILE)  # what save() writes into an output folder, in this order
 SegmentKind = Literal["path", "pre", "crossing", "post", "ptp", "blend"]
 _CHUNK_ROWS = 4096  # samples formatted at once when writing (bounds the text held in memory)
 
@@ -271,8 +274,8 @@ def save(traj: Trajectory, out_dir: str | Path, extra_files: Mapping[str, str] |
     place together once written; on any failure the folder is as it was (see
     :mod:`singplan.results.files`). An unusable ``out_dir`` raises OutputPathError.
     """
-    writers: dict[str, Writer] = {"trajectory.csv": lambda stream: write_csv(stream, traj),
-                                  "trajectory.json": lambda stream: write_json(stream, traj)}
+    writers: dict[str, Writer] = {CSV_FILE: lambda stream: write_csv(stream, traj),
+                                  JSON_FILE: lambda stream: write_json(stream, traj)}
     writers.update({name: text_writer(text) for name, text in (extra_files or {}).items()})
     write_files(out_dir, writers)
     return Path(os.path.abspath(out_dir))  # absolute, but a symbolic link stays as named
@@ -285,7 +288,7 @@ def load(path: str | Path) -> Trajectory:
     """Read a trajectory.json (or the folder holding it)."""
     p = Path(path)
     if p.is_dir():
-        p = p / "trajectory.json"
+        p = p / JSON_FILE
     try:
         doc = json.loads(p.read_text())
     except (OSError, ValueError) as exc:

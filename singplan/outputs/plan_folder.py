@@ -1,0 +1,61 @@
+"""One task planned into an output folder: the pipeline `singplan plan` and each batch task run.
+
+The folder is checked before planning (nobody waits for a plan that cannot be written), the
+task is planned once, the pages are built on the robot the plan loaded, and every file is
+written by the rules of :mod:`singplan.results.files` (DESIGN.md, "Outputs"). The names of
+singplan's files live with their writers (:mod:`singplan.results.trajectory`,
+:mod:`singplan.outputs.pages`); :data:`OUTPUT_FILES` is all of them.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from singplan.outputs.pages import PAGE_FILES, build_pages, page_names
+from singplan.planning.planner import Progress, plan_moves
+from singplan.results.files import check_output_dir
+from singplan.results.plan import trajectory_of
+from singplan.results.trajectory import TRAJECTORY_FILES, Trajectory, save
+from singplan.task.schema import Task
+
+OUTPUT_FILES = (*TRAJECTORY_FILES, *PAGE_FILES)  # every file singplan may write into a task's output folder
+
+
+def output_names(report: bool, replay: bool) -> tuple[str, ...]:
+    """The files a plan writes: the trajectory's, then the pages asked for."""
+    return (*TRAJECTORY_FILES, *page_names(report, replay))
+
+
+@dataclass(frozen=True)
+class PlannedFolder:
+    """A task planned and written: the trajectory, the folder (absolute), the files written in it
+    (in order) and the pages that could not be built ({file name: reason})."""
+
+    traj: Trajectory
+    folder: Path
+    files: tuple[str, ...]
+    skipped: Mapping[str, str]
+
+
+def plan_into(task: Task, out_dir: str | os.PathLike[str], *, method: str | None = None, report: bool = True,
+              replay: bool = True, progress: Progress | None = None,
+              before_planning: Callable[[], None] | None = None) -> PlannedFolder:
+    """Plan ``task`` and write its files into ``out_dir``; a page that cannot be built is only skipped.
+
+    ``before_planning`` runs once the folder was found usable, just before planning starts.
+
+    Raises:
+        OutputPathError: ``out_dir`` cannot receive the files (checked before planning; exit code 2).
+        InputError, PlanningError: as :func:`singplan.results.plan.plan`; the folder is left as it was.
+    """
+    folder = check_output_dir(out_dir, output_names(report, replay))
+    if before_planning is not None:
+        before_planning()
+    planned = plan_moves(task, method=method, progress=progress)
+    traj = trajectory_of(planned)
+    pages, skipped = build_pages(traj, planned.full, report=report, replay=replay)  # the robot the plan loaded
+    written = save(traj, folder, extra_files=pages)
+    return PlannedFolder(traj, written, (*TRAJECTORY_FILES, *pages), skipped)

@@ -30,8 +30,14 @@ from singplan.outputs.scene import AnimationCommand
 from singplan.outputs.svgplot import Panel, envelope, figure_svg, nice_ticks
 from singplan.outputs.timeline import SEGMENT_COLOURS, pause_window, tcp_track, timeline
 from singplan.outputs.viewer import programmed_path, replay_html, robot_of, tcp_path
+from singplan.planning.pieces import move_piece
+from singplan.planning.weave import drawing_count
 from singplan.results.plan import plan
 from singplan.results.trajectory import Segment, Trajectory
+from singplan.task.load import parse_task
+from singplan.task.schema import Move, PoseSpec, Weave
+
+from .task_strategies import seeded_task
 
 ROOT = Path(__file__).resolve().parents[1]
 HOLD = 50  # samples of the synthetic null-space pause
@@ -224,6 +230,23 @@ def test_programmed_path_comes_from_the_record_not_the_task_parser(monkeypatch: 
     arc = path[64:128]
     centre_distance = np.linalg.norm(arc - np.asarray(circ["via"]["xyz"]), axis=1).min()
     assert centre_distance < 0.01  # the arc passes by its via point (64 points on ~0.5 m)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_a_move_comes_back_from_the_recorded_task_mapping(seed: int) -> None:
+    task = parse_task(seeded_task(seed))
+    weave = Move("lin", to=PoseSpec((0.5, 0.1, 0.4)), speed_m_s=0.1, weave=Weave("triangle", 2.0, 15.0),
+                 blend_mm=5.0)
+    task = replace(task, moves=(*task.moves, weave))
+    recorded = json.loads(json.dumps(task.to_mapping()))  # as trajectory.json keeps it
+    assert [Move.from_mapping(m) for m in recorded["moves"]] == list(task.moves)
+
+
+def test_the_programmed_path_is_the_planners_piece(demo: Trajectory, robot: Robot) -> None:
+    path = programmed_path(demo, robot, tcp_path(demo, robot))
+    piece = move_piece(0, Move.from_mapping(demo.task["moves"][0]), robot.fk(demo.q[0]))
+    count = drawing_count(piece)
+    assert np.array_equal(path[:count], piece.positions(np.linspace(0.0, 1.0, count)))
 
 
 def test_the_viewer_imports_neither_the_task_loader_nor_the_planner() -> None:

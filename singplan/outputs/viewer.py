@@ -52,11 +52,12 @@ from singplan.outputs.timeline import (
     tcp_track,
     timeline,
 )
-from singplan.planning.path import CartesianPiece, make_circ, make_lin
-from singplan.planning.weave import drawing_count, woven, woven_moves
+from singplan.planning.path import move_target
+from singplan.planning.pieces import move_piece
+from singplan.planning.weave import drawing_count, woven_moves
 from singplan.results.files import check_output_file, text_writer, write_file
 from singplan.results.trajectory import Segment, Trajectory, load
-from singplan.task.schema import Weave
+from singplan.task.schema import Move
 
 _SERVER_START_S = 60.0  # longest wait for the live server to report its address
 ANIMATION_STEP_S = 0.02  # animation keyframes at most this often; the browser interpolates between them
@@ -207,49 +208,24 @@ _LOOP_REPETITIONS = 1_000_000  # meshcat's "loop": repeat the clip this many tim
 
 
 def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
-    """Points (M, 3) [m] of the programmed path: each LIN / CIRC (woven if it weaves) from the
-    task mapping's targets, as the planner built it from the same numbers; a PTP as executed."""
+    """Points (M, 3) [m] of the programmed path: each LIN / CIRC (woven if it weaves) is the
+    planner's own piece (:func:`singplan.planning.pieces.move_piece`) of the recorded task's
+    move; a PTP as executed."""
     points = []
     T = robot.fk(traj.q[0])
     by_move = traj.segments_by_move()
-    for i, move in enumerate(traj.task["moves"]):
-        (kind, spec), = move.items()
+    for i, mapping in enumerate(traj.task["moves"]):
+        move = Move.from_mapping(mapping)
         segs = by_move.get(i)
-        if kind == "ptp":
+        if move.kind == "ptp":
             if segs:
                 points.append(tcp.between(sample_range(traj, segs[0])[0], sample_range(traj, segs[-1])[1]))
-            T = _ptp_target(spec, T, robot)
+            T = robot.fk(np.radians(move.to_joints_deg)) if move.to_joints_deg is not None else move_target(move, T)
             continue
-        piece = _piece(kind, spec, T)
+        piece = move_piece(i, move, T)
         points.append(piece.positions(np.linspace(0.0, 1.0, drawing_count(piece))))
         T = piece.T_end
     return np.concatenate(points) if points else tcp.xyz[:1]
-
-
-def _target(spec: dict[str, Any], T_start: pin.SE3) -> pin.SE3:
-    """A move's Cartesian target from its ``to``: orientation held from ``T_start`` without ``rpy_deg``."""
-    to = spec["to"]
-    rotation = rpy_deg_to_rotation(np.asarray(to["rpy_deg"], dtype=float)) if to.get("rpy_deg") is not None \
-        else T_start.rotation
-    return pin.SE3(rotation, np.asarray(to["xyz"], dtype=float))
-
-
-def _ptp_target(spec: dict[str, Any], T_start: pin.SE3, robot: Robot) -> pin.SE3:
-    to = spec["to"]
-    if to.get("joints_deg") is not None:
-        return robot.fk(np.radians(np.asarray(to["joints_deg"], dtype=float)))
-    return _target(spec, T_start)
-
-
-def _piece(kind: str, spec: dict[str, Any], T_start: pin.SE3) -> CartesianPiece:
-    """A LIN / CIRC of the validated task mapping, with its weave (the same geometry the planner used)."""
-    field = f"moves.{kind}"
-    target = _target(spec, T_start)
-    piece = make_lin(T_start, target, field) if kind == "lin" else \
-        make_circ(T_start, np.asarray(spec["via"]["xyz"], dtype=float), target, field)
-    weave = spec.get("weave")
-    return piece if not weave else woven(piece, Weave(str(weave["pattern"]), float(weave["amplitude_mm"]),
-                                                      float(weave["wavelength_mm"])), field)
 
 
 def replay_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -> str:

@@ -28,7 +28,14 @@ from singplan.outputs.pages import build_pages
 from singplan.outputs.report import report_html
 from singplan.outputs.scene import AnimationCommand
 from singplan.outputs.svgplot import Panel, envelope, figure_svg, nice_ticks
-from singplan.outputs.timeline import SEGMENT_COLOURS, pause_window, tcp_track, timeline
+from singplan.outputs.timeline import (
+    SEGMENT_COLOURS,
+    joint_speed_ratios,
+    pause_window,
+    speed_limits,
+    tcp_track,
+    timeline,
+)
 from singplan.outputs.viewer import programmed_path, replay_html, robot_of, tcp_path
 from singplan.planning.pieces import move_piece
 from singplan.planning.weave import drawing_count
@@ -213,6 +220,17 @@ def test_figure_places_curves_inside_their_panel_and_ids_are_unique() -> None:
     assert xy[:, 0].min() >= 0 and xy[:, 0].max() <= 480  # the left half of a 960 px figure
     assert xy[1, 1] < xy[2, 1] < xy[0, 1]  # SVG y grows downwards: 10 above 5 above 0
     assert "j1" in svg and "worst" in svg
+
+
+def test_report_and_replay_show_the_joint_speed_the_metrics_and_checker_measure(demo: Trajectory,
+                                                                                 robot: Robot) -> None:
+    ratios = joint_speed_ratios(demo, speed_limits(demo, robot))
+    forward = np.abs(np.diff(demo.q, axis=0)) / demo.period / speed_limits(demo, robot)  # the checker's qd
+    assert ratios.shape == forward.shape and np.allclose(ratios, forward, rtol=1e-6, atol=0)
+    assert float(ratios.max()) == pytest.approx(demo.metrics.max_joint_speed_ratio, rel=1e-6)
+    strip = _page_data(replay_html(demo, robot))["speed"]
+    assert max(strip["ratio"]) == pytest.approx(demo.metrics.max_joint_speed_ratio, abs=1e-4)
+    assert strip["t"][0] == pytest.approx(demo.t[1])  # step 0 -> 1, drawn where it ends
 
 
 # -- replay -----------------------------------------------------------------------------------

@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from singplan.kinematics.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
+from singplan.kinematics.dynamics import trajectory_torques
 from singplan.kinematics.robot import Robot
 from singplan.outputs.svgplot import Panel, envelope, figure_svg
-from singplan.outputs.timeline import Stretch, TcpTrack, speed_limits, tcp_track, timeline
+from singplan.outputs.timeline import Stretch, TcpTrack, joint_speed_ratios, speed_limits, tcp_track, timeline
 from singplan.results.trajectory import Trajectory
 from singplan.task.schema import (
     DEFAULT_ORIENTATION_TOLERANCE_DEG,
@@ -104,13 +104,12 @@ def _joints(traj: Trajectory, robot: Robot, shaded: Callable[[], Panel]) -> _Dra
     return draw
 
 
-def _speed_ratio(traj: Trajectory, vmax: np.ndarray, shaded: Callable[[], Panel]) -> _Draw:
-    return _joint_ratios(traj, traj.t[1:], lambda j: np.abs(np.diff(traj.q[:, j])) / traj.period / vmax[j],
-                         "|qd| / limit", shaded)
+def _speed_ratio(traj: Trajectory, speed_ratios: np.ndarray, shaded: Callable[[], Panel]) -> _Draw:
+    return _joint_ratios(traj, traj.t[1:], lambda j: speed_ratios[:, j], "|qd| / limit", shaded)
 
 
-def _torque_ratio(traj: Trajectory, robot: Robot, scale: float, shaded: Callable[[], Panel]) -> _Draw:
-    _, ratios = trajectory_torques(robot, traj.q, traj.period, effort_limits_nm(robot) * scale, series=True)
+def _torque_ratio(traj: Trajectory, robot: Robot, limit_nm: np.ndarray, shaded: Callable[[], Panel]) -> _Draw:
+    _, ratios = trajectory_torques(robot, traj.q, traj.period, limit_nm, series=True)
     assert ratios is not None
     return _joint_ratios(traj, traj.t, lambda j: ratios[:, j], "|tau| / limit", shaded)
 
@@ -250,12 +249,12 @@ def report_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -
     shaded = _shaded(stretches, traj.duration_s)
     sing = traj.task.get("singularity", {})
     zone = sing.get("zone", {})
-    vmax = speed_limits(traj, robot)
     s_mm = track.length_m * 1e3
     figures: list[tuple[str, str, _Draw, int, float]] = [
         ("joints", "Joint positions [deg] with their limits (dashed); crossings shaded.",
          _joints(traj, robot, shaded), math.ceil(len(traj.joint_names) / 2), 4.5),
-        ("speed", "Joint speed as a fraction of its limit.", _speed_ratio(traj, vmax, shaded), 1, 3.0),
+        ("speed", "Joint speed as a fraction of its limit.",
+         _speed_ratio(traj, joint_speed_ratios(traj, speed_limits(traj, robot)), shaded), 1, 3.0),
     ]
     if "distances" in traj.samples:  # none for an arm without labels (7 joints)
         figures.append(("distances", "Signed singular distances with the detection thresholds, against time (bottom) "
@@ -272,12 +271,13 @@ def report_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -
     if "stopping_distance_m" in traj.samples:
         figures.append(("stopping", "Stopping distance: how far the TCP would travel if every joint braked now at its "
                                     "acceleration limit (the worst marked).", _stopping(traj, shaded), 1, 3.0))
-    limits = traj.task.get("limits", {})
-    if no_dynamics_reason(robot) is None:
-        scale = limits.get("torque_scale")
-        limit = "effort x torque_scale" if scale is not None else "URDF effort, not enforced: no limits.torque_scale"
+    torques = traj.metrics.torques
+    if not isinstance(torques, str):  # the metrics' limits: efforts x limits.torque_scale (1 if unset)
+        limit = ("effort x torque_scale" if traj.task.get("limits", {}).get("torque_scale") is not None
+                 else "URDF effort, not enforced: no limits.torque_scale")
+        limit_nm = np.array([torques.torque_limit_Nm[name] for name in traj.joint_names])
         figures.append(("torque", f"Joint torque (inverse dynamics of the samples) as a fraction of its limit "
-                                  f"({limit}).", _torque_ratio(traj, robot, float(scale or 1.0), shaded), 1, 3.0))
+                                  f"({limit}).", _torque_ratio(traj, robot, limit_nm, shaded), 1, 3.0))
     body = "".join(f'<figure id="plot-{key}">{figure_svg(key, draw(), columns, h)}'
                    f"<figcaption>{html.escape(cap)}</figcaption></figure>"
                    for key, cap, draw, columns, h in figures)

@@ -93,6 +93,19 @@ def speed_limits(traj: Trajectory, robot: Robot) -> np.ndarray:
     return robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", DEFAULT_VELOCITY_SCALE))
 
 
+def joint_speed_ratios(traj: Trajectory, vmax_rad_s: np.ndarray) -> np.ndarray:
+    """|qd| / limit (K - 1, n) of each step between samples, the step k -> k + 1 drawn at t[k + 1]:
+    forward differences (q[k + 1] - q[k]) / period, the joint speed the checker and the metrics'
+    ``max_joint_speed_ratio`` measure (not the record's central ``qd``). Single precision, formed a
+    chunk at a time: a plot's figure, a quarter of the samples' own memory."""
+    q = traj.q
+    out = np.empty((max(0, len(q) - 1), q.shape[1]), dtype=np.float32)
+    scale = traj.period * vmax_rad_s
+    for c in range(0, len(out), _CHUNK):
+        out[c:c + _CHUNK] = np.abs(np.diff(q[c:c + _CHUNK + 1], axis=0)) / scale
+    return out
+
+
 def display_kind(seg: Segment, woven: frozenset[int]) -> str:
     """A segment's colour kind: its own, or "weave" for a woven move's segments other than crossings."""
     return "weave" if seg.move in woven and seg.kind not in ("crossing", "blend") else seg.kind

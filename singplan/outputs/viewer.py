@@ -46,6 +46,7 @@ from singplan.outputs.timeline import (
     Stretch,
     TcpTrack,
     display_kind,
+    joint_speed_ratios,
     kind_colour,
     sample_range,
     speed_limits,
@@ -274,9 +275,7 @@ def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Str
             text = (f"{title.split(': ', 1)[1]}; {d.get('max_position_error_mm', 0.0):.3f} mm / "
                     f"{d.get('max_orientation_error_deg', 0.0):.2f} deg")
             labels.append({"text": text, "xyz": tcp.at(_midpoint(traj, seg)).tolist()})
-    vmax = speed_limits(traj, robot)
-    ratio = np.concatenate([np.max(np.abs(traj.qd[c:c + _CHUNK]) / vmax, axis=1)
-                            for c in range(0, len(traj.t), _CHUNK)])  # (K,)
+    ratio = joint_speed_ratios(traj, speed_limits(traj, robot)).max(axis=1, initial=0.0).astype(float)  # at t[1:]
     keep = _extremes(ratio, _STRIP_POINTS)
     points = np.vstack([tcp.xyz, np.zeros((1, 3))])  # the path and the robot's base
     lo, hi = points.min(axis=0), points.max(axis=0)
@@ -286,7 +285,7 @@ def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Str
          for seg in traj.segments]
     return {"duration": traj.duration_s, "colours": {b["kind"]: b["colour"] for b in bands},
             "segments": segments, "labels": labels, "bands": bands,
-            "speed": {"t": np.round(traj.t[keep], 4).tolist(), "ratio": np.round(ratio[keep], 4).tolist()},
+            "speed": {"t": np.round(traj.t[1:][keep], 4).tolist(), "ratio": np.round(ratio[keep], 4).tolist()},
             "frame": {"center": (0.5 * (lo + hi)).tolist(), "distance": 2.2 * radius,
                       "direction": _VIEW_DIRECTION.tolist()}}
 

@@ -15,6 +15,7 @@ import re
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -24,6 +25,7 @@ import umsgpack
 
 from singplan.kinematics.robot import Robot
 from singplan.outputs import timeline as timeline_module
+from singplan.outputs import viewer as viewer_module
 from singplan.outputs.pages import build_pages
 from singplan.outputs.report import report_html
 from singplan.outputs.scene import AnimationCommand
@@ -36,7 +38,7 @@ from singplan.outputs.timeline import (
     tcp_track,
     timeline,
 )
-from singplan.outputs.viewer import programmed_path, replay_html, robot_of, tcp_path
+from singplan.outputs.viewer import joint_travel, programmed_path, replay_html, robot_of, tcp_path
 from singplan.planning.pieces import move_piece
 from singplan.planning.weave import drawing_count
 from singplan.results.plan import plan
@@ -148,7 +150,7 @@ def test_report_and_replay_show_blends_and_pauses(demo: Trajectory, robot: Robot
     assert blend["colour"] == SEGMENT_COLOURS["blend"] and blend["title"] == "move 0: fly-by blend"
 
 
-def test_pages_share_one_fk_pass_over_the_samples(demo: Trajectory, robot: Robot,
+def test_pages_share_one_fk_pass_timeline_and_speed_over_the_samples(demo: Trajectory, robot: Robot,
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     calls: list[int] = []
     original = Robot.tcp_positions
@@ -158,9 +160,21 @@ def test_pages_share_one_fk_pass_over_the_samples(demo: Trajectory, robot: Robot
         return original(self, q)
 
     monkeypatch.setattr(Robot, "tcp_positions", counted)
+    runs: list[str] = []
+
+    def counting(name: str, f: Callable[..., object]) -> Callable[..., object]:
+        def run(*args: object) -> object:
+            runs.append(name)
+            return f(*args)
+        return run
+
+    for module, name in ((timeline_module, "timeline"), (timeline_module, "joint_speed_ratios"),
+                         (viewer_module, "joint_travel")):
+        monkeypatch.setattr(module, name, counting(name, getattr(module, name)))
     pages, skipped = build_pages(demo, robot, report=True, replay=True)
     assert skipped == {} and set(pages) == {"report.html", "replay.html"}
     assert sum(calls) == len(demo.t)  # every sample once, for both pages
+    assert sorted(runs) == ["joint_speed_ratios", "joint_travel", "timeline"]  # each once for both pages
 
 
 def test_report_plots_are_svg_and_bounded_for_long_trajectories(demo: Trajectory, robot: Robot) -> None:
@@ -240,7 +254,7 @@ def test_programmed_path_comes_from_the_record_not_the_task_parser(monkeypatch: 
     traj = plan(ROOT / "examples" / "kuka_program.yaml")  # LIN, CIRC, PTP
     robot = robot_of(traj)
     monkeypatch.setattr("singplan.task.load.parse_task", lambda *a, **k: pytest.fail("the task was re-parsed"))
-    path = programmed_path(traj, robot, tcp_path(traj, robot))
+    path = programmed_path(traj, robot, tcp_path(traj, tcp_track(traj, robot), joint_travel(traj.q)))
     lin, circ = traj.task["moves"][0]["lin"], traj.task["moves"][1]["circ"]
     assert np.allclose(path[0], robot.fk(traj.q[0]).translation, atol=1e-12)
     assert np.allclose(path[63], lin["to"]["xyz"], atol=1e-12)  # the LIN's 64 points end on its target
@@ -261,7 +275,7 @@ def test_a_move_comes_back_from_the_recorded_task_mapping(seed: int) -> None:
 
 
 def test_the_programmed_path_is_the_planners_piece(demo: Trajectory, robot: Robot) -> None:
-    path = programmed_path(demo, robot, tcp_path(demo, robot))
+    path = programmed_path(demo, robot, tcp_path(demo, tcp_track(demo, robot), joint_travel(demo.q)))
     piece = move_piece(0, Move.from_mapping(demo.task["moves"][0]), robot.fk(demo.q[0]))
     count = drawing_count(piece)
     assert np.array_equal(path[:count], piece.positions(np.linspace(0.0, 1.0, count)))

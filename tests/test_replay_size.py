@@ -28,6 +28,7 @@ from singplan.outputs.viewer import (
     _PATH_POINTS,
     _STRIP_POINTS,
     ANIMATION_STEP_S,
+    joint_travel,
     kept_samples,
     replay_html,
     robot_of,
@@ -102,7 +103,7 @@ def test_kept_samples_are_bounded_and_keep_boundaries_and_joint_motion(program: 
     for factor in (1, 100, 1000):
         traj = program if factor == 1 else _resampled(program, factor)
         step = max(1, round(ANIMATION_STEP_S / traj.period))  # as the page's animation does
-        kept = kept_samples(traj, step, _KEYFRAMES, _KEYFRAME_TURN_RAD)
+        kept = kept_samples(traj, joint_travel(traj.q), step, _KEYFRAMES, _KEYFRAME_TURN_RAD)
         counts.append(len(kept))
         assert len(kept) <= 2 * _KEYFRAMES + 2 + 3 * len(traj.segments)
         assert kept[0] == 0 and kept[-1] == len(traj.t) - 1

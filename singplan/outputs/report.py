@@ -22,7 +22,7 @@ import numpy as np
 from singplan.kinematics.dynamics import trajectory_torques
 from singplan.kinematics.robot import Robot
 from singplan.outputs.svgplot import Panel, envelope, figure_svg
-from singplan.outputs.timeline import Stretch, TcpTrack, joint_speed_ratios, speed_limits, tcp_track, timeline
+from singplan.outputs.timeline import PageBasis, Stretch, page_basis
 from singplan.results.trajectory import Trajectory
 from singplan.task.schema import (
     DEFAULT_ORIENTATION_TOLERANCE_DEG,
@@ -242,10 +242,10 @@ def _tables(traj: Trajectory) -> str:
             + "<h2>Metrics</h2>" + _table(["metric", "value"], metrics))
 
 
-def report_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -> str:
-    """The whole report page as one string; ``track`` is the trajectory's TCP track if already computed."""
-    track = track if track is not None else tcp_track(traj, robot)
-    stretches = timeline(traj, track)
+def report_html(traj: Trajectory, robot: Robot, basis: PageBasis | None = None) -> str:
+    """The whole report page as one string; ``basis`` is what the pages share if already computed."""
+    basis = basis if basis is not None else page_basis(traj, robot)
+    track, stretches = basis.track, basis.stretches
     shaded = _shaded(stretches, traj.duration_s)
     sing = traj.task.get("singularity", {})
     zone = sing.get("zone", {})
@@ -254,7 +254,7 @@ def report_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -
         ("joints", "Joint positions [deg] with their limits (dashed); crossings shaded.",
          _joints(traj, robot, shaded), math.ceil(len(traj.joint_names) / 2), 4.5),
         ("speed", "Joint speed as a fraction of its limit.",
-         _speed_ratio(traj, joint_speed_ratios(traj, speed_limits(traj, robot)), shaded), 1, 3.0),
+         _speed_ratio(traj, basis.speed_ratio, shaded), 1, 3.0),
     ]
     if "distances" in traj.samples:  # none for an arm without labels (7 joints)
         figures.append(("distances", "Signed singular distances with the detection thresholds, against time (bottom) "

@@ -1,4 +1,5 @@
-"""What report and replay both show, computed once per trajectory: the TCP track and the timeline.
+"""What report and replay both show, computed once per trajectory (:class:`PageBasis`): the TCP
+track, the timeline and the joint speeds.
 
 :func:`tcp_track` runs forward kinematics over every sample once (in chunks) and keeps the TCP
 positions, the distance between samples and the path length; the report plots them and the
@@ -75,6 +76,26 @@ class Stretch:
     @property
     def colour(self) -> int:
         return kind_colour(self.kind)
+
+
+@dataclass(frozen=True)
+class PageBasis:
+    """What both pages draw of a trajectory, computed once (:func:`page_basis`) and passed to each.
+
+    Attributes:
+        track: the TCP at every sample (:func:`tcp_track`).
+        stretches: the coloured timeline (:func:`timeline`).
+        speed_ratio: |qd| / limit (K - 1, n) of each step between samples (:func:`joint_speed_ratios`).
+    """
+
+    track: TcpTrack
+    stretches: list[Stretch]
+    speed_ratio: np.ndarray
+
+
+def page_basis(traj: Trajectory, robot: Robot) -> PageBasis:
+    track = tcp_track(traj, robot)
+    return PageBasis(track, timeline(traj, track), joint_speed_ratios(traj, speed_limits(traj, robot)))
 
 
 def kind_colour(kind: str) -> int:

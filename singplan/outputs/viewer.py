@@ -43,13 +43,13 @@ from singplan.kinematics.robot import Robot, bundled_robots, load_robot
 from singplan.outputs.choices import DEFAULT_HOST
 from singplan.outputs.scene import ROOT, AnimationCommand, RobotScene
 from singplan.outputs.timeline import (
+    PageBasis,
     Stretch,
     TcpTrack,
     display_kind,
-    joint_speed_ratios,
     kind_colour,
+    page_basis,
     sample_range,
-    speed_limits,
     tcp_track,
     timeline,
 )
@@ -122,22 +122,22 @@ class TcpPath:
         return self.xyz[i]
 
 
-def tcp_path(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -> TcpPath:
+def tcp_path(traj: Trajectory, track: TcpTrack, travel: np.ndarray) -> TcpPath:
     """The TCP path at the samples the page shows (:func:`kept_samples` at the path's density),
-    picked from ``track`` when given (FK already done for every sample)."""
-    index = kept_samples(traj, 1, _PATH_POINTS, _PATH_TURN_RAD)
-    return TcpPath(index, robot.tcp_positions(traj.q[index]) if track is None else track.xyz[index])
+    picked from ``track`` (FK already done for every sample); ``travel`` is :func:`joint_travel`."""
+    index = kept_samples(traj, travel, 1, _PATH_POINTS, _PATH_TURN_RAD)
+    return TcpPath(index, track.xyz[index])
 
 
-def kept_samples(traj: Trajectory, min_stride: int, grid_points: int, turn_rad: float) -> np.ndarray:
+def kept_samples(traj: Trajectory, travel: np.ndarray, min_stride: int, grid_points: int,
+                 turn_rad: float) -> np.ndarray:
     """Sample indices (ascending) that stand for the trajectory, about 2 x ``grid_points`` at most
     plus three a segment: a time grid (every ``min_stride`` samples or coarser, at most
-    ``grid_points``), a sample each time some joint has turned ``turn_rad`` more (coarser too if
-    that would be more than ``grid_points``), the last sample, each segment's first and last and
-    each crossing's midpoint."""
+    ``grid_points``), a sample each time some joint has turned ``turn_rad`` more along ``travel``
+    (:func:`joint_travel`; coarser too if that would be more than ``grid_points``), the last
+    sample, each segment's first and last and each crossing's midpoint."""
     last = len(traj.t) - 1
     stride = max(min_stride, math.ceil(last / grid_points))
-    travel = _joint_travel(traj.q)  # (K,) [rad], non-decreasing
     turn = max(turn_rad, float(travel[-1]) / grid_points)
     marks = np.searchsorted(travel, np.arange(turn, travel[-1], turn))  # first sample past each mark
     bounds = [k for seg in traj.segments for k in (*sample_range(traj, seg), _midpoint(traj, seg))]
@@ -145,8 +145,9 @@ def kept_samples(traj: Trajectory, min_stride: int, grid_points: int, turn_rad: 
     return np.unique(keep.astype(np.int64))
 
 
-def _joint_travel(q: np.ndarray) -> np.ndarray:
-    """Cumulative sum over samples of the largest joint step [rad] (K,), formed in chunks."""
+def joint_travel(q: np.ndarray) -> np.ndarray:
+    """Cumulative sum over samples of the largest joint step [rad] (K,), non-decreasing, formed in
+    chunks; computed once for both of the page's sample picks (path points and keyframes)."""
     travel = np.zeros(len(q))
     total = 0.0
     for c in range(0, len(q) - 1, _CHUNK):
@@ -165,7 +166,7 @@ def _midpoint(traj: Trajectory, seg: Segment) -> int:
 
 
 def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Stretch],
-           speed: float = 1.0, loop: bool = False, play: bool = False) -> None:
+           travel: np.ndarray, speed: float = 1.0, loop: bool = False, play: bool = False) -> None:
     """Send the replay scene to ``vis``: robot, paths, crossing markers and the animation."""
     scene = RobotScene.of(robot)
     shown = scene.send(vis, traj.q[0])
@@ -174,7 +175,7 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath
     _draw_segments(vis, traj, tcp, stretches)
     # a frame is a sample: keyframes at kept samples, the exact joint values there
     step = max(1, round(ANIMATION_STEP_S / traj.period))
-    frames = kept_samples(traj, step, _KEYFRAMES, _KEYFRAME_TURN_RAD)
+    frames = kept_samples(traj, travel, step, _KEYFRAMES, _KEYFRAME_TURN_RAD)
     xyz, quat = scene.poses(traj.q[frames])
     # nodes that never move (the base) are left out: the scene already shows them there
     moving = [g for g, name in enumerate(scene.names) if name in shown
@@ -229,16 +230,16 @@ def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
     return np.concatenate(points) if points else tcp.xyz[:1]
 
 
-def replay_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -> str:
+def replay_html(traj: Trajectory, robot: Robot, basis: PageBasis | None = None) -> str:
     """The replay page, a self-contained HTML document (the template and assets of :func:`viewer_dir`);
-    ``track`` is the trajectory's TCP track if already computed (the report's)."""
-    track = track if track is not None else tcp_track(traj, robot)
-    tcp = tcp_path(traj, robot, track)
-    stretches = timeline(traj, track)
+    ``basis`` is what the pages share if already computed (the report's)."""
+    basis = basis if basis is not None else page_basis(traj, robot)
+    travel = joint_travel(traj.q)
+    tcp = tcp_path(traj, basis.track, travel)
     recorder = _Recorder()
-    _scene(meshcat.Visualizer(window=recorder), traj, robot, tcp, stretches)
+    _scene(meshcat.Visualizer(window=recorder), traj, robot, tcp, basis.stretches, travel)
     assets = viewer_dir()
-    data = _page_data(traj, robot, tcp, stretches)
+    data = _page_data(traj, tcp, basis)
     data["commands"] = [base64.b64encode(_packed(c)).decode("ascii") for c in recorder.commands]
     title = escape(f"singplan replay: {traj.robot}, {traj.duration_s:.3f} s")
     fills = {"__TITLE__": title, "__CSS__": (assets / "replay.css").read_text(),
@@ -258,11 +259,12 @@ def _meshcat_bundle() -> str:
     return (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text()
 
 
-def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Stretch] | None = None) -> dict[str, Any]:
+def _page_data(traj: Trajectory, tcp: TcpPath, basis: PageBasis) -> dict[str, Any]:
     """What replay.js shows besides the scene: segments, crossing labels, speed strip, camera, legend."""
     segments, labels = [], []
+    stretches = basis.stretches
     woven = woven_moves(traj.task)
-    pauses = {s.segment: s for s in stretches or () if s.kind == "pause"}
+    pauses = {s.segment: s for s in stretches if s.kind == "pause"}
     for n, seg in enumerate(traj.segments):
         title, detail = _describe(seg, pauses.get(n))
         title += " (woven)" if seg.move in woven and seg.kind != "crossing" else ""
@@ -275,7 +277,7 @@ def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Str
             text = (f"{title.split(': ', 1)[1]}; {d.get('max_position_error_mm', 0.0):.3f} mm / "
                     f"{d.get('max_orientation_error_deg', 0.0):.2f} deg")
             labels.append({"text": text, "xyz": tcp.at(_midpoint(traj, seg)).tolist()})
-    ratio = joint_speed_ratios(traj, speed_limits(traj, robot)).max(axis=1, initial=0.0).astype(float)  # at t[1:]
+    ratio = basis.speed_ratio.max(axis=1, initial=0.0).astype(float)  # (K - 1,), at t[1:]
     keep = _extremes(ratio, _STRIP_POINTS)
     points = np.vstack([tcp.xyz, np.zeros((1, 3))])  # the path and the robot's base
     lo, hi = points.min(axis=0), points.max(axis=0)
@@ -400,8 +402,9 @@ def serve_replay(traj: Trajectory, robot: Robot, speed: float = 1.0, loop: bool 
         with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its URL; the caller decides
             vis = meshcat.Visualizer(zmq_url=command_url)
         live = LiveReplay(vis.url(), host, vis, server)
-        track = tcp_track(traj, robot)
-        _scene(vis, traj, robot, tcp_path(traj, robot, track), timeline(traj, track), speed=speed, loop=loop, play=True)
+        track, travel = tcp_track(traj, robot), joint_travel(traj.q)
+        _scene(vis, traj, robot, tcp_path(traj, track, travel), timeline(traj, track), travel, speed=speed, loop=loop,
+               play=True)
     except BaseException:
         _stop(server)
         raise

@@ -29,16 +29,17 @@ from singplan.outputs import viewer as viewer_module
 from singplan.outputs.pages import build_pages
 from singplan.outputs.report import report_html
 from singplan.outputs.scene import AnimationCommand
-from singplan.outputs.svgplot import Panel, envelope, figure_svg, nice_ticks
+from singplan.outputs.svgplot import LIMIT_COLOUR, PALETTE, Panel, envelope, figure_svg, nice_ticks
 from singplan.outputs.timeline import (
     SEGMENT_COLOURS,
+    SHADED_OPACITY,
     joint_speed_ratios,
     pause_window,
     speed_limits,
     tcp_track,
     timeline,
 )
-from singplan.outputs.viewer import joint_travel, programmed_path, replay_html, robot_of, tcp_path
+from singplan.outputs.viewer import joint_travel, programmed_path, replay_html, robot_of, tcp_path, viewer_dir
 from singplan.planning.pieces import move_piece
 from singplan.planning.weave import drawing_count
 from singplan.results.plan import plan
@@ -279,6 +280,17 @@ def test_the_programmed_path_is_the_planners_piece(demo: Trajectory, robot: Robo
     piece = move_piece(0, Move.from_mapping(demo.task["moves"][0]), robot.fk(demo.q[0]))
     count = drawing_count(piece)
     assert np.array_equal(path[:count], piece.positions(np.linspace(0.0, 1.0, count)))
+
+
+def test_the_replay_takes_the_reports_colours_from_the_page_data(demo: Trajectory, robot: Robot) -> None:
+    palette = _page_data(replay_html(demo, robot))["palette"]
+    assert palette["limit"] == LIMIT_COLOUR and palette["curve"] == PALETTE[0]
+    assert palette["label"] == SEGMENT_COLOURS["crossing"]
+    assert palette["shaded"] == {kind: SHADED_OPACITY[kind] for kind in ("crossing", "blend", "pause")}
+    script, style = ((viewer_dir() / name).read_text() for name in ("replay.js", "replay.css"))
+    written = {int(c, 16) for c in re.findall(r"#([0-9a-fA-F]{6})\b", script + style)}
+    ours = {*SEGMENT_COLOURS.values(), *(int(c[1:], 16) for c in (*PALETTE, LIMIT_COLOUR))}
+    assert not written & ours and "rgba(" not in script  # no colour of the report written again
 
 
 def test_the_viewer_imports_neither_the_task_loader_nor_the_planner() -> None:

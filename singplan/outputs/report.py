@@ -22,7 +22,7 @@ import numpy as np
 from singplan.kinematics.dynamics import trajectory_torques
 from singplan.kinematics.robot import Robot
 from singplan.outputs.svgplot import Panel, envelope, figure_svg
-from singplan.outputs.timeline import PageBasis, Stretch, page_basis
+from singplan.outputs.timeline import SHADED_OPACITY, PageBasis, Stretch, page_basis
 from singplan.results.trajectory import Trajectory
 from singplan.task.schema import (
     DEFAULT_ORIENTATION_TOLERANCE_DEG,
@@ -33,7 +33,6 @@ from singplan.task.schema import (
 )
 
 _PLOT_BUCKETS = 1000  # a curve longer than two points a bucket is drawn as its min/max envelope (> 1 a pixel)
-_SHADED = {"crossing": 0.18, "weave": 0.10, "blend": 0.16, "pause": 0.30}  # stretch kinds shaded on time plots
 _LEGEND = {"path": "path", "pre": "before a zone", "crossing": "crossing", "post": "after a zone", "ptp": "PTP",
            "blend": "fly-by blend", "weave": "woven move", "pause": "null-space pause (TCP still)"}
 
@@ -59,8 +58,8 @@ def _curve(panel: Panel, x: np.ndarray, y: np.ndarray, **style: Any) -> None:
 
 def _shaded(stretches: list[Stretch], duration_s: float) -> Callable[[], Panel]:
     """A factory of panels with the timeline's shading (crossings, blends, pauses, weave)."""
-    spans = [(t0, t1, _hex(s.colour), _SHADED[s.kind]) for s in {s.kind: s for s in stretches}.values()
-             if s.kind in _SHADED for t0, t1 in _covered(stretches, s.kind, duration_s)]
+    spans = [(t0, t1, _hex(s.colour), SHADED_OPACITY[s.kind]) for s in {s.kind: s for s in stretches}.values()
+             if s.kind in SHADED_OPACITY for t0, t1 in _covered(stretches, s.kind, duration_s)]
 
     def make() -> Panel:
         panel = Panel()

@@ -21,10 +21,14 @@ from singplan.planning.weave import woven_moves
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.schema import DEFAULT_VELOCITY_SCALE
 
-# one colour per stretch kind, for the report's shading and the replay's path and legend
+# one colour per stretch kind, for the report's shading and the replay's path, markers, strip and legend
+# (the one home of the pages' colours, with svgplot's curve palette and limit colour)
 SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575,
                    "blend": 0xE53935, "weave": 0x00897B, "pause": 0x8D6E63}
 OTHER_COLOUR = 0x000000  # a segment kind this version does not know
+# stretch kinds shaded over the time plots (report) and the speed strip (replay), with the shade's opacity
+SHADED_OPACITY = {"crossing": 0.18, "weave": 0.10, "blend": 0.16, "pause": 0.30}
+PROGRAMMED_COLOUR = 0x9E9E9E  # the programmed path, drawn under the executed one
 _STILL_M = 1e-7  # a TCP step below this between two samples counts as standing still (0.1 um)
 
 

@@ -42,7 +42,10 @@ from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot, bundled_robots, load_robot
 from singplan.outputs.choices import DEFAULT_HOST
 from singplan.outputs.scene import ROOT, AnimationCommand, RobotScene
+from singplan.outputs.svgplot import LIMIT_COLOUR, PALETTE
 from singplan.outputs.timeline import (
+    PROGRAMMED_COLOUR,
+    SHADED_OPACITY,
     PageBasis,
     Stretch,
     TcpTrack,
@@ -73,6 +76,7 @@ _PATH_POINTS = 10_000  # executed-path points on the time grid (a line, and ever
 _PATH_TURN_RAD = 0.01  # ... and at least every 0.01 rad of a joint
 _DOT_EVERY = 3  # executed-path dots: one per this many path points
 _STRIP_POINTS = 1500  # joint-speed strip: at most this many points (each bucket's lowest and highest)
+_STRIP_SHADED = ("crossing", "blend", "pause")  # where the robot leaves the plain path or the TCP waits
 _VIEW_DIRECTION = np.array([0.8, -1.0, 0.75]) / np.linalg.norm([0.8, -1.0, 0.75])  # camera side of the scene
 _PACKAGE_DIR = Path(__file__).resolve().parents[1]  # the singplan package folder
 
@@ -171,7 +175,7 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath
     scene = RobotScene.of(robot)
     shown = scene.send(vis, traj.q[0])
     vis["/Grid"].set_property("visible", False)  # the robot's base axes show the ground frame
-    vis["paths/programmed"].set_object(_line(programmed_path(traj, robot, tcp), 0x9E9E9E, 1.0))
+    vis["paths/programmed"].set_object(_line(programmed_path(traj, robot, tcp), PROGRAMMED_COLOUR, 1.0))
     _draw_segments(vis, traj, tcp, stretches)
     # a frame is a sample: keyframes at kept samples, the exact joint values there
     step = max(1, round(ANIMATION_STEP_S / traj.period))
@@ -202,7 +206,7 @@ def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath, stre
     for n, seg in enumerate(traj.segments):
         if seg.kind == "crossing":
             marker = vis[f"crossings/{n:03d}_{seg.singularity}_{seg.method}"]
-            marker.set_object(mg.Sphere(0.012), mg.MeshLambertMaterial(color=0xF4B400, opacity=0.8))
+            marker.set_object(mg.Sphere(0.012), mg.MeshLambertMaterial(color=kind_colour("crossing"), opacity=0.8))
             marker.set_transform(mtf.translation_matrix(tcp.at(_midpoint(traj, seg))))
 
 
@@ -287,6 +291,8 @@ def _page_data(traj: Trajectory, tcp: TcpPath, basis: PageBasis) -> dict[str, An
          for seg in traj.segments]
     return {"duration": traj.duration_s, "colours": {b["kind"]: b["colour"] for b in bands},
             "segments": segments, "labels": labels, "bands": bands,
+            "palette": {"limit": LIMIT_COLOUR, "curve": PALETTE[0], "label": kind_colour("crossing"),
+                        "shaded": {kind: SHADED_OPACITY[kind] for kind in _STRIP_SHADED}},
             "speed": {"t": np.round(traj.t[1:][keep], 4).tolist(), "ratio": np.round(ratio[keep], 4).tolist()},
             "frame": {"center": (0.5 * (lo + hi)).tolist(), "distance": 2.2 * radius,
                       "direction": _VIEW_DIRECTION.tolist()}}

@@ -15,6 +15,7 @@ import re
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -24,14 +25,29 @@ import umsgpack
 
 from singplan.kinematics.robot import Robot
 from singplan.outputs import timeline as timeline_module
+from singplan.outputs import viewer as viewer_module
 from singplan.outputs.pages import build_pages
 from singplan.outputs.report import report_html
 from singplan.outputs.scene import AnimationCommand
-from singplan.outputs.svgplot import Panel, envelope, figure_svg, nice_ticks
-from singplan.outputs.timeline import SEGMENT_COLOURS, pause_window, tcp_track, timeline
-from singplan.outputs.viewer import programmed_path, replay_html, robot_of, tcp_path
+from singplan.outputs.svgplot import LIMIT_COLOUR, PALETTE, Panel, envelope, figure_svg, nice_ticks
+from singplan.outputs.timeline import (
+    SEGMENT_COLOURS,
+    SHADED_OPACITY,
+    joint_speed_ratios,
+    pause_window,
+    speed_limits,
+    tcp_track,
+    timeline,
+)
+from singplan.outputs.viewer import joint_travel, programmed_path, replay_html, robot_of, tcp_path, viewer_dir
+from singplan.planning.pieces import move_piece
+from singplan.planning.weave import drawing_count
 from singplan.results.plan import plan
 from singplan.results.trajectory import Segment, Trajectory
+from singplan.task.load import parse_task
+from singplan.task.schema import Move, PoseSpec, Weave
+
+from .task_strategies import seeded_task
 
 ROOT = Path(__file__).resolve().parents[1]
 HOLD = 50  # samples of the synthetic null-space pause
@@ -135,7 +151,7 @@ def test_report_and_replay_show_blends_and_pauses(demo: Trajectory, robot: Robot
     assert blend["colour"] == SEGMENT_COLOURS["blend"] and blend["title"] == "move 0: fly-by blend"
 
 
-def test_pages_share_one_fk_pass_over_the_samples(demo: Trajectory, robot: Robot,
+def test_pages_share_one_fk_pass_timeline_and_speed_over_the_samples(demo: Trajectory, robot: Robot,
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     calls: list[int] = []
     original = Robot.tcp_positions
@@ -145,9 +161,21 @@ def test_pages_share_one_fk_pass_over_the_samples(demo: Trajectory, robot: Robot
         return original(self, q)
 
     monkeypatch.setattr(Robot, "tcp_positions", counted)
+    runs: list[str] = []
+
+    def counting(name: str, f: Callable[..., object]) -> Callable[..., object]:
+        def run(*args: object) -> object:
+            runs.append(name)
+            return f(*args)
+        return run
+
+    for module, name in ((timeline_module, "timeline"), (timeline_module, "joint_speed_ratios"),
+                         (viewer_module, "joint_travel")):
+        monkeypatch.setattr(module, name, counting(name, getattr(module, name)))
     pages, skipped = build_pages(demo, robot, report=True, replay=True)
     assert skipped == {} and set(pages) == {"report.html", "replay.html"}
     assert sum(calls) == len(demo.t)  # every sample once, for both pages
+    assert sorted(runs) == ["joint_speed_ratios", "joint_travel", "timeline"]  # each once for both pages
 
 
 def test_report_plots_are_svg_and_bounded_for_long_trajectories(demo: Trajectory, robot: Robot) -> None:
@@ -209,6 +237,17 @@ def test_figure_places_curves_inside_their_panel_and_ids_are_unique() -> None:
     assert "j1" in svg and "worst" in svg
 
 
+def test_report_and_replay_show_the_joint_speed_the_metrics_and_checker_measure(demo: Trajectory,
+                                                                                 robot: Robot) -> None:
+    ratios = joint_speed_ratios(demo, speed_limits(demo, robot))
+    forward = np.abs(np.diff(demo.q, axis=0)) / demo.period / speed_limits(demo, robot)  # the checker's qd
+    assert ratios.shape == forward.shape and np.allclose(ratios, forward, rtol=1e-6, atol=0)
+    assert float(ratios.max()) == pytest.approx(demo.metrics.max_joint_speed_ratio, rel=1e-6)
+    strip = _page_data(replay_html(demo, robot))["speed"]
+    assert max(strip["ratio"]) == pytest.approx(demo.metrics.max_joint_speed_ratio, abs=1e-4)
+    assert strip["t"][0] == pytest.approx(demo.t[1])  # step 0 -> 1, drawn where it ends
+
+
 # -- replay -----------------------------------------------------------------------------------
 
 
@@ -216,7 +255,7 @@ def test_programmed_path_comes_from_the_record_not_the_task_parser(monkeypatch: 
     traj = plan(ROOT / "examples" / "kuka_program.yaml")  # LIN, CIRC, PTP
     robot = robot_of(traj)
     monkeypatch.setattr("singplan.task.load.parse_task", lambda *a, **k: pytest.fail("the task was re-parsed"))
-    path = programmed_path(traj, robot, tcp_path(traj, robot))
+    path = programmed_path(traj, robot, tcp_path(traj, tcp_track(traj, robot), joint_travel(traj.q)))
     lin, circ = traj.task["moves"][0]["lin"], traj.task["moves"][1]["circ"]
     assert np.allclose(path[0], robot.fk(traj.q[0]).translation, atol=1e-12)
     assert np.allclose(path[63], lin["to"]["xyz"], atol=1e-12)  # the LIN's 64 points end on its target
@@ -224,6 +263,34 @@ def test_programmed_path_comes_from_the_record_not_the_task_parser(monkeypatch: 
     arc = path[64:128]
     centre_distance = np.linalg.norm(arc - np.asarray(circ["via"]["xyz"]), axis=1).min()
     assert centre_distance < 0.01  # the arc passes by its via point (64 points on ~0.5 m)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_a_move_comes_back_from_the_recorded_task_mapping(seed: int) -> None:
+    task = parse_task(seeded_task(seed))
+    weave = Move("lin", to=PoseSpec((0.5, 0.1, 0.4)), speed_m_s=0.1, weave=Weave("triangle", 2.0, 15.0),
+                 blend_mm=5.0)
+    task = replace(task, moves=(*task.moves, weave))
+    recorded = json.loads(json.dumps(task.to_mapping()))  # as trajectory.json keeps it
+    assert [Move.from_mapping(m) for m in recorded["moves"]] == list(task.moves)
+
+
+def test_the_programmed_path_is_the_planners_piece(demo: Trajectory, robot: Robot) -> None:
+    path = programmed_path(demo, robot, tcp_path(demo, tcp_track(demo, robot), joint_travel(demo.q)))
+    piece = move_piece(0, Move.from_mapping(demo.task["moves"][0]), robot.fk(demo.q[0]))
+    count = drawing_count(piece)
+    assert np.array_equal(path[:count], piece.positions(np.linspace(0.0, 1.0, count)))
+
+
+def test_the_replay_takes_the_reports_colours_from_the_page_data(demo: Trajectory, robot: Robot) -> None:
+    palette = _page_data(replay_html(demo, robot))["palette"]
+    assert palette["limit"] == LIMIT_COLOUR and palette["curve"] == PALETTE[0]
+    assert palette["label"] == SEGMENT_COLOURS["crossing"]
+    assert palette["shaded"] == {kind: SHADED_OPACITY[kind] for kind in ("crossing", "blend", "pause")}
+    script, style = ((viewer_dir() / name).read_text() for name in ("replay.js", "replay.css"))
+    written = {int(c, 16) for c in re.findall(r"#([0-9a-fA-F]{6})\b", script + style)}
+    ours = {*SEGMENT_COLOURS.values(), *(int(c[1:], 16) for c in (*PALETTE, LIMIT_COLOUR))}
+    assert not written & ours and "rgba(" not in script  # no colour of the report written again
 
 
 def test_the_viewer_imports_neither_the_task_loader_nor_the_planner() -> None:

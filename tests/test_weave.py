@@ -257,8 +257,8 @@ def test_the_weave_seam_example_plans_and_its_triangle_corners_keep_the_accelera
 
 def test_report_and_replay_show_the_weave_and_the_stopping_distance() -> None:
     from singplan.outputs.report import report_html
-    from singplan.outputs.timeline import SEGMENT_COLOURS
-    from singplan.outputs.viewer import _page_data, programmed_path, robot_of, tcp_path
+    from singplan.outputs.timeline import SEGMENT_COLOURS, page_basis
+    from singplan.outputs.viewer import _page_data, joint_travel, programmed_path, robot_of, tcp_path
 
     # a triangle corner sits on the singular point: this failed (acceleration x7) without corner samples
     doc = _demo_with_weave("exact", {"pattern": "triangle", "amplitude_mm": 3.0, "wavelength_mm": 20.0})
@@ -268,8 +268,9 @@ def test_report_and_replay_show_the_weave_and_the_stopping_distance() -> None:
     page = report_html(traj, robot)
     assert 'id="plot-stopping"' in page and "max_stopping_distance_mm" in page
     assert "#00897b" in page.lower()  # the woven move's shading (the SVG writes its colour)
-    tcp = tcp_path(traj, robot)
-    data = _page_data(traj, robot, tcp)
+    basis = page_basis(traj, robot)
+    tcp = tcp_path(traj, basis.track, joint_travel(traj.q))
+    data = _page_data(traj, tcp, basis)
     colours = {(s["move"], s["kind"]): s["colour"] for s in data["segments"]}
     assert colours[(0, "crossing")] == SEGMENT_COLOURS["crossing"]
     assert {colours[(0, kind)] for kind in ("pre", "post")} == {SEGMENT_COLOURS["weave"]}

@@ -15,9 +15,7 @@
   animator.pause();
 
   const hex = (colour) => "#" + colour.toString(16).padStart(6, "0");
-  // stretches also shaded above the band: where the robot leaves the plain path or the TCP waits
-  const SHADED = { crossing: "rgba(244, 180, 0, 0.18)", blend: "rgba(229, 57, 53, 0.15)",
-    pause: "rgba(141, 110, 99, 0.3)" };
+  const palette = data.palette;  // the report's colours, from singplan/outputs/timeline.py and svgplot.py
   const toThree = (xyz) => viewer.scene.localToWorld(new THREE.Vector3(xyz[0], xyz[1], xyz[2]));
 
   function currentTime() {
@@ -68,6 +66,7 @@
     return data.labels.map((label) => {
       const div = document.createElement("div");
       div.className = "sp-label";
+      div.style.background = hex(palette.label);
       div.textContent = label.text;
       layer.appendChild(div);
       return { div, point: label.xyz };
@@ -97,19 +96,20 @@
     for (const band of data.bands) {  // stretch kinds (segments, null-space pauses) as a band under the curve
       ctx.fillStyle = hex(band.colour);
       ctx.fillRect(x(band.t0), height - 8, Math.max(1, x(band.t1) - x(band.t0)), 8);
-      if (band.kind in SHADED) {
-        ctx.fillStyle = SHADED[band.kind];
+      if (band.kind in palette.shaded) {  // also shaded above the band
+        ctx.globalAlpha = palette.shaded[band.kind];
         ctx.fillRect(x(band.t0), 0, x(band.t1) - x(band.t0), height - 8);
+        ctx.globalAlpha = 1;
       }
     }
-    ctx.strokeStyle = "#c62828";
+    ctx.strokeStyle = palette.limit;
     ctx.setLineDash([5, 4]);
     ctx.beginPath();
     ctx.moveTo(0, y(1));
     ctx.lineTo(width, y(1));
     ctx.stroke();
     ctx.setLineDash([]);
-    ctx.strokeStyle = "#1565c0";
+    ctx.strokeStyle = palette.curve;
     ctx.lineWidth = 1.5;
     ctx.beginPath();
     s.t.forEach((t, i) => (i ? ctx.lineTo(x(t), y(s.ratio[i])) : ctx.moveTo(x(t), y(s.ratio[i]))));

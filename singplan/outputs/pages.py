@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 from singplan.errors import SingplanError
 from singplan.kinematics.robot import Robot
-from singplan.outputs.timeline import TcpTrack, tcp_track
+from singplan.outputs.timeline import PageBasis, page_basis
 from singplan.results.trajectory import Trajectory
 
 REPORT_FILE = "report.html"
@@ -31,7 +31,8 @@ def page_names(report: bool, replay: bool) -> tuple[str, ...]:
 def build_pages(traj: Trajectory, robot: Robot, report: bool, replay: bool) -> tuple[dict[str, str], dict[str, str]]:
     """The pages asked for ({file name: html}) and why any could not be built ({file name: reason}).
 
-    The TCP track (forward kinematics of every sample) is computed once and shared by both pages.
+    What both pages draw (:class:`~singplan.outputs.timeline.PageBasis`: forward kinematics of every
+    sample, the timeline, the joint speeds) is computed once and shared.
     """
     pages: dict[str, str] = {}
     skipped: dict[str, str] = {}
@@ -39,12 +40,12 @@ def build_pages(traj: Trajectory, robot: Robot, report: bool, replay: bool) -> t
     if not wanted:
         return pages, skipped
     try:
-        track = tcp_track(traj, robot)
+        basis = page_basis(traj, robot)
     except Exception as exc:  # no page then, but the trajectory stands
         return {}, dict.fromkeys(wanted, _reason(exc))
     for name in wanted:
         try:
-            pages[name] = _builder(name)(traj, robot, track)
+            pages[name] = _builder(name)(traj, robot, basis)
         except Exception as exc:  # a page that cannot be built loses that page only, never the trajectory
             skipped[name] = _reason(exc)
     return pages, skipped
@@ -54,7 +55,7 @@ def _reason(exc: Exception) -> str:
     return str(exc) if isinstance(exc, SingplanError) else f"{type(exc).__name__}: {exc}"
 
 
-def _builder(name: str) -> Callable[[Trajectory, Robot, TcpTrack], str]:
+def _builder(name: str) -> Callable[[Trajectory, Robot, PageBasis], str]:
     if name == REPORT_FILE:
         from singplan.outputs.report import report_html
 

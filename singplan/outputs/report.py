@@ -14,15 +14,14 @@ from __future__ import annotations
 
 import html
 import math
-from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from singplan.kinematics.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
+from singplan.kinematics.dynamics import trajectory_torques
 from singplan.kinematics.robot import Robot
 from singplan.outputs.svgplot import Panel, envelope, figure_svg
-from singplan.outputs.timeline import Stretch, TcpTrack, speed_limits, tcp_track, timeline
+from singplan.outputs.timeline import SHADED_OPACITY, PageBasis, Stretch, page_basis
 from singplan.results.trajectory import Trajectory
 from singplan.task.schema import (
     DEFAULT_ORIENTATION_TOLERANCE_DEG,
@@ -33,7 +32,6 @@ from singplan.task.schema import (
 )
 
 _PLOT_BUCKETS = 1000  # a curve longer than two points a bucket is drawn as its min/max envelope (> 1 a pixel)
-_SHADED = {"crossing": 0.18, "weave": 0.10, "blend": 0.16, "pause": 0.30}  # stretch kinds shaded on time plots
 _LEGEND = {"path": "path", "pre": "before a zone", "crossing": "crossing", "post": "after a zone", "ptp": "PTP",
            "blend": "fly-by blend", "weave": "woven move", "pause": "null-space pause (TCP still)"}
 
@@ -46,7 +44,14 @@ figure{margin:0 0 1.5em}figcaption{color:#555;font-size:0.9em}
 .timeline{position:relative;height:18px;background:#eee;margin-top:0.5em}
 .timeline i{position:absolute;top:0;bottom:0}"""
 
-_Draw = Callable[[], list[Panel]]
+class _Figure(NamedTuple):
+    """A figure of the page: its id key, caption, panels and layout (columns, height [in])."""
+
+    key: str
+    caption: str
+    panels: list[Panel]
+    columns: int = 1
+    height_in: float = 3.0
 
 
 def _hex(colour: int) -> str:
@@ -57,17 +62,19 @@ def _curve(panel: Panel, x: np.ndarray, y: np.ndarray, **style: Any) -> None:
     panel.curve(*envelope(x, y, _PLOT_BUCKETS), **style)
 
 
-def _shaded(stretches: list[Stretch], duration_s: float) -> Callable[[], Panel]:
-    """A factory of panels with the timeline's shading (crossings, blends, pauses, weave)."""
-    spans = [(t0, t1, _hex(s.colour), _SHADED[s.kind]) for s in {s.kind: s for s in stretches}.values()
-             if s.kind in _SHADED for t0, t1 in _covered(stretches, s.kind, duration_s)]
+class _Shading:
+    """The timeline's shaded spans (crossings, blends, pauses, weave), laid under every time plot."""
 
-    def make() -> Panel:
-        panel = Panel()
-        for span in spans:
+    def __init__(self, stretches: list[Stretch], duration_s: float) -> None:
+        self.spans = [(t0, t1, _hex(s.colour), SHADED_OPACITY[s.kind]) for s in {s.kind: s for s in stretches}.values()
+                      if s.kind in SHADED_OPACITY for t0, t1 in _covered(stretches, s.kind, duration_s)]
+
+    def panel(self, **labels: Any) -> Panel:
+        """A new panel with the shading (``labels``: its title, axis labels, legend, top axis)."""
+        panel = Panel(**labels)
+        for span in self.spans:
             panel.span(*span)
         return panel
-    return make
 
 
 def _covered(stretches: list[Stretch], kind: str, duration_s: float) -> list[tuple[float, float]]:
@@ -90,107 +97,84 @@ def _path_length_axis(traj: Trajectory, s_mm: np.ndarray) -> Any:
     return "path length [mm]", lambda t: np.interp(t, traj.t, s_mm), lambda s: np.interp(s, s_mm, traj.t)
 
 
-def _joints(traj: Trajectory, robot: Robot, shaded: Callable[[], Panel]) -> _Draw:
-    def draw() -> list[Panel]:
-        panels = []
-        for j, name in enumerate(traj.joint_names):
-            panel = shaded()
-            panel.title = name
-            _curve(panel, traj.t, np.degrees(traj.q[:, j]))
-            for limit in (robot.lower_rad[j], robot.upper_rad[j]):
-                panel.hline(math.degrees(limit))
-            panels.append(panel)
-        return panels
-    return draw
+def _joints(traj: Trajectory, robot: Robot, shading: _Shading) -> list[Panel]:
+    """A panel a joint: its position [deg] and its limits."""
+    panels = []
+    for j, name in enumerate(traj.joint_names):
+        panel = shading.panel(title=name)
+        _curve(panel, traj.t, np.degrees(traj.q[:, j]))
+        for limit in (robot.lower_rad[j], robot.upper_rad[j]):
+            panel.hline(math.degrees(limit))
+        panels.append(panel)
+    return panels
 
 
-def _speed_ratio(traj: Trajectory, vmax: np.ndarray, shaded: Callable[[], Panel]) -> _Draw:
-    return _joint_ratios(traj, traj.t[1:], lambda j: np.abs(np.diff(traj.q[:, j])) / traj.period / vmax[j],
-                         "|qd| / limit", shaded)
+def _joint_ratios(traj: Trajectory, t: np.ndarray, ratios: np.ndarray, ylabel: str, shading: _Shading) -> list[Panel]:
+    """One panel of each joint's ratio to its limit (``ratios``, (K, n)) against t (K,), and the limit line."""
+    panel = shading.panel(xlabel="t [s]", ylabel=ylabel, legend=True)
+    for j, name in enumerate(traj.joint_names):
+        _curve(panel, t, ratios[:, j], label=name, width=1.0)
+    panel.hline(1.0)
+    return [panel]
 
 
-def _torque_ratio(traj: Trajectory, robot: Robot, scale: float, shaded: Callable[[], Panel]) -> _Draw:
-    _, ratios = trajectory_torques(robot, traj.q, traj.period, effort_limits_nm(robot) * scale, series=True)
+def _torque_ratio(traj: Trajectory, robot: Robot, limit_nm: np.ndarray, shading: _Shading) -> list[Panel]:
+    _, ratios = trajectory_torques(robot, traj.q, traj.period, limit_nm, series=True)
     assert ratios is not None
-    return _joint_ratios(traj, traj.t, lambda j: ratios[:, j], "|tau| / limit", shaded)
+    return _joint_ratios(traj, traj.t, ratios, "|tau| / limit", shading)
 
 
-def _joint_ratios(traj: Trajectory, t: np.ndarray, ratio: Callable[[int], np.ndarray], ylabel: str,
-                  shaded: Callable[[], Panel]) -> _Draw:
-    """One panel of each joint's ratio to its limit (``ratio(j)``, (K,)) against t (K,), and the limit line."""
-    def draw() -> list[Panel]:
-        panel = shaded()
-        panel.xlabel, panel.ylabel, panel.legend = "t [s]", ylabel, True
-        for j, name in enumerate(traj.joint_names):  # a joint at a time: a million samples stay small
-            _curve(panel, t, ratio(j), label=name, width=1.0)
-        panel.hline(1.0)
-        return [panel]
-    return draw
-
-
-def _distances(traj: Trajectory, thresholds: list[float], s_mm: np.ndarray, shaded: Callable[[], Panel]) -> _Draw:
+def _distances(traj: Trajectory, thresholds: list[float], s_mm: np.ndarray, shading: _Shading) -> list[Panel]:
+    """The signed wrist, shoulder and elbow distances with their detection thresholds."""
     d = traj.samples["distances"]
-    series = [("wrist [deg]", np.degrees(d[:, 0]), thresholds[0]), ("shoulder [mm]", d[:, 1] * 1e3, thresholds[1]),
-              ("elbow [deg]", np.degrees(d[:, 2]), thresholds[2])]
-
-    def draw() -> list[Panel]:
-        panels = []
-        for label, values, thr in series:
-            panel = shaded()
-            panel.title, panel.xlabel = label, "t [s]"
-            panel.top = _path_length_axis(traj, s_mm)
-            _curve(panel, traj.t, values)
-            for sign in (-1, 1):
-                panel.hline(sign * thr)
-            panel.hline(0.0, colour="#000000", dashed=False)
-            panels.append(panel)
-        return panels
-    return draw
+    panels = []
+    for label, values, thr in (("wrist [deg]", np.degrees(d[:, 0]), thresholds[0]),
+                               ("shoulder [mm]", d[:, 1] * 1e3, thresholds[1]),
+                               ("elbow [deg]", np.degrees(d[:, 2]), thresholds[2])):
+        panel = shading.panel(title=label, xlabel="t [s]", top=_path_length_axis(traj, s_mm))
+        _curve(panel, traj.t, values)
+        for sign in (-1, 1):
+            panel.hline(sign * thr)
+        panel.hline(0.0, colour="#000000", dashed=False)
+        panels.append(panel)
+    return panels
 
 
 def _deviation(traj: Trajectory, pos_tol_mm: float, ori_tol_deg: float, s_mm: np.ndarray,
-               shaded: Callable[[], Panel]) -> _Draw:
-    def draw() -> list[Panel]:
-        panels = []
-        for label, values, tol in (
-                ("position deviation [mm]", traj.samples["position_error_m"] * 1e3, pos_tol_mm),
-                ("orientation deviation [deg]", np.degrees(traj.samples["orientation_error_rad"]), ori_tol_deg)):
-            panel = shaded()
-            panel.title, panel.xlabel = label, "t [s]"
-            panel.top = _path_length_axis(traj, s_mm)
-            _curve(panel, traj.t, values)
-            panel.hline(tol)
-            panels.append(panel)
-        return panels
-    return draw
+               shading: _Shading) -> list[Panel]:
+    """The position and orientation deviation from the programmed path with their tolerances."""
+    panels = []
+    for label, values, tol in (
+            ("position deviation [mm]", traj.samples["position_error_m"] * 1e3, pos_tol_mm),
+            ("orientation deviation [deg]", np.degrees(traj.samples["orientation_error_rad"]), ori_tol_deg)):
+        panel = shading.panel(title=label, xlabel="t [s]", top=_path_length_axis(traj, s_mm))
+        _curve(panel, traj.t, values)
+        panel.hline(tol)
+        panels.append(panel)
+    return panels
 
 
-def _tcp_speed(traj: Trajectory, step_m: np.ndarray, shaded: Callable[[], Panel]) -> _Draw:
-    def draw() -> list[Panel]:
-        panel = shaded()
-        panel.xlabel, panel.ylabel = "t [s]", "[m/s]"
-        _curve(panel, traj.t[1:], step_m / traj.period, label="TCP speed")
-        by_move = traj.segments_by_move()
-        for i, move in enumerate(traj.task["moves"]):
-            kind, spec = next(iter(move.items()))
-            segs = by_move.get(i)
-            if kind != "ptp" and segs:
-                panel.hline(spec["speed"], x0=segs[0].t0, x1=segs[-1].t1)
-        return [panel]
-    return draw
+def _tcp_speed(traj: Trajectory, step_m: np.ndarray, shading: _Shading) -> list[Panel]:
+    """The TCP speed between samples, and each LIN / CIRC's programmed speed over its time."""
+    panel = shading.panel(xlabel="t [s]", ylabel="[m/s]")
+    _curve(panel, traj.t[1:], step_m / traj.period, label="TCP speed")
+    by_move = traj.segments_by_move()
+    for i, move in enumerate(traj.task["moves"]):
+        kind, spec = next(iter(move.items()))
+        segs = by_move.get(i)
+        if kind != "ptp" and segs:
+            panel.hline(spec["speed"], x0=segs[0].t0, x1=segs[-1].t1)
+    return [panel]
 
 
-def _stopping(traj: Trajectory, shaded: Callable[[], Panel]) -> _Draw:
+def _stopping(traj: Trajectory, shading: _Shading) -> list[Panel]:
+    """The stopping distance, its worst sample marked."""
     distance_mm = traj.samples["stopping_distance_m"] * 1e3
-
-    def draw() -> list[Panel]:
-        panel = shaded()
-        panel.xlabel, panel.ylabel = "t [s]", "stopping distance [mm]"
-        _curve(panel, traj.t, distance_mm)
-        k = int(np.argmax(distance_mm))
-        panel.point(traj.t[k], distance_mm[k], f"{distance_mm[k]:.1f} mm")
-        return [panel]
-    return draw
+    panel = shading.panel(xlabel="t [s]", ylabel="stopping distance [mm]")
+    _curve(panel, traj.t, distance_mm)
+    k = int(np.argmax(distance_mm))
+    panel.point(traj.t[k], distance_mm[k], f"{distance_mm[k]:.1f} mm")
+    return [panel]
 
 
 def _timeline(traj: Trajectory, stretches: list[Stretch]) -> str:
@@ -243,45 +227,52 @@ def _tables(traj: Trajectory) -> str:
             + "<h2>Metrics</h2>" + _table(["metric", "value"], metrics))
 
 
-def report_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -> str:
-    """The whole report page as one string; ``track`` is the trajectory's TCP track if already computed."""
-    track = track if track is not None else tcp_track(traj, robot)
-    stretches = timeline(traj, track)
-    shaded = _shaded(stretches, traj.duration_s)
-    sing = traj.task.get("singularity", {})
-    zone = sing.get("zone", {})
-    vmax = speed_limits(traj, robot)
-    s_mm = track.length_m * 1e3
-    figures: list[tuple[str, str, _Draw, int, float]] = [
-        ("joints", "Joint positions [deg] with their limits (dashed); crossings shaded.",
-         _joints(traj, robot, shaded), math.ceil(len(traj.joint_names) / 2), 4.5),
-        ("speed", "Joint speed as a fraction of its limit.", _speed_ratio(traj, vmax, shaded), 1, 3.0),
-    ]
-    if "distances" in traj.samples:  # none for an arm without labels (7 joints)
-        figures.append(("distances", "Signed singular distances with the detection thresholds, against time (bottom) "
-                                     "and path length (top).",
-                        _distances(traj, [zone.get("wrist_deg", DEFAULT_ZONE_WRIST_DEG),
-                                          zone.get("shoulder_mm", DEFAULT_ZONE_SHOULDER_MM),
-                                          zone.get("elbow_deg", DEFAULT_ZONE_ELBOW_DEG)], s_mm, shaded), 3, 3.3))
-    figures += [
-        ("deviation", "Deviation from the programmed path with the tolerances, against time and path length.",
-         _deviation(traj, sing.get("position_tolerance_mm", DEFAULT_POSITION_TOLERANCE_MM),
-                    sing.get("orientation_tolerance_deg", DEFAULT_ORIENTATION_TOLERANCE_DEG), s_mm, shaded), 2, 3.3),
-        ("tcp", "TCP speed against the programmed speed (dashed).", _tcp_speed(traj, track.step_m, shaded), 1, 3.0),
-    ]
-    if "stopping_distance_m" in traj.samples:
-        figures.append(("stopping", "Stopping distance: how far the TCP would travel if every joint braked now at its "
-                                    "acceleration limit (the worst marked).", _stopping(traj, shaded), 1, 3.0))
-    limits = traj.task.get("limits", {})
-    if no_dynamics_reason(robot) is None:
-        scale = limits.get("torque_scale")
-        limit = "effort x torque_scale" if scale is not None else "URDF effort, not enforced: no limits.torque_scale"
-        figures.append(("torque", f"Joint torque (inverse dynamics of the samples) as a fraction of its limit "
-                                  f"({limit}).", _torque_ratio(traj, robot, float(scale or 1.0), shaded), 1, 3.0))
-    body = "".join(f'<figure id="plot-{key}">{figure_svg(key, draw(), columns, h)}'
-                   f"<figcaption>{html.escape(cap)}</figcaption></figure>"
-                   for key, cap, draw, columns, h in figures)
+def report_html(traj: Trajectory, robot: Robot, basis: PageBasis | None = None) -> str:
+    """The whole report page as one string; ``basis`` is what the pages share if already computed."""
+    basis = basis if basis is not None else page_basis(traj, robot)
+    body = "".join(f'<figure id="plot-{f.key}">{figure_svg(f.key, f.panels, f.columns, f.height_in)}'
+                   f"<figcaption>{html.escape(f.caption)}</figcaption></figure>"
+                   for f in _figures(traj, robot, basis))
     title = f"singplan report: {traj.robot}, {traj.duration_s:.3f} s"
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
             f"<style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>{_tables(traj)}"
-            f"<h2>Timeline</h2>{_timeline(traj, stretches)}<h2>Plots</h2>{body}</body></html>")
+            f"<h2>Timeline</h2>{_timeline(traj, basis.stretches)}<h2>Plots</h2>{body}</body></html>")
+
+
+def _figures(traj: Trajectory, robot: Robot, basis: PageBasis) -> list[_Figure]:
+    """The page's figures, in order; a series the trajectory does not have is left out."""
+    shading = _Shading(basis.stretches, traj.duration_s)
+    sing = traj.task.get("singularity", {})
+    zone = sing.get("zone", {})
+    s_mm = basis.track.length_m * 1e3
+    figures = [
+        _Figure("joints", "Joint positions [deg] with their limits (dashed); crossings shaded.",
+                _joints(traj, robot, shading), math.ceil(len(traj.joint_names) / 2), 4.5),
+        _Figure("speed", "Joint speed as a fraction of its limit.",
+                _joint_ratios(traj, traj.t[1:], basis.speed_ratio, "|qd| / limit", shading)),
+    ]
+    if "distances" in traj.samples:  # none for an arm without labels (7 joints)
+        thresholds = [zone.get("wrist_deg", DEFAULT_ZONE_WRIST_DEG), zone.get("shoulder_mm", DEFAULT_ZONE_SHOULDER_MM),
+                      zone.get("elbow_deg", DEFAULT_ZONE_ELBOW_DEG)]
+        figures.append(_Figure("distances", "Signed singular distances with the detection thresholds, against time "
+                                            "(bottom) and path length (top).",
+                               _distances(traj, thresholds, s_mm, shading), 3, 3.3))
+    figures += [
+        _Figure("deviation", "Deviation from the programmed path with the tolerances, against time and path length.",
+                _deviation(traj, sing.get("position_tolerance_mm", DEFAULT_POSITION_TOLERANCE_MM),
+                           sing.get("orientation_tolerance_deg", DEFAULT_ORIENTATION_TOLERANCE_DEG), s_mm, shading),
+                2, 3.3),
+        _Figure("tcp", "TCP speed against the programmed speed (dashed).",
+                _tcp_speed(traj, basis.track.step_m, shading)),
+    ]
+    if "stopping_distance_m" in traj.samples:
+        figures.append(_Figure("stopping", "Stopping distance: how far the TCP would travel if every joint braked now "
+                                           "at its acceleration limit (the worst marked).", _stopping(traj, shading)))
+    torques = traj.metrics.torques
+    if not isinstance(torques, str):  # the metrics' limits: efforts x limits.torque_scale (1 if unset)
+        limit = ("effort x torque_scale" if traj.task.get("limits", {}).get("torque_scale") is not None
+                 else "URDF effort, not enforced: no limits.torque_scale")
+        limit_nm = np.array([torques.torque_limit_Nm[name] for name in traj.joint_names])
+        figures.append(_Figure("torque", f"Joint torque (inverse dynamics of the samples) as a fraction of its limit "
+                                         f"({limit}).", _torque_ratio(traj, robot, limit_nm, shading)))
+    return figures

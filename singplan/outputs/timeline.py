@@ -1,4 +1,5 @@
-"""What report and replay both show, computed once per trajectory: the TCP track and the timeline.
+"""What report and replay both show, computed once per trajectory (:class:`PageBasis`): the TCP
+track, the timeline and the joint speeds.
 
 :func:`tcp_track` runs forward kinematics over every sample once (in chunks) and keeps the TCP
 positions, the distance between samples and the path length; the report plots them and the
@@ -20,10 +21,14 @@ from singplan.planning.weave import woven_moves
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.schema import DEFAULT_VELOCITY_SCALE
 
-# one colour per stretch kind, for the report's shading and the replay's path and legend
+# one colour per stretch kind, for the report's shading and the replay's path, markers, strip and legend
+# (the one home of the pages' colours, with svgplot's curve palette and limit colour)
 SEGMENT_COLOURS = {"path": 0x2E7D32, "pre": 0x1565C0, "crossing": 0xF4B400, "post": 0x6A1B9A, "ptp": 0x757575,
                    "blend": 0xE53935, "weave": 0x00897B, "pause": 0x8D6E63}
 OTHER_COLOUR = 0x000000  # a segment kind this version does not know
+# stretch kinds shaded over the time plots (report) and the speed strip (replay), with the shade's opacity
+SHADED_OPACITY = {"crossing": 0.18, "weave": 0.10, "blend": 0.16, "pause": 0.30}
+PROGRAMMED_COLOUR = 0x9E9E9E  # the programmed path, drawn under the executed one
 _STILL_M = 1e-7  # a TCP step below this between two samples counts as standing still (0.1 um)
 
 
@@ -77,6 +82,26 @@ class Stretch:
         return kind_colour(self.kind)
 
 
+@dataclass(frozen=True)
+class PageBasis:
+    """What both pages draw of a trajectory, computed once (:func:`page_basis`) and passed to each.
+
+    Attributes:
+        track: the TCP at every sample (:func:`tcp_track`).
+        stretches: the coloured timeline (:func:`timeline`).
+        speed_ratio: |qd| / limit (K - 1, n) of each step between samples (:func:`joint_speed_ratios`).
+    """
+
+    track: TcpTrack
+    stretches: list[Stretch]
+    speed_ratio: np.ndarray
+
+
+def page_basis(traj: Trajectory, robot: Robot) -> PageBasis:
+    track = tcp_track(traj, robot)
+    return PageBasis(track, timeline(traj, track), joint_speed_ratios(traj, speed_limits(traj, robot)))
+
+
 def kind_colour(kind: str) -> int:
     """The colour (0xRRGGBB) of a stretch kind; black for a kind this version does not know."""
     return SEGMENT_COLOURS.get(kind, OTHER_COLOUR)
@@ -91,6 +116,19 @@ def sample_range(traj: Trajectory, seg: Segment) -> tuple[int, int]:
 def speed_limits(traj: Trajectory, robot: Robot) -> np.ndarray:
     """The joint speed limits (n,) [rad/s] the trajectory was planned under (URDF x ``limits.velocity_scale``)."""
     return robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", DEFAULT_VELOCITY_SCALE))
+
+
+def joint_speed_ratios(traj: Trajectory, vmax_rad_s: np.ndarray) -> np.ndarray:
+    """|qd| / limit (K - 1, n) of each step between samples, the step k -> k + 1 drawn at t[k + 1]:
+    forward differences (q[k + 1] - q[k]) / period, the joint speed the checker and the metrics'
+    ``max_joint_speed_ratio`` measure (not the record's central ``qd``). Single precision, formed a
+    chunk at a time: a plot's figure, a quarter of the samples' own memory."""
+    q = traj.q
+    out = np.empty((max(0, len(q) - 1), q.shape[1]), dtype=np.float32)
+    scale = traj.period * vmax_rad_s
+    for c in range(0, len(out), _CHUNK):
+        out[c:c + _CHUNK] = np.abs(np.diff(q[c:c + _CHUNK + 1], axis=0)) / scale
+    return out
 
 
 def display_kind(seg: Segment, woven: frozenset[int]) -> str:

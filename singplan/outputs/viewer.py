@@ -42,21 +42,26 @@ from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot, bundled_robots, load_robot
 from singplan.outputs.choices import DEFAULT_HOST
 from singplan.outputs.scene import ROOT, AnimationCommand, RobotScene
+from singplan.outputs.svgplot import LIMIT_COLOUR, PALETTE
 from singplan.outputs.timeline import (
+    PROGRAMMED_COLOUR,
+    SHADED_OPACITY,
+    PageBasis,
     Stretch,
     TcpTrack,
     display_kind,
     kind_colour,
+    page_basis,
     sample_range,
-    speed_limits,
     tcp_track,
     timeline,
 )
-from singplan.planning.path import CartesianPiece, make_circ, make_lin
-from singplan.planning.weave import drawing_count, woven, woven_moves
+from singplan.planning.path import move_target
+from singplan.planning.pieces import move_piece
+from singplan.planning.weave import drawing_count, woven_moves
 from singplan.results.files import check_output_file, text_writer, write_file
 from singplan.results.trajectory import Segment, Trajectory, load
-from singplan.task.schema import Weave
+from singplan.task.schema import Move
 
 _SERVER_START_S = 60.0  # longest wait for the live server to report its address
 ANIMATION_STEP_S = 0.02  # animation keyframes at most this often; the browser interpolates between them
@@ -71,6 +76,7 @@ _PATH_POINTS = 10_000  # executed-path points on the time grid (a line, and ever
 _PATH_TURN_RAD = 0.01  # ... and at least every 0.01 rad of a joint
 _DOT_EVERY = 3  # executed-path dots: one per this many path points
 _STRIP_POINTS = 1500  # joint-speed strip: at most this many points (each bucket's lowest and highest)
+_STRIP_SHADED = ("crossing", "blend", "pause")  # where the robot leaves the plain path or the TCP waits
 _VIEW_DIRECTION = np.array([0.8, -1.0, 0.75]) / np.linalg.norm([0.8, -1.0, 0.75])  # camera side of the scene
 _PACKAGE_DIR = Path(__file__).resolve().parents[1]  # the singplan package folder
 
@@ -120,22 +126,22 @@ class TcpPath:
         return self.xyz[i]
 
 
-def tcp_path(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -> TcpPath:
+def tcp_path(traj: Trajectory, track: TcpTrack, travel: np.ndarray) -> TcpPath:
     """The TCP path at the samples the page shows (:func:`kept_samples` at the path's density),
-    picked from ``track`` when given (FK already done for every sample)."""
-    index = kept_samples(traj, 1, _PATH_POINTS, _PATH_TURN_RAD)
-    return TcpPath(index, robot.tcp_positions(traj.q[index]) if track is None else track.xyz[index])
+    picked from ``track`` (FK already done for every sample); ``travel`` is :func:`joint_travel`."""
+    index = kept_samples(traj, travel, 1, _PATH_POINTS, _PATH_TURN_RAD)
+    return TcpPath(index, track.xyz[index])
 
 
-def kept_samples(traj: Trajectory, min_stride: int, grid_points: int, turn_rad: float) -> np.ndarray:
+def kept_samples(traj: Trajectory, travel: np.ndarray, min_stride: int, grid_points: int,
+                 turn_rad: float) -> np.ndarray:
     """Sample indices (ascending) that stand for the trajectory, about 2 x ``grid_points`` at most
     plus three a segment: a time grid (every ``min_stride`` samples or coarser, at most
-    ``grid_points``), a sample each time some joint has turned ``turn_rad`` more (coarser too if
-    that would be more than ``grid_points``), the last sample, each segment's first and last and
-    each crossing's midpoint."""
+    ``grid_points``), a sample each time some joint has turned ``turn_rad`` more along ``travel``
+    (:func:`joint_travel`; coarser too if that would be more than ``grid_points``), the last
+    sample, each segment's first and last and each crossing's midpoint."""
     last = len(traj.t) - 1
     stride = max(min_stride, math.ceil(last / grid_points))
-    travel = _joint_travel(traj.q)  # (K,) [rad], non-decreasing
     turn = max(turn_rad, float(travel[-1]) / grid_points)
     marks = np.searchsorted(travel, np.arange(turn, travel[-1], turn))  # first sample past each mark
     bounds = [k for seg in traj.segments for k in (*sample_range(traj, seg), _midpoint(traj, seg))]
@@ -143,8 +149,9 @@ def kept_samples(traj: Trajectory, min_stride: int, grid_points: int, turn_rad: 
     return np.unique(keep.astype(np.int64))
 
 
-def _joint_travel(q: np.ndarray) -> np.ndarray:
-    """Cumulative sum over samples of the largest joint step [rad] (K,), formed in chunks."""
+def joint_travel(q: np.ndarray) -> np.ndarray:
+    """Cumulative sum over samples of the largest joint step [rad] (K,), non-decreasing, formed in
+    chunks; computed once for both of the page's sample picks (path points and keyframes)."""
     travel = np.zeros(len(q))
     total = 0.0
     for c in range(0, len(q) - 1, _CHUNK):
@@ -163,16 +170,16 @@ def _midpoint(traj: Trajectory, seg: Segment) -> int:
 
 
 def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Stretch],
-           speed: float = 1.0, loop: bool = False, play: bool = False) -> None:
+           travel: np.ndarray, speed: float = 1.0, loop: bool = False, play: bool = False) -> None:
     """Send the replay scene to ``vis``: robot, paths, crossing markers and the animation."""
     scene = RobotScene.of(robot)
     shown = scene.send(vis, traj.q[0])
     vis["/Grid"].set_property("visible", False)  # the robot's base axes show the ground frame
-    vis["paths/programmed"].set_object(_line(programmed_path(traj, robot, tcp), 0x9E9E9E, 1.0))
+    vis["paths/programmed"].set_object(_line(programmed_path(traj, robot, tcp), PROGRAMMED_COLOUR, 1.0))
     _draw_segments(vis, traj, tcp, stretches)
     # a frame is a sample: keyframes at kept samples, the exact joint values there
     step = max(1, round(ANIMATION_STEP_S / traj.period))
-    frames = kept_samples(traj, step, _KEYFRAMES, _KEYFRAME_TURN_RAD)
+    frames = kept_samples(traj, travel, step, _KEYFRAMES, _KEYFRAME_TURN_RAD)
     xyz, quat = scene.poses(traj.q[frames])
     # nodes that never move (the base) are left out: the scene already shows them there
     moving = [g for g, name in enumerate(scene.names) if name in shown
@@ -199,7 +206,7 @@ def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath, stre
     for n, seg in enumerate(traj.segments):
         if seg.kind == "crossing":
             marker = vis[f"crossings/{n:03d}_{seg.singularity}_{seg.method}"]
-            marker.set_object(mg.Sphere(0.012), mg.MeshLambertMaterial(color=0xF4B400, opacity=0.8))
+            marker.set_object(mg.Sphere(0.012), mg.MeshLambertMaterial(color=kind_colour("crossing"), opacity=0.8))
             marker.set_transform(mtf.translation_matrix(tcp.at(_midpoint(traj, seg))))
 
 
@@ -207,61 +214,36 @@ _LOOP_REPETITIONS = 1_000_000  # meshcat's "loop": repeat the clip this many tim
 
 
 def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
-    """Points (M, 3) [m] of the programmed path: each LIN / CIRC (woven if it weaves) from the
-    task mapping's targets, as the planner built it from the same numbers; a PTP as executed."""
+    """Points (M, 3) [m] of the programmed path: each LIN / CIRC (woven if it weaves) is the
+    planner's own piece (:func:`singplan.planning.pieces.move_piece`) of the recorded task's
+    move; a PTP as executed."""
     points = []
     T = robot.fk(traj.q[0])
     by_move = traj.segments_by_move()
-    for i, move in enumerate(traj.task["moves"]):
-        (kind, spec), = move.items()
+    for i, mapping in enumerate(traj.task["moves"]):
+        move = Move.from_mapping(mapping)
         segs = by_move.get(i)
-        if kind == "ptp":
+        if move.kind == "ptp":
             if segs:
                 points.append(tcp.between(sample_range(traj, segs[0])[0], sample_range(traj, segs[-1])[1]))
-            T = _ptp_target(spec, T, robot)
+            T = robot.fk(np.radians(move.to_joints_deg)) if move.to_joints_deg is not None else move_target(move, T)
             continue
-        piece = _piece(kind, spec, T)
+        piece = move_piece(i, move, T)
         points.append(piece.positions(np.linspace(0.0, 1.0, drawing_count(piece))))
         T = piece.T_end
     return np.concatenate(points) if points else tcp.xyz[:1]
 
 
-def _target(spec: dict[str, Any], T_start: pin.SE3) -> pin.SE3:
-    """A move's Cartesian target from its ``to``: orientation held from ``T_start`` without ``rpy_deg``."""
-    to = spec["to"]
-    rotation = rpy_deg_to_rotation(np.asarray(to["rpy_deg"], dtype=float)) if to.get("rpy_deg") is not None \
-        else T_start.rotation
-    return pin.SE3(rotation, np.asarray(to["xyz"], dtype=float))
-
-
-def _ptp_target(spec: dict[str, Any], T_start: pin.SE3, robot: Robot) -> pin.SE3:
-    to = spec["to"]
-    if to.get("joints_deg") is not None:
-        return robot.fk(np.radians(np.asarray(to["joints_deg"], dtype=float)))
-    return _target(spec, T_start)
-
-
-def _piece(kind: str, spec: dict[str, Any], T_start: pin.SE3) -> CartesianPiece:
-    """A LIN / CIRC of the validated task mapping, with its weave (the same geometry the planner used)."""
-    field = f"moves.{kind}"
-    target = _target(spec, T_start)
-    piece = make_lin(T_start, target, field) if kind == "lin" else \
-        make_circ(T_start, np.asarray(spec["via"]["xyz"], dtype=float), target, field)
-    weave = spec.get("weave")
-    return piece if not weave else woven(piece, Weave(str(weave["pattern"]), float(weave["amplitude_mm"]),
-                                                      float(weave["wavelength_mm"])), field)
-
-
-def replay_html(traj: Trajectory, robot: Robot, track: TcpTrack | None = None) -> str:
+def replay_html(traj: Trajectory, robot: Robot, basis: PageBasis | None = None) -> str:
     """The replay page, a self-contained HTML document (the template and assets of :func:`viewer_dir`);
-    ``track`` is the trajectory's TCP track if already computed (the report's)."""
-    track = track if track is not None else tcp_track(traj, robot)
-    tcp = tcp_path(traj, robot, track)
-    stretches = timeline(traj, track)
+    ``basis`` is what the pages share if already computed (the report's)."""
+    basis = basis if basis is not None else page_basis(traj, robot)
+    travel = joint_travel(traj.q)
+    tcp = tcp_path(traj, basis.track, travel)
     recorder = _Recorder()
-    _scene(meshcat.Visualizer(window=recorder), traj, robot, tcp, stretches)
+    _scene(meshcat.Visualizer(window=recorder), traj, robot, tcp, basis.stretches, travel)
     assets = viewer_dir()
-    data = _page_data(traj, robot, tcp, stretches)
+    data = _page_data(traj, tcp, basis)
     data["commands"] = [base64.b64encode(_packed(c)).decode("ascii") for c in recorder.commands]
     title = escape(f"singplan replay: {traj.robot}, {traj.duration_s:.3f} s")
     fills = {"__TITLE__": title, "__CSS__": (assets / "replay.css").read_text(),
@@ -281,11 +263,12 @@ def _meshcat_bundle() -> str:
     return (Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js").read_text()
 
 
-def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Stretch] | None = None) -> dict[str, Any]:
+def _page_data(traj: Trajectory, tcp: TcpPath, basis: PageBasis) -> dict[str, Any]:
     """What replay.js shows besides the scene: segments, crossing labels, speed strip, camera, legend."""
     segments, labels = [], []
+    stretches = basis.stretches
     woven = woven_moves(traj.task)
-    pauses = {s.segment: s for s in stretches or () if s.kind == "pause"}
+    pauses = {s.segment: s for s in stretches if s.kind == "pause"}
     for n, seg in enumerate(traj.segments):
         title, detail = _describe(seg, pauses.get(n))
         title += " (woven)" if seg.move in woven and seg.kind != "crossing" else ""
@@ -298,9 +281,7 @@ def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Str
             text = (f"{title.split(': ', 1)[1]}; {d.get('max_position_error_mm', 0.0):.3f} mm / "
                     f"{d.get('max_orientation_error_deg', 0.0):.2f} deg")
             labels.append({"text": text, "xyz": tcp.at(_midpoint(traj, seg)).tolist()})
-    vmax = speed_limits(traj, robot)
-    ratio = np.concatenate([np.max(np.abs(traj.qd[c:c + _CHUNK]) / vmax, axis=1)
-                            for c in range(0, len(traj.t), _CHUNK)])  # (K,)
+    ratio = basis.speed_ratio.max(axis=1, initial=0.0).astype(float)  # (K - 1,), at t[1:]
     keep = _extremes(ratio, _STRIP_POINTS)
     points = np.vstack([tcp.xyz, np.zeros((1, 3))])  # the path and the robot's base
     lo, hi = points.min(axis=0), points.max(axis=0)
@@ -310,7 +291,9 @@ def _page_data(traj: Trajectory, robot: Robot, tcp: TcpPath, stretches: list[Str
          for seg in traj.segments]
     return {"duration": traj.duration_s, "colours": {b["kind"]: b["colour"] for b in bands},
             "segments": segments, "labels": labels, "bands": bands,
-            "speed": {"t": np.round(traj.t[keep], 4).tolist(), "ratio": np.round(ratio[keep], 4).tolist()},
+            "palette": {"limit": LIMIT_COLOUR, "curve": PALETTE[0], "label": kind_colour("crossing"),
+                        "shaded": {kind: SHADED_OPACITY[kind] for kind in _STRIP_SHADED}},
+            "speed": {"t": np.round(traj.t[1:][keep], 4).tolist(), "ratio": np.round(ratio[keep], 4).tolist()},
             "frame": {"center": (0.5 * (lo + hi)).tolist(), "distance": 2.2 * radius,
                       "direction": _VIEW_DIRECTION.tolist()}}
 
@@ -425,8 +408,9 @@ def serve_replay(traj: Trajectory, robot: Robot, speed: float = 1.0, loop: bool 
         with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its URL; the caller decides
             vis = meshcat.Visualizer(zmq_url=command_url)
         live = LiveReplay(vis.url(), host, vis, server)
-        track = tcp_track(traj, robot)
-        _scene(vis, traj, robot, tcp_path(traj, robot, track), timeline(traj, track), speed=speed, loop=loop, play=True)
+        track, travel = tcp_track(traj, robot), joint_travel(traj.q)
+        _scene(vis, traj, robot, tcp_path(traj, track, travel), timeline(traj, track), travel, speed=speed, loop=loop,
+               play=True)
     except BaseException:
         _stop(server)
         raise

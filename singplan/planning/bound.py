@@ -1,21 +1,29 @@
 """A lower bound on the duration :func:`~singplan.planning.timing.time_move` gives a joint map,
 cheap enough to rank auto's candidates before any of them is timed.
 
-TOPP-RA solves, on its grid s_0 < ... < s_N, for squared path speeds x_i = sd_i^2 and path
-accelerations u_i with x_{i+1} = x_i + 2 (s_{i+1} - s_i) u_i, x_0 = x_N = 0, under
-``x_i <= V_i`` (joint and TCP speed limits) and, for every joint j,
-``|q_j'(s_i) u_i + q_j''(s_i) x_i| <= a_j`` (Pham and Pham 2018, section III; its interpolation
-scheme adds the same constraints at s_{i+1}, which only shrinks the feasible set). Each joint's
-acceleration constraint alone bounds u_i by a line in x_i, so:
+**Speeds no timing can exceed.** TOPP-RA solves, on its grid s_0 < ... < s_N, for squared path
+speeds x_i = sd_i^2 and path accelerations u_i with x_{i+1} = x_i + 2 (s_{i+1} - s_i) u_i,
+x_0 = x_N = 0, under ``x_i <= V_i`` (joint and TCP speed limits) and, for every joint j,
+``|q_j'(s_i) u_i + q_j''(s_i) x_i| <= a_j`` and the same at s_{i+1} reached with
+x_{i+1} = x_i + 2 ds u_i (Pham and Pham 2018, section III, the interpolation scheme). Each of
+these constraints alone bounds u_i by a line in x_i, so:
 
-- forward, x_{i+1} <= min_j max over x in [0, X_i] of (x + 2 ds ub_j(x)) =: X_{i+1} (and <= V_{i+1});
-- backward, x_i + 2 ds lb_j(x_i) <= x_{i+1} <= Y_{i+1} gives x_i <= Y_i for every joint whose line
-  keeps the left side increasing.
+- forward, x_{i+1} <= min over lines of max over x in [0, X_i] of (x + 2 ds ub(x)) =: X_{i+1};
+- backward, x_i + 2 ds lb(x_i) <= x_{i+1} <= Y_{i+1} gives x_i <= Y_i for every line that keeps
+  the left side increasing.
 
-Every feasible profile has x_i <= min(V_i, X_i, Y_i), and TOPP-RA's duration
-sum 2 ds / (sd_i + sd_{i+1}) only grows as the speeds fall; the tightening passes lower the
-limits and the duration is rounded up to whole periods, which keeps the order. The bound is thus
-at most the duration TOPP-RA gives, up to its solver's tolerance (a 1e-6 relative margin).
+Every feasible profile has x_i <= C_i = min(V_i, X_i, Y_i), and between grid points (constant
+path acceleration) x is linear in s, so under the line through C_i and C_{i+1}. The tightening
+passes only lower the limits and the rounding to whole periods slows the profile uniformly: the
+profile a timing's samples are taken from stays under C.
+
+**Samples.** The samples are that profile at every period, so between two of them the path
+advances at most as far as C lets it in one period; and an accepted timing's samples advance
+the TCP clock (time at the programmed speed) by at most ``TCP_MARGIN`` periods each (the check
+of :mod:`~singplan.planning.timing`, exact for LIN and CIRC). Stepping as far as both allow,
+sample after sample, reaches the end in the fewest samples any accepted timing can have (each
+step's reach only grows with where it starts): that count of periods is the bound, up to
+TOPP-RA's solver tolerance (a 1e-6 relative margin).
 """
 
 from __future__ import annotations
@@ -25,9 +33,9 @@ import math
 import numpy as np
 from numba import njit
 
-from singplan.planning.timing import MoveLimits, TimingPath
+from singplan.planning.timing import TCP_MARGIN, MoveLimits, TimingPath
 
-_MARGIN = 1.0 - 1e-6  # TOPP-RA's solver keeps its constraints to about 1e-9 in these units
+_MARGIN = 1.0 + 1e-6  # TOPP-RA's solver keeps its constraints to about 1e-9 in these units
 
 
 def duration_bound_s(path: TimingPath, limits: MoveLimits, period_s: float) -> float:
@@ -42,16 +50,17 @@ def duration_bound_s(path: TimingPath, limits: MoveLimits, period_s: float) -> f
     tau, vmax_1, amax_1 = path.scaled_limits(limits, (1.0, 1.0, 1.0, 1.0))
     d1 = np.ascontiguousarray(path.spline(path.grid, 1), dtype=float)  # (G, n + 1) dq/ds
     d2 = np.ascontiguousarray(path.spline(path.grid, 2), dtype=float)  # (G, n + 1) d2q/ds2
-    duration = _reachable_duration(path.grid, d1, d2, vmax_1, amax_1) * tau * _MARGIN
-    if not math.isfinite(duration):
-        return 0.0  # the relaxed problem has no profile either: let TOPP-RA say where
-    return max(1, math.ceil(duration / period_s - 1e-9)) * period_s  # as timing._sample rounds
+    caps = _speed_caps(path.grid, d1, d2, vmax_1, amax_1)  # (G,) C_i, dimensionless
+    clock = limits.tcp_clock(np.array([1.0]))  # the TCP's time at programmed speed to the end [s]
+    clock_step = math.inf if clock is None else TCP_MARGIN * period_s / float(clock[0]) * _MARGIN
+    samples = _fewest_samples(path.grid, caps, period_s / tau * _MARGIN, clock_step)
+    return samples * period_s if samples > 0 else 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def _reachable_duration(grid: np.ndarray, d1: np.ndarray, d2: np.ndarray, vmax: np.ndarray,
-                        amax: np.ndarray) -> float:  # pragma: no cover - compiled
-    """The duration of the fastest speeds min(V, X, Y) of the module's relaxation (dimensionless)."""
+def _speed_caps(grid: np.ndarray, d1: np.ndarray, d2: np.ndarray, vmax: np.ndarray,
+                amax: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """C_i = min(V_i, X_i, Y_i) (G,) of the module's relaxation (dimensionless)."""
     g, m = d1.shape
     cap = np.empty(g)  # V_i, then min(V_i, X_i), then min(V_i, X_i, Y_i)
     for i in range(g):
@@ -63,26 +72,87 @@ def _reachable_duration(grid: np.ndarray, d1: np.ndarray, d2: np.ndarray, vmax: 
     for i in range(g - 1):  # forward: as fast as any joint's acceleration lets x grow
         ds = grid[i + 1] - grid[i]
         reach = cap[i + 1]
-        for j in range(m):
-            a, b = d1[i, j], d2[i, j]
+        for j in range(2 * m):
+            a, b = _line(d1, d2, i, j, ds)
             if a == 0.0:
                 continue
-            top = amax[j] if a > 0.0 else -amax[j]  # u <= (top - b x) / a
+            top = amax[j % m] if a > 0.0 else -amax[j % m]  # u <= (top - b x) / a
             reach = min(reach, max(2.0 * ds * top / a, cap[i] + 2.0 * ds * (top - b * cap[i]) / a))
         cap[i + 1] = max(reach, 0.0)
     cap[g - 1] = 0.0
     for i in range(g - 2, -1, -1):  # backward: slow enough to stop in time
         ds = grid[i + 1] - grid[i]
-        for j in range(m):
-            a, b = d1[i, j], d2[i, j]
+        for j in range(2 * m):
+            a, b = _line(d1, d2, i, j, ds)
             if a == 0.0:
                 continue
-            low = -amax[j] if a > 0.0 else amax[j]  # u >= (low - b x) / a
+            low = -amax[j % m] if a > 0.0 else amax[j % m]  # u >= (low - b x) / a
             rise = 1.0 - 2.0 * ds * b / a  # x + 2 ds u >= x rise + 2 ds low / a
             if rise > 0.0:
                 cap[i] = min(cap[i], (cap[i + 1] - 2.0 * ds * low / a) / rise)
         cap[i] = max(cap[i], 0.0)
-    total = 0.0
+    return cap
+
+
+@njit(cache=True)
+def _line(d1: np.ndarray, d2: np.ndarray, i: int, j: int, ds: float) -> tuple[float, float]:  # pragma: no cover
+    """Joint j % m's acceleration at stage i as a u + b x: at s_i (j < m), or at s_{i+1} reached
+    with x + 2 ds u (TOPP-RA's interpolation scheme, j >= m)."""
+    m = d1.shape[1]
+    if j < m:
+        return d1[i, j], d2[i, j]
+    return d1[i + 1, j - m] + 2.0 * ds * d2[i + 1, j - m], d2[i + 1, j - m]
+
+
+@njit(cache=True, error_model="numpy")
+def _fewest_samples(grid: np.ndarray, caps: np.ndarray, period: float,
+                    clock_step: float) -> int:  # pragma: no cover - compiled
+    """Periods to the end, each step as far as the speed caps (G,) let the path go in ``period``
+    (dimensionless) and at most ``clock_step`` of path parameter; 0 if the caps stop the path."""
+    g = len(grid)
+    root = np.sqrt(caps)
+    t_node = np.zeros(g)  # the least time to reach each grid point under the caps
     for i in range(g - 1):
-        total += 2.0 * (grid[i + 1] - grid[i]) / (math.sqrt(cap[i]) + math.sqrt(cap[i + 1]))
-    return total
+        t_node[i + 1] = t_node[i] + 2.0 * (grid[i + 1] - grid[i]) / (root[i] + root[i + 1])
+    if not math.isfinite(t_node[g - 1]):
+        return 0
+    count, s, t = 0, 0.0, 0.0  # samples so far; where the last one is and the least time to it
+    while s < 1.0 - 1e-12:
+        count += 1
+        target = min(s + clock_step, 1.0)
+        t_next = t + period
+        if t_next >= t_node[g - 1]:
+            reach = 1.0
+        else:
+            reach = _position_at(grid, caps, root, t_node, _interval(t_node, t_next), t_next)
+        if reach <= target:
+            s, t = reach, t_next
+        else:
+            s = target
+            t = _time_at(grid, caps, root, t_node, _interval(grid, s), s)
+    return count
+
+
+@njit(cache=True)
+def _interval(nodes: np.ndarray, value: float) -> int:  # pragma: no cover - compiled
+    """The interval [nodes[i], nodes[i + 1]) holding value (the last one at the end)."""
+    return min(max(int(np.searchsorted(nodes, value, side="right")) - 1, 0), len(nodes) - 2)
+
+
+@njit(cache=True)
+def _position_at(grid: np.ndarray, caps: np.ndarray, root: np.ndarray, t_node: np.ndarray, i: int,
+                 t: float) -> float:  # pragma: no cover - compiled
+    """Path parameter at time t in interval i when the path runs at the caps (constant path acceleration)."""
+    ds = grid[i + 1] - grid[i]
+    tau = t - t_node[i]
+    return min(grid[i] + root[i] * tau + (caps[i + 1] - caps[i]) / ds * tau * tau / 4.0, grid[i + 1])
+
+
+@njit(cache=True)
+def _time_at(grid: np.ndarray, caps: np.ndarray, root: np.ndarray, t_node: np.ndarray, i: int,
+             s: float) -> float:  # pragma: no cover - compiled
+    """The least time to path parameter s in interval i (the inverse of :func:`_position_at`)."""
+    ds = grid[i + 1] - grid[i]
+    w = s - grid[i]
+    x = caps[i] + (caps[i + 1] - caps[i]) * w / ds
+    return t_node[i] + 2.0 * w / (root[i] + math.sqrt(max(x, 0.0)))

@@ -50,7 +50,7 @@ _UNLIMITED = 1e9
 _TIGHTEN_PASSES = 8
 _SPEED_MARGIN = 0.999  # ratios the samples must stay under
 _ACCEL_MARGIN = 0.995
-_TCP_MARGIN = 0.999
+TCP_MARGIN = 0.999  # an accepted sample step covers at most this many periods of the TCP clock (bound.py)
 _TORQUE_MARGIN = 0.995
 _JERK_MARGIN = 0.995
 _STRETCH_PASSES = 8
@@ -504,7 +504,7 @@ def _tcp_ratio(u: np.ndarray, limits: MoveLimits, period_s: float) -> float:
     clock = limits.tcp_clock(u)
     if clock is None or len(u) < 2:
         return 0.0
-    return float(np.max(np.diff(clock)) / period_s) * _SPEED_MARGIN / _TCP_MARGIN
+    return float(np.max(np.diff(clock)) / period_s) * _SPEED_MARGIN / TCP_MARGIN
 
 
 def _surrogate(optimal: TimedMove) -> Callable[[np.ndarray], np.ndarray]:

@@ -23,12 +23,10 @@ import yaml
 from singplan.errors import RobotModelError, UnknownNameError
 from singplan.kinematics.families import Family, OpwParameters, Recognition, recognise
 from singplan.kinematics.ik.ur import UrParameters
+from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
 
 logger = logging.getLogger(__name__)
 
-# joint acceleration limit of a robot loaded without a task (the task's limits.acceleration, whose
-# default task.schema.DEFAULT_ACCELERATION_RAD_S2 equals it, replaces it for planning)
-DEFAULT_ACCELERATION_RAD_S2 = 10.0
 SUPPORTED_JOINT_COUNTS = (5, 6, 7)  # actuated revolute joints from the root to the tip
 MAX_URDF_BYTES = 32 * 1024 * 1024
 VELOCITY_LIMIT_RAD_S = (1e-3, 1e3)  # a joint slower than 0.001 rad/s would make durations overflow

@@ -19,13 +19,13 @@ import yaml
 
 from singplan.errors import TaskError
 from singplan.kinematics.configuration import parse_configuration
+from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
 from singplan.kinematics.robot import Robot
 from singplan.task.schema import (
     ACCELERATION_RAD_S2,
     ANGLE_DEG,
     BLEND_MM,
     COORDINATE_M,
-    DEFAULT_ACCELERATION_RAD_S2,
     DEFAULT_BLEND_MM,
     DEFAULT_CONFIG,
     DEFAULT_METHOD,

@@ -46,6 +46,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from singplan.errors import TaskError
+from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2  # limits.acceleration, all joints
 
 MAX_MOVES = 10_000
 MAX_OUTPUT_SAMPLES = 10_000_000
@@ -69,7 +70,6 @@ DEFAULT_POSITION_TOLERANCE_MM = 0.01
 DEFAULT_ZONE_WRIST_DEG = 5.0
 DEFAULT_ZONE_SHOULDER_MM = 20.0
 DEFAULT_ZONE_ELBOW_DEG = 5.0
-DEFAULT_ACCELERATION_RAD_S2 = 10.0  # limits.acceleration, all joints
 DEFAULT_PERIOD_S = 0.004  # output.period
 DEFAULT_WEAVE_PATTERN = "sine"
 DEFAULT_BLEND_MM = 0.0  # a move ends at rest on its point

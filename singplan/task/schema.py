@@ -177,6 +177,17 @@ class Limits:
     # 10t^3 - 15t^4 + 6t^5 law instead of the time-optimal one.
     ptp_time_law: str = "optimal"
 
+    def __post_init__(self) -> None:
+        """The per-joint ranges and the time law, checked once however the record is made (parsed,
+        built or replaced in Python); the joint count needs the robot (check_against_robot)."""
+        for where, values, bounds in (("limits.acceleration", self.acceleration_rad_s2, ACCELERATION_RAD_S2),
+                                      ("limits.jerk", self.jerk_rad_s3 or (), JERK_RAD_S3)):
+            for i, v in enumerate(values):
+                _in_range(f"{where}[{i}]" if len(values) > 1 else where, _as_number(where, v, bounds), bounds)
+        if self.ptp_time_law not in PTP_TIME_LAWS:
+            raise TaskError("limits.ptp_time_law", f"expected one of {', '.join(PTP_TIME_LAWS)}, "
+                                                   f"got {self.ptp_time_law!r}")
+
 
 @dataclass(frozen=True)
 class Redundancy:
@@ -332,11 +343,19 @@ def _describe(value: Any) -> str:
 
 
 def _number(where: str, value: Any, bounds: Range) -> float:
+    return _in_range(where, _as_number(where, value, bounds), bounds)
+
+
+def _as_number(where: str, value: Any, bounds: Range) -> float:
+    """``value`` as a float: a number (not a bool) that a float holds; its range is not checked."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise TaskError(where, f"expected a number, got {_describe(value)}")
     if isinstance(value, int) and abs(value) > 1e300:  # exact comparison: no float() overflow
         raise TaskError(where, f"number too large ({_describe(value)}); at most {bounds.high:g} {bounds.unit}")
-    x = float(value)
+    return float(value)
+
+
+def _in_range(where: str, x: float, bounds: Range) -> float:
     unit = f" {bounds.unit}" if bounds.unit else ""
     if not math.isfinite(x):
         raise TaskError(where, f"must be finite, got {x}")

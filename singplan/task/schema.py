@@ -57,13 +57,16 @@ MAX_SCALAR_CHARS = 10_000
 MAX_NAME_CHARS = 256
 MAX_PATH_CHARS = 4096
 MAX_JOINTS = 64
-METHODS = ("auto", "wrist-joint", "axis", "null-space", "exact", "dls", "average", "ptp", "stop")  # built in
+AUTO_METHOD = "auto"  # not a method: auto compares the pose-keeping ones (singplan.planning.select)
+# The one list of the built-in crossing method names. It is here, below planning, so a task is
+# checked without importing the planner; singplan.planning.crossing.registry gives each its objects.
+METHODS = (AUTO_METHOD, "wrist-joint", "axis", "null-space", "exact", "dls", "average", "ptp", "stop")
 _ADDED_METHODS: list[str] = []  # names registered by users (singplan.planning.crossing.registry.register)
 # the defaults of optional task fields, written once: the records below, the YAML reader and
 # the docs' tables take them from here
 DEFAULT_SPEED_M_S = 0.25  # LIN / CIRC speed
 DEFAULT_VELOCITY_SCALE = 1.0  # PTP velocity_scale and limits.velocity_scale
-DEFAULT_METHOD = "auto"
+DEFAULT_METHOD = AUTO_METHOD
 DEFAULT_CONFIG = "auto"
 DEFAULT_ORIENTATION_TOLERANCE_DEG = 5.0
 DEFAULT_POSITION_TOLERANCE_MM = 0.01
@@ -396,7 +399,6 @@ def _string(where: str, value: Any, max_chars: int = MAX_NAME_CHARS) -> str:
     return value.strip()
 
 
-
 def method_names() -> tuple[str, ...]:
     """The crossing method names a task may ask for: the built-in ones, then those users registered."""
     return (*METHODS, *_ADDED_METHODS)
@@ -406,6 +408,7 @@ def accept_method_name(name: str) -> None:
     """Let tasks name a crossing method registered by a user (the planning registry calls this)."""
     if name not in method_names():
         _ADDED_METHODS.append(name)
+
 
 def _check_choice(where: str, value: Any, choices: Sequence[str]) -> str:
     text = _string(where, value)

@@ -53,7 +53,7 @@ from singplan.outputs.timeline import (
     timeline,
 )
 from singplan.planning.path import CartesianPiece, make_circ, make_lin
-from singplan.planning.weave import drawing_count, woven, woven_moves
+from singplan.planning.weave import woven, woven_moves
 from singplan.results.files import check_output_file, text_writer, write_file
 from singplan.results.trajectory import Segment, Trajectory, load
 from singplan.task.schema import Weave
@@ -221,7 +221,7 @@ def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
             T = _ptp_target(spec, T, robot)
             continue
         piece = _piece(kind, spec, T)
-        points.append(piece.positions(np.linspace(0.0, 1.0, drawing_count(piece))))
+        points.append(piece.positions(np.linspace(0.0, 1.0, piece.drawing_count())))
         T = piece.T_end
     return np.concatenate(points) if points else tcp.xyz[:1]
 

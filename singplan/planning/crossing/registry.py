@@ -15,7 +15,6 @@ from singplan.planning.crossing.methods import Average, Axis, Dls, Exact, Ptp, S
 from singplan.planning.crossing.nullspace import NullSpace
 from singplan.task.schema import AUTO_METHOD, Move, accept_method_name, method_names
 
-AUTO = AUTO_METHOD
 WRIST_JOINT_WINDOWS = (1.0, 1.5, 2.5)  # blend spans, as multiples of the detected zone
 Target = str | None  # the configuration a move asks for, None for auto / keep
 _Factory = Callable[[Target], list[CrossingMethod]]
@@ -55,7 +54,7 @@ def register(method: CrossingMethod) -> None:
 def candidates(name: str, move: Move) -> list[CrossingMethod]:
     """The method objects to try on a move: one method's (several wrist-joint windows), or auto's set."""
     target = move.config if move.config not in ("auto", "keep") else None
-    if name == AUTO:
+    if name == AUTO_METHOD:
         return [m for candidate in AUTO_CANDIDATES for m in _AUTO_FORM.get(candidate, _BUILT_IN[candidate])(target)]
     if name in _registered:
         return [_registered[name]]

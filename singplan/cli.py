@@ -115,6 +115,7 @@ class _RobotInfo(TypedDict):
 def _info(robot: Robot) -> _RobotInfo:
     """What `singplan info` shows: family and its verified parameters, tip, joints, crossing methods."""
     from singplan.kinematics.families import VERIFY_SAMPLES
+    from singplan.task.schema import method_names
 
     rec = robot.recognition
     params: dict[str, object] | None = None
@@ -129,9 +130,9 @@ def _info(robot: Robot) -> _RobotInfo:
         {"name": name, "lower_deg": math.degrees(lo), "upper_deg": math.degrees(hi), "velocity_deg_s": math.degrees(v)}
         for name, lo, hi, v in zip(robot.joint_names, robot.lower_rad, robot.upper_rad, robot.velocity_rad_s,
                                    strict=True)]
-    how = rec.how()
-    methods: list[_MethodInfo] = [{"method": m, "applies": not why, "note": why or how.get(m, "")}
-                                  for m, why in rec.crossing_methods().items()]
+    how, refused = rec.how(), rec.crossing_methods()
+    methods: list[_MethodInfo] = [{"method": m, "applies": m not in refused, "note": refused.get(m, how.get(m, ""))}
+                                  for m in method_names()]
     return {"robot": robot.name, "urdf": str(robot.urdf_path), "family": rec.family, "parameters": params,
             "verification": {"samples": VERIFY_SAMPLES, "residual_m": rec.residual_m,
                              "residual_rad": rec.residual_rad} if params is not None else None,

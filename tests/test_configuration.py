@@ -15,10 +15,12 @@ from singplan.kinematics.configuration import (
     classify,
     distances_batch,
     label_and_distances,
+    labels_batch,
     labels_from_distances,
     parse_configuration,
     singularity_distances,
 )
+from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import load_robot
 
 from .conftest import OPW_NAMES
@@ -99,3 +101,66 @@ def test_classify_matches_label_and_distances() -> None:
     label, d = label_and_distances(robot, q)
     assert label == classify(robot, q)
     assert math.isclose(abs(d.wrist_rad), math.radians(35.0), abs_tol=1e-9)  # angle between axes 4 and 6
+
+
+def _boundary_rows(robot, rng: np.random.Generator, n: int) -> np.ndarray:
+    """n random joint vectors, most put on or within round-off of a label boundary: the wrist at
+    q5 = 0 or +-pi (exactly, or 1e-17 .. 1e-9 off), the elbow stretched, the wrist point on axis 1."""
+    lo, hi = np.maximum(robot.lower_rad, -2 * np.pi), np.minimum(robot.upper_rad, 2 * np.pi)
+    q = rng.uniform(lo, hi, size=(n, robot.n_joints))
+    offsets = np.array([0.0, 1e-17, -1e-17, 1e-13, -1e-13, 1e-9, -1e-9])
+    wrist = slice(0, n // 3)
+    q[wrist, 4] = rng.choice([0.0, math.pi, -math.pi], n // 3) + rng.choice(offsets, n // 3)
+    for column, rows in ((2, slice(n // 3, 2 * n // 3)), (1, slice(2 * n // 3, n - n // 10))):
+        q[rows] = _zero_of(robot, q[rows], column, 2 if column == 2 else 1)
+        q[rows, column] += rng.choice(offsets, len(q[rows]))
+    return q
+
+
+def _zero_of(robot, q: np.ndarray, joint: int, distance: int) -> np.ndarray:
+    """q with ``joint`` moved (bisection, to round-off) where ``distance`` (elbow 2, shoulder 1) changes sign."""
+    grid = np.linspace(-math.pi, math.pi, 73)
+    out = q.copy()
+    for k, row in enumerate(q):
+        trial = np.repeat(row[None], len(grid), axis=0)
+        trial[:, joint] = grid
+        d = distances_batch(robot, trial)[:, distance]
+        flips = np.flatnonzero((np.sign(d[:-1]) != np.sign(d[1:])) & (np.abs(np.diff(d)) < 1.0))
+        if not len(flips):
+            continue
+        a, b = grid[flips[0]], grid[flips[0] + 1]
+        da = d[flips[0]]
+        for _ in range(60):
+            mid = 0.5 * (a + b)
+            row_mid = row.copy()
+            row_mid[joint] = mid
+            dm = distances_batch(robot, row_mid)[0, distance]
+            a, b, da = (mid, b, dm) if np.sign(dm) == np.sign(da) else (a, mid, da)
+        out[k, joint] = a
+    return out
+
+
+@pytest.mark.parametrize("name", ["abb_irb2400", "kuka_kr6_r900_2", "fanuc_lrmate200id", "staubli_tx2_60", "ur5",
+                                  "so100", "panda"])
+def test_labels_batch_equals_classify_row_by_row_at_the_boundaries(name: str) -> None:
+    robot = load_robot(name)
+    rng = np.random.default_rng(20261123)
+    q = _boundary_rows(robot, rng, 600)
+    d = distances_batch(robot, q)
+    expected = [classify(robot, qk).label for qk in q]
+    assert labels_batch(robot, q) == expected
+    if robot.family in ("opw", "ur"):  # the rows did reach the boundaries, where the closed forms alone disagree
+        assert labels_from_distances(d) != expected
+        assert np.sum(np.min(np.abs(d), axis=1) < 1e-9) > 100
+
+
+@pytest.mark.parametrize("name", ["abb_irb2400", "ur5"])
+def test_ik_solutions_of_singular_poses_carry_classify_s_labels(name: str) -> None:
+    robot = load_robot(name)
+    rng = np.random.default_rng(7)
+    q = [qk for qk in _boundary_rows(robot, rng, 60) if robot.within_limits(qk)]  # the bisection ignores limits
+    assert len(q) >= 20
+    for qk in q:
+        sols = solve_all(robot, robot.fk(qk))
+        assert len(sols) > 0
+        assert list(sols.labels) == [classify(robot, row).label for row in sols.q]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import yaml
 
-from singplan.kinematics import robot as robot_module
+from singplan.kinematics.robot import load_robot
 from singplan.task import schema
 from singplan.task.load import parse_task
 
@@ -49,5 +49,5 @@ def test_the_user_guide_shows_the_schema_s_defaults() -> None:
 
 
 def test_a_robot_loaded_without_a_task_has_the_task_default_acceleration() -> None:
-    # kinematics may not import the task layer: its own default must stay equal to the task's
-    assert robot_module.DEFAULT_ACCELERATION_RAD_S2 == schema.DEFAULT_ACCELERATION_RAD_S2
+    robot = load_robot("abb_irb2400")
+    assert robot.acceleration_rad_s2.tolist() == list(parse_task(MINIMAL).limits.acceleration_rad_s2) * 6

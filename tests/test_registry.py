@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import json
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -57,9 +58,25 @@ def clean_registry(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def test_the_task_schema_and_the_registry_name_the_same_methods(clean_registry: None) -> None:
-    assert registry.names() == schema.method_names()
-    assert set(registry.names()) == set(schema.METHODS)
+    assert registry.names() == schema.method_names() == schema.METHODS
     assert set(registry.AUTO_CANDIDATES) < set(registry.names())
+    move = load_task(NEAR_MISS).moves[0]
+    for name in schema.METHODS[1:]:  # every method a task may name has its objects, under that name
+        methods = registry.candidates(name, move)
+        assert methods and all(m.name == name for m in methods)
+    assert schema.METHODS[0] == schema.AUTO_METHOD
+    assert [m.name for m in registry.candidates(schema.AUTO_METHOD, move)] == [
+        "exact", "wrist-joint", "wrist-joint", "wrist-joint", "axis", "null-space"]
+
+
+def test_singplan_info_lists_every_method_a_task_may_name(clean_registry: None) -> None:
+    registry.register(GiveUp())
+    out = io.StringIO()
+    assert main(["info", "so100", "--json"], out=out) == 0
+    methods = {m["method"]: m for m in json.loads(out.getvalue())["crossing_methods"]}
+    assert tuple(methods) == schema.method_names() and methods["give-up"]["applies"]
+    assert not methods["wrist-joint"]["applies"] and "two-axis wrist" in methods["wrist-joint"]["note"]
+    assert methods["exact"] == {"method": "exact", "applies": True, "note": ""}
 
 
 def test_a_method_object_passed_to_plan_crosses_every_zone(clean_registry: None) -> None:

@@ -92,6 +92,18 @@ def test_urdf_by_path_takes_the_default_tip_rule(robots) -> None:
     assert robot.name == "abb_irb2400" and robot.tip == "tool0"
 
 
+@pytest.mark.parametrize("name", ["abb_irb2400", "staubli_tx2_60", "ur5", "panda"])
+def test_batched_tcp_positions_and_jacobians_match_pinocchio(name: str, rng) -> None:
+    """The chunked numpy chain (one walk for both) against a Pinocchio call per sample, with a tool."""
+    tool = pin.SE3(pin.rpy.rpyToMatrix(0.3, -0.2, 0.5), np.array([0.02, -0.03, 0.15]))
+    robot = load_robot(name).with_tool(tool)
+    q = random_q(robot, rng, 50)
+    positions, jacobians = robot.tcp_positions(q), robot.tcp_jacobians(q)
+    for k in range(len(q)):
+        np.testing.assert_allclose(positions[k], robot.fk(q[k]).translation, atol=1e-12)
+        np.testing.assert_allclose(jacobians[k], robot.jacobian(q[k])[:3], atol=1e-12)
+
+
 @pytest.mark.parametrize("name", ["abb_irb2400", "kuka_kr6_r900_2", "fanuc_lrmate200id", "staubli_tx2_60", "ur5"])
 def test_jacobian_matches_finite_differences(name: str, robots, rng) -> None:
     """Columns of the TCP Jacobian against central differences of FK (position and rotation)."""

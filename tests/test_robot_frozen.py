@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from singplan.kinematics.robot import DEFAULT_ACCELERATION_RAD_S2, load_robot
+from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
+from singplan.kinematics.robot import load_robot
 from singplan.planning.redundancy import hold_joint
 from singplan.planning.targets import load_task_robot
 from singplan.task.load import parse_task

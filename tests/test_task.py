@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import textwrap
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -21,6 +22,8 @@ from singplan.task.schema import (
     VELOCITY_SCALE,
 )
 
+MINIMAL_TASK = {"robot": "abb_irb2400", "start": {"joints_deg": [0, 10, 20, 0, 30, 0]},
+                "moves": [{"lin": {"to": {"xyz": [1.0, 0.2, 0.8]}}}]}
 GOOD = (Path(__file__).parent / "data" / "good_task.yaml").read_text()  # every field set
 
 
@@ -210,3 +213,25 @@ def test_every_positive_range_keeps_durations_finite() -> None:
     slowest_joint_rad_s = VELOCITY_SCALE.low ** 2 * VELOCITY_LIMIT_RAD_S[0]
     assert math.isfinite(math.radians(2 * JOINT_DEG.high) / slowest_joint_rad_s / PERIOD_S.low)
     assert math.isfinite(math.sqrt(math.radians(2 * JOINT_DEG.high) / ACCELERATION_RAD_S2.low) / PERIOD_S.low)
+
+
+@pytest.mark.parametrize(("changes", "field", "words"), [
+    ({"acceleration_rad_s2": (0.0,)}, "limits.acceleration", "positive"),
+    ({"acceleration_rad_s2": (5.0, 5.0, 5.0, 1e5, 5.0, 5.0)}, "limits.acceleration[3]", "at most 10000"),
+    ({"jerk_rad_s3": (100.0, math.nan)}, "limits.jerk[1]", "finite"),
+    ({"jerk_rad_s3": ("fast",)}, "limits.jerk", "expected a number"),
+    ({"ptp_time_law": "cubic"}, "limits.ptp_time_law", "expected one of optimal, quintic"),
+])
+def test_limits_made_in_python_are_checked_when_made(changes: dict[str, object], field: str, words: str) -> None:
+    """The record checks its own ranges (the one check, for parsed and Python-made limits alike)."""
+    limits = parse_task(MINIMAL_TASK).limits
+    with pytest.raises(TaskError, match=words) as info:
+        replace(limits, **changes)
+    assert info.value.field == field
+
+
+def test_a_parsed_range_error_names_the_list_item() -> None:
+    task = {**MINIMAL_TASK, "limits": {"jerk": [100, 100, -1, 100, 100, 100]}}
+    with pytest.raises(TaskError, match="must be positive") as info:
+        parse_task(task)
+    assert info.value.field == "limits.jerk[2]"

@@ -7,6 +7,7 @@ The public weave tasks of ../shared/scenarios_programs are judged by the indepen
 from __future__ import annotations
 
 import math
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -19,8 +20,9 @@ from scipy.spatial.transform import Rotation, Slerp
 from singplan.cli import main
 from singplan.errors import TaskError
 from singplan.kinematics.geometry import rpy_deg_to_rotation
+from singplan.planning.path import CartesianPiece
 from singplan.planning.pieces import move_piece
-from singplan.planning.weave import WovenPiece, path_grid, wave, whole_periods, woven_moves
+from singplan.planning.weave import WovenPiece, wave, whole_periods, woven_moves
 from singplan.results.plan import plan
 from singplan.results.trajectory import save
 from singplan.task.load import parse_task
@@ -174,7 +176,7 @@ def test_the_triangle_wave_is_the_unit_triangle_in_phase_with_the_sine() -> None
 
 def test_the_path_is_sampled_finely_enough_for_the_weave() -> None:
     piece, _ = _piece(*CASES[1])  # triangle: its corners at quarter periods are samples, with clusters around
-    grid = path_grid(piece, 0.002, math.radians(0.5))
+    grid = piece.grid(0.002, math.radians(0.5))
     assert len(grid) == piece.sample_count(0.002, math.radians(0.5)) + 1  # what the budget counts
     assert np.all(np.diff(grid) > 0) and grid[0] == 0.0 and grid[-1] == 1.0
     corners = (2 * np.arange(2 * piece.periods) + 1) / (4 * piece.periods)
@@ -182,7 +184,17 @@ def test_the_path_is_sampled_finely_enough_for_the_weave() -> None:
     assert np.all(gaps.min(axis=1) < 1e-15)  # on every corner ...
     assert np.all(np.sort(gaps, axis=1)[:, 1] < 1e-4 / (4 * piece.periods) * 1.01)  # ... and right next to it
     sine, _ = _piece(*CASES[0])
-    assert len(path_grid(sine, 0.002, math.radians(0.5))) - 1 >= 32 * sine.periods
+    assert len(sine.grid(0.002, math.radians(0.5))) - 1 >= 32 * sine.periods
+
+
+def test_a_plain_piece_is_gridded_and_drawn_as_before_and_a_woven_one_by_its_periods() -> None:
+    sine, _ = _piece(*CASES[0])
+    plain = CartesianPiece(**{f.name: getattr(sine, f.name) for f in fields(CartesianPiece)})
+    count = plain.sample_count(0.002, math.radians(0.5))
+    np.testing.assert_array_equal(plain.grid(0.002, math.radians(0.5)), np.linspace(0.0, 1.0, count + 1))
+    assert plain.drawing_count() == 64
+    assert sine.periods > 3 and sine.drawing_count() == 16 * sine.periods + 1
+    assert replace(sine, periods=1).drawing_count() == 64 and replace(sine, periods=10**6).drawing_count() == 20_000
 
 
 @pytest.mark.parametrize(("weave", "field"), [

@@ -513,33 +513,30 @@ def _verify(model: pin.Model, tip_frame_id: int, params: OpwParameters | UrParam
 
 
 def crossing_methods(family: Family, no_wrist: str = "") -> dict[str, str]:
-    """Each crossing method and why it cannot serve an arm of ``family`` ("" when it serves).
+    """The crossing methods that cannot serve an arm of ``family``, each with why (a method not
+    named serves; the names are the task's, singplan.task.schema.METHODS).
 
     General 6R arms get wrist-joint with a numeric position solve (joints 1-3 by Newton on
     Pinocchio's Jacobian) and axis (Gauss-Newton, as on every arm), both with exits from the
     all-branch numeric IK; wrist-joint needs a wrist singularity to cross (``no_wrist`` says
     why an arm has none, :class:`Recognition`).
     """
-    serves = {"exact": "", "stop": "", "wrist-joint": "", "axis": "", "null-space": "", "dls": "", "average": "",
-              "ptp": "", "auto": ""}
     if family in ("opw", "ur"):
-        return serves
+        return {}
     if family == "general6":
-        serves["wrist-joint"] = no_wrist
-        return serves
+        return {"wrist-joint": no_wrist} if no_wrist else {}
     if family == "five":
         return _FIVE_METHODS
     no_closed = "needs a closed form (opw or ur), which this arm does not have"
     seven = f"{_NO_SQUARE_JACOBIAN} (6 x 7); with `redundancy` holding one joint, the six-axis chain left can use it"
-    return {**serves, "wrist-joint": no_closed, "axis": no_closed, "null-space": seven,
+    return {"wrist-joint": no_closed, "axis": no_closed, "null-space": seven,
             "auto": "compares exact only: wrist-joint and axis need a closed form"}
 
 
 _NO_WRIST = "needs a spherical wrist (three wrist axes meeting in a point); a five-axis arm has a two-axis wrist"
 _NO_SQUARE_JACOBIAN = ("moves the joints in the null space of a square (6 x 6) Jacobian at a singular "
                        "configuration; this arm's Jacobian is not square")
-_FIVE_METHODS = {"exact": "", "stop": "", "dls": "", "average": "", "ptp": "", "wrist-joint": _NO_WRIST,
-                 "null-space": _NO_SQUARE_JACOBIAN,
+_FIVE_METHODS = {"wrist-joint": _NO_WRIST, "null-space": _NO_SQUARE_JACOBIAN,
                  "axis": "interpolates one axis while three others keep a full pose component; a five-axis arm "
                          "keeps position and tool axis only, with no closed form to re-solve them",
                  "auto": "compares exact only: wrist-joint and axis need a six-axis arm's closed form"}

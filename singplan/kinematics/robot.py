@@ -23,12 +23,10 @@ import yaml
 from singplan.errors import RobotModelError, UnknownNameError
 from singplan.kinematics.families import Family, OpwParameters, Recognition, recognise
 from singplan.kinematics.ik.ur import UrParameters
+from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
 
 logger = logging.getLogger(__name__)
 
-# joint acceleration limit of a robot loaded without a task (the task's limits.acceleration, whose
-# default task.schema.DEFAULT_ACCELERATION_RAD_S2 equals it, replaces it for planning)
-DEFAULT_ACCELERATION_RAD_S2 = 10.0
 SUPPORTED_JOINT_COUNTS = (5, 6, 7)  # actuated revolute joints from the root to the tip
 MAX_URDF_BYTES = 32 * 1024 * 1024
 VELOCITY_LIMIT_RAD_S = (1e-3, 1e3)  # a joint slower than 0.001 rad/s would make durations overflow
@@ -206,15 +204,6 @@ class Robot:
             out[c:c + _FK_CHUNK] = self._tcp_chunk(q[c:c + _FK_CHUNK])
         return out
 
-    def _tcp_chunk(self, q: np.ndarray) -> np.ndarray:
-        rotation = np.broadcast_to(np.eye(3), (len(q), 3, 3))  # (N, 3, 3): base -> current joint frame
-        position = np.zeros((len(q), 3))
-        for placement, axis, iq in self._chain_steps:
-            position = position + rotation @ placement.translation
-            rotation = rotation @ placement.rotation @ _rotations_about(axis, q[:, iq])
-        tool = self.model.frames[self.tip_frame_id].placement * self.T_tip_tcp
-        return position + rotation @ tool.translation
-
     def tcp_jacobians(self, q: np.ndarray) -> np.ndarray:
         """Linear part of the TCP Jacobian (N, 3, n) [m/rad] in the base frame, of joint samples q (N, n):
         column j is ``axis_j x (p_tcp - origin_j)``, composed in numpy a chunk at a time like
@@ -222,19 +211,25 @@ class Robot:
         q = np.asarray(q, dtype=float).reshape(-1, self.n_joints)
         out = np.zeros((len(q), 3, self.n_joints))
         for c in range(0, len(q), _FK_CHUNK):
-            part = q[c:c + _FK_CHUNK]
-            rotation = np.broadcast_to(np.eye(3), (len(part), 3, 3))
-            position = np.zeros((len(part), 3))
-            joints = []
-            for placement, axis, iq in self._chain_steps:
-                position = position + rotation @ placement.translation
-                rotation = rotation @ placement.rotation
-                joints.append((iq, position, rotation @ axis))
-                rotation = rotation @ _rotations_about(axis, part[:, iq])
-            tcp = position + rotation @ (self.model.frames[self.tip_frame_id].placement * self.T_tip_tcp).translation
+            joints: list[tuple[int, np.ndarray, np.ndarray]] = []
+            tcp = self._tcp_chunk(q[c:c + _FK_CHUNK], joints)
             for iq, origin, axis_base in joints:
                 out[c:c + _FK_CHUNK, :, iq] = np.cross(axis_base, tcp - origin)
         return out
+
+    def _tcp_chunk(self, q: np.ndarray, joints: list[tuple[int, np.ndarray, np.ndarray]] | None = None) -> np.ndarray:
+        """TCP positions (N, 3) of joint samples q (N, n); with ``joints``, also appends each chain
+        joint's (q index, origin (N, 3), unit axis (N, 3)) in the base frame to it."""
+        rotation = np.broadcast_to(np.eye(3), (len(q), 3, 3))  # (N, 3, 3): base -> current joint frame
+        position = np.zeros((len(q), 3))
+        for placement, axis, iq in self._chain_steps:
+            position = position + rotation @ placement.translation
+            rotation = rotation @ placement.rotation
+            if joints is not None:
+                joints.append((iq, position, rotation @ axis))
+            rotation = rotation @ _rotations_about(axis, q[:, iq])
+        tool = self.model.frames[self.tip_frame_id].placement * self.T_tip_tcp
+        return position + rotation @ tool.translation
 
     @cached_property
     def _chain_steps(self) -> list[tuple[pin.SE3, np.ndarray, int]]:

@@ -58,7 +58,7 @@ from singplan.outputs.timeline import (
 )
 from singplan.planning.path import move_target
 from singplan.planning.pieces import move_piece
-from singplan.planning.weave import drawing_count, woven_moves
+from singplan.planning.weave import woven_moves
 from singplan.results.files import check_output_file, text_writer, write_file
 from singplan.results.trajectory import Segment, Trajectory, load
 from singplan.task.schema import Move
@@ -229,7 +229,7 @@ def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
             T = robot.fk(np.radians(move.to_joints_deg)) if move.to_joints_deg is not None else move_target(move, T)
             continue
         piece = move_piece(i, move, T)
-        points.append(piece.positions(np.linspace(0.0, 1.0, drawing_count(piece))))
+        points.append(piece.positions(np.linspace(0.0, 1.0, piece.drawing_count())))
         T = piece.T_end
     return np.concatenate(points) if points else tcp.xyz[:1]
 

@@ -14,7 +14,6 @@ from singplan.planning.move_plan import STEP_M, STEP_RAD, refiner
 from singplan.planning.pieces import move_piece
 from singplan.planning.targets import ptp_target, task_arm
 from singplan.planning.tracking import track
-from singplan.planning.weave import path_grid
 from singplan.planning.zones import Zone, distances_along, find_zones
 from singplan.task.load import load_task
 from singplan.task.schema import Task
@@ -53,7 +52,7 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
             out.append(MoveZones(i, "ptp", 0.0, (), ptp_estimate(robot, q_from, q, vmax * move.velocity_scale)))
             continue
         piece = move_piece(i, move, T)
-        grid = path_grid(piece, STEP_M, STEP_RAD)
+        grid = piece.grid(STEP_M, STEP_RAD)
         tracked = track(robot, piece.poses, grid, q)
         check_tracked(robot, i, move, piece, tracked)
         dist, _ = distances_along(robot, tracked.q)

@@ -20,7 +20,6 @@ from singplan.planning.pieces import move_piece
 from singplan.planning.records import PlannedMove
 from singplan.planning.targets import move_limits, ptp_target
 from singplan.planning.tracking import BranchCandidates, track
-from singplan.planning.weave import path_grid
 from singplan.planning.zones import DistanceFunction, Zone, find_zones
 from singplan.task.schema import Move, Task
 
@@ -95,7 +94,7 @@ class MoveTracking:
     def __init__(self, robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3) -> None:
         self.robot, self.task, self.index, self.move = robot, task, i, move
         self.piece = move_piece(i, move, T_start)
-        self.grid = path_grid(self.piece, STEP_M, STEP_RAD)
+        self.grid = self.piece.grid(STEP_M, STEP_RAD)
         self.thresholds = task.singularity.zone.si()
         self._cands = BranchCandidates(robot, self.piece.poses)  # IK branches per path parameter, solved once
         self._in_zone = _ZoneTest(robot, self.thresholds)

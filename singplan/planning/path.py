@@ -24,6 +24,7 @@ from singplan.kinematics.robot import Robot
 from singplan.task.schema import Move
 
 AMBIGUOUS_ROTATION_RAD = math.pi - 1e-6
+_DRAW_POINTS = 64  # a replay draws a LIN / CIRC with this many points (a woven one with more)
 
 
 @jit
@@ -131,6 +132,14 @@ class CartesianPiece:
     def sample_count(self, step_m: float, step_rad: float) -> int:
         """Number of intervals so that each one moves at most ``step_m`` and turns ``step_rad``."""
         return max(2, math.ceil(self.length_m / step_m), math.ceil(self.rotation_rad / step_rad))
+
+    def grid(self, step_m: float, step_rad: float) -> np.ndarray:
+        """The planner's initial path parameters: uniform at the steps [m], [rad]."""
+        return np.linspace(0.0, 1.0, self.sample_count(step_m, step_rad) + 1)
+
+    def drawing_count(self) -> int:
+        """Points a replay draws of the path."""
+        return _DRAW_POINTS
 
 
 def make_lin(T_start: pin.SE3, T_end: pin.SE3, field: str) -> CartesianPiece:

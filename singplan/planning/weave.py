@@ -154,6 +154,10 @@ class WovenPiece(CartesianPiece):
         """The planner's initial path parameters: uniform, plus the triangle's corner samples."""
         return np.union1d(np.linspace(0.0, 1.0, self._uniform_count(step_m, step_rad) + 1), self._corner_samples())
 
+    def drawing_count(self) -> int:
+        """Points a replay draws: enough to show the weave's periods."""
+        return min(_DRAW_POINTS_MAX, max(super().drawing_count(), _DRAW_POINTS_PER_PERIOD * self.periods + 1))
+
 
 def woven(piece: CartesianPiece, weave: Weave, field: str) -> WovenPiece:
     """The piece with its weave; ``field`` names the move (``moves[i].lin``) for bad input.
@@ -192,21 +196,6 @@ def _check_lateral(piece: WovenPiece, where: str) -> None:
                                f"{at}): a weave needs the lateral "
                                f"direction z_tcp x tangent, so the tool must stand at least {MIN_LATERAL_DEG:g} deg "
                                "off the path")
-
-
-def path_grid(piece: CartesianPiece, step_m: float, step_rad: float) -> np.ndarray:
-    """The planner's initial path parameters of a LIN / CIRC: uniform at the steps [m], [rad], or a
-    woven piece's :meth:`WovenPiece.grid`."""
-    if isinstance(piece, WovenPiece):
-        return piece.grid(step_m, step_rad)
-    return np.linspace(0.0, 1.0, piece.sample_count(step_m, step_rad) + 1)
-
-
-def drawing_count(piece: CartesianPiece) -> int:
-    """Points a replay draws of a LIN / CIRC: 64, or enough to show a weave's periods."""
-    if not isinstance(piece, WovenPiece):
-        return 64
-    return min(_DRAW_POINTS_MAX, max(64, _DRAW_POINTS_PER_PERIOD * piece.periods + 1))
 
 
 def woven_moves(task: Mapping[str, Any]) -> frozenset[int]:

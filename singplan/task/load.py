@@ -19,13 +19,13 @@ import yaml
 
 from singplan.errors import TaskError
 from singplan.kinematics.configuration import parse_configuration
+from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
 from singplan.kinematics.robot import Robot
 from singplan.task.schema import (
     ACCELERATION_RAD_S2,
     ANGLE_DEG,
     BLEND_MM,
     COORDINATE_M,
-    DEFAULT_ACCELERATION_RAD_S2,
     DEFAULT_BLEND_MM,
     DEFAULT_CONFIG,
     DEFAULT_METHOD,
@@ -54,7 +54,6 @@ from singplan.task.schema import (
     ORIENTATION_TOLERANCE_DEG,
     PERIOD_S,
     POSITION_TOLERANCE_MM,
-    PTP_TIME_LAWS,
     SPEED_M_S,
     TOOL_OFFSET_M,
     TORQUE_SCALE,
@@ -73,6 +72,7 @@ from singplan.task.schema import (
     Task,
     Weave,
     ZoneThresholds,
+    _as_number,
     _check_choice,
     _check_keys,
     _check_mapping,
@@ -429,12 +429,13 @@ def _limits(value: Any) -> Limits:
 
 
 def _per_joint(where: str, value: Any, bounds: Range) -> tuple[float, ...]:
-    """A number for all joints, or a list of one number per joint (the count is checked against the robot)."""
+    """A number for all joints, or a list of one number per joint (the count is checked against the
+    robot, the range by :class:`Limits`)."""
     if isinstance(value, Sequence) and not isinstance(value, (str, bytes)):
         if not value or len(value) > MAX_JOINTS:
             raise TaskError(where, f"expected a number or one number per joint, got {len(value)}")
-        return tuple(_number(f"{where}[{i}]", v, bounds) for i, v in enumerate(value))
-    return (_number(where, value, bounds),)
+        return tuple(_as_number(f"{where}[{i}]", v, bounds) for i, v in enumerate(value))
+    return (_as_number(where, value, bounds),)
 
 
 def _redundancy(value: Any) -> Redundancy:
@@ -463,14 +464,8 @@ def check_against_robot(task: Task, robot: Robot) -> None:
             _check_joint_values(f"moves[{i}].ptp.to.joints_deg", move.to_joints_deg, robot)
     for where, values in (("limits.acceleration", task.limits.acceleration_rad_s2),
                           ("limits.jerk", task.limits.jerk_rad_s3 or ())):
-        if len(values) not in (0, 1, n):
+        if len(values) not in (0, 1, n):  # their ranges: Limits checks them when it is made
             raise TaskError(where, f"expected 1 or {n} numbers for {robot.name}, got {len(values)}")
-        for i, v in enumerate(values):  # a Task built in Python, not parsed, is checked here
-            _number(f"{where}[{i}]" if len(values) > 1 else where, v,
-                    JERK_RAD_S3 if where == "limits.jerk" else ACCELERATION_RAD_S2)
-    if task.limits.ptp_time_law not in PTP_TIME_LAWS:
-        raise TaskError("limits.ptp_time_law", f"expected one of {', '.join(PTP_TIME_LAWS)}, "
-                                               f"got {task.limits.ptp_time_law!r}")
     if robot.family == "seven" and task.redundancy is None:
         _check_no_labels(task, robot)
 

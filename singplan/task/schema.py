@@ -46,6 +46,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from singplan.errors import TaskError
+from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2  # limits.acceleration, all joints
 
 MAX_MOVES = 10_000
 MAX_OUTPUT_SAMPLES = 10_000_000
@@ -56,20 +57,22 @@ MAX_SCALAR_CHARS = 10_000
 MAX_NAME_CHARS = 256
 MAX_PATH_CHARS = 4096
 MAX_JOINTS = 64
-METHODS = ("auto", "wrist-joint", "axis", "null-space", "exact", "dls", "average", "ptp", "stop")  # built in
+AUTO_METHOD = "auto"  # not a method: auto compares the pose-keeping ones (singplan.planning.select)
+# The one list of the built-in crossing method names. It is here, below planning, so a task is
+# checked without importing the planner; singplan.planning.crossing.registry gives each its objects.
+METHODS = (AUTO_METHOD, "wrist-joint", "axis", "null-space", "exact", "dls", "average", "ptp", "stop")
 _ADDED_METHODS: list[str] = []  # names registered by users (singplan.planning.crossing.registry.register)
 # the defaults of optional task fields, written once: the records below, the YAML reader and
 # the docs' tables take them from here
 DEFAULT_SPEED_M_S = 0.25  # LIN / CIRC speed
 DEFAULT_VELOCITY_SCALE = 1.0  # PTP velocity_scale and limits.velocity_scale
-DEFAULT_METHOD = "auto"
+DEFAULT_METHOD = AUTO_METHOD
 DEFAULT_CONFIG = "auto"
 DEFAULT_ORIENTATION_TOLERANCE_DEG = 5.0
 DEFAULT_POSITION_TOLERANCE_MM = 0.01
 DEFAULT_ZONE_WRIST_DEG = 5.0
 DEFAULT_ZONE_SHOULDER_MM = 20.0
 DEFAULT_ZONE_ELBOW_DEG = 5.0
-DEFAULT_ACCELERATION_RAD_S2 = 10.0  # limits.acceleration, all joints
 DEFAULT_PERIOD_S = 0.004  # output.period
 DEFAULT_WEAVE_PATTERN = "sine"
 DEFAULT_BLEND_MM = 0.0  # a move ends at rest on its point
@@ -195,6 +198,17 @@ class Limits:
     # Python API only (no YAML key in format v1): "quintic" times every PTP move by SEEDS 003's
     # 10t^3 - 15t^4 + 6t^5 law instead of the time-optimal one.
     ptp_time_law: str = "optimal"
+
+    def __post_init__(self) -> None:
+        """The per-joint ranges and the time law, checked once however the record is made (parsed,
+        built or replaced in Python); the joint count needs the robot (check_against_robot)."""
+        for where, values, bounds in (("limits.acceleration", self.acceleration_rad_s2, ACCELERATION_RAD_S2),
+                                      ("limits.jerk", self.jerk_rad_s3 or (), JERK_RAD_S3)):
+            for i, v in enumerate(values):
+                _in_range(f"{where}[{i}]" if len(values) > 1 else where, _as_number(where, v, bounds), bounds)
+        if self.ptp_time_law not in PTP_TIME_LAWS:
+            raise TaskError("limits.ptp_time_law", f"expected one of {', '.join(PTP_TIME_LAWS)}, "
+                                                   f"got {self.ptp_time_law!r}")
 
 
 @dataclass(frozen=True)
@@ -356,11 +370,19 @@ def _describe(value: Any) -> str:
 
 
 def _number(where: str, value: Any, bounds: Range) -> float:
+    return _in_range(where, _as_number(where, value, bounds), bounds)
+
+
+def _as_number(where: str, value: Any, bounds: Range) -> float:
+    """``value`` as a float: a number (not a bool) that a float holds; its range is not checked."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise TaskError(where, f"expected a number, got {_describe(value)}")
     if isinstance(value, int) and abs(value) > 1e300:  # exact comparison: no float() overflow
         raise TaskError(where, f"number too large ({_describe(value)}); at most {bounds.high:g} {bounds.unit}")
-    x = float(value)
+    return float(value)
+
+
+def _in_range(where: str, x: float, bounds: Range) -> float:
     unit = f" {bounds.unit}" if bounds.unit else ""
     if not math.isfinite(x):
         raise TaskError(where, f"must be finite, got {x}")
@@ -401,7 +423,6 @@ def _string(where: str, value: Any, max_chars: int = MAX_NAME_CHARS) -> str:
     return value.strip()
 
 
-
 def method_names() -> tuple[str, ...]:
     """The crossing method names a task may ask for: the built-in ones, then those users registered."""
     return (*METHODS, *_ADDED_METHODS)
@@ -411,6 +432,7 @@ def accept_method_name(name: str) -> None:
     """Let tasks name a crossing method registered by a user (the planning registry calls this)."""
     if name not in method_names():
         _ADDED_METHODS.append(name)
+
 
 def _check_choice(where: str, value: Any, choices: Sequence[str]) -> str:
     text = _string(where, value)

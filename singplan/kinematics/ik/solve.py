@@ -32,7 +32,7 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.kinematics.angles import TWO_PI, nearest_shifted, wrap_to_pi
-from singplan.kinematics.configuration import classify
+from singplan.kinematics.configuration import classify, labels_batch
 from singplan.kinematics.ik import numeric as ik_numeric
 from singplan.kinematics.ik import opw
 from singplan.kinematics.ik.ur import ur_batch
@@ -159,7 +159,7 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
     kept = _distinct([v for v, _ in found])
     q_all = np.array([found[k][0] for k in kept]).reshape(-1, robot.n_joints)
     branch_list = [found[k][1] for k in kept]
-    labels = tuple(classify(robot, q).label for q in q_all)
+    labels = tuple(labels_batch(robot, q_all))
     return IkSolutions(q=q_all, labels=labels, branches=np.array(branch_list, dtype=int))
 
 

@@ -13,34 +13,34 @@ from singplan.errors import InputError
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Average, Axis, Dls, Exact, Ptp, Stop, WristJoint
 from singplan.planning.crossing.nullspace import NullSpace
-from singplan.task.schema import Move, accept_method_name
+from singplan.task.schema import AUTO_METHOD, Move, accept_method_name, method_names
 
-AUTO = "auto"
 WRIST_JOINT_WINDOWS = (1.0, 1.5, 2.5)  # blend spans, as multiples of the detected zone
 Target = str | None  # the configuration a move asks for, None for auto / keep
 _Factory = Callable[[Target], list[CrossingMethod]]
 
+# each built-in method under its own name (task.schema.METHODS lists the names a task may give)
 _BUILT_IN: dict[str, _Factory] = {
     # wrist-joint is tried with a few blend windows: a wider one spreads the wrist's change of branch
     # over more path (less acceleration) at the price of more orientation deviation; the fastest wins
-    "wrist-joint": lambda target: [WristJoint(target, w) for w in WRIST_JOINT_WINDOWS],
-    "axis": lambda target: [Axis(target)],
-    "null-space": lambda target: [NullSpace()],
-    "exact": lambda target: [Exact()],
-    "dls": lambda target: [Dls()],
-    "average": lambda target: [Average()],
-    "ptp": lambda target: [Ptp()],
-    "stop": lambda target: [Stop()],
+    WristJoint.name: lambda target: [WristJoint(target, w) for w in WRIST_JOINT_WINDOWS],
+    Axis.name: lambda target: [Axis(target)],
+    NullSpace.name: lambda target: [NullSpace()],
+    Exact.name: lambda target: [Exact()],
+    Dls.name: lambda target: [Dls()],
+    Average.name: lambda target: [Average()],
+    Ptp.name: lambda target: [Ptp()],
+    Stop.name: lambda target: [Stop()],
 }
-AUTO_CANDIDATES = ("exact", "wrist-joint", "axis", "null-space")  # the pose-keeping methods auto compares, in order
+AUTO_CANDIDATES = (Exact.name, WristJoint.name, Axis.name, NullSpace.name)  # what auto compares, in order
 # under auto, null-space serves only where exact's own crossing would leave a joint limit
-_AUTO_FORM: dict[str, _Factory] = {"null-space": lambda target: [NullSpace(only_when_needed=True)]}
+_AUTO_FORM: dict[str, _Factory] = {NullSpace.name: lambda target: [NullSpace(only_when_needed=True)]}
 _registered: dict[str, CrossingMethod] = {}
 
 
 def names() -> tuple[str, ...]:
     """Every name a task or ``--method`` may give: auto, the built-in methods, the registered ones."""
-    return (AUTO, *_BUILT_IN, *_registered)
+    return method_names()
 
 
 def register(method: CrossingMethod) -> None:
@@ -54,7 +54,7 @@ def register(method: CrossingMethod) -> None:
 def candidates(name: str, move: Move) -> list[CrossingMethod]:
     """The method objects to try on a move: one method's (several wrist-joint windows), or auto's set."""
     target = move.config if move.config not in ("auto", "keep") else None
-    if name == AUTO:
+    if name == AUTO_METHOD:
         return [m for candidate in AUTO_CANDIDATES for m in _AUTO_FORM.get(candidate, _BUILT_IN[candidate])(target)]
     if name in _registered:
         return [_registered[name]]

@@ -121,3 +121,22 @@ def test_every_exit_3_message_names_the_move_and_the_point(name: str) -> None:
     message = str(info.value)
     assert re.search(r"move \d+", message), message
     assert re.search(POINT, message), message
+
+
+@pytest.mark.parametrize("offset_m", [0.0, 0.05])
+@pytest.mark.parametrize("q4_deg", [1.0, 0.4, -30.0])
+def test_a_move_starting_on_the_wrist_singularity_starts_at_its_own_joints(offset_m: float, q4_deg: float) -> None:
+    """At q5 = 0 only q4 + q6 is fixed by the pose; the tracker's branches hold one split of it. A
+    LIN from there (or to its own start) begins at the start joints, not at that split (found by the
+    soak: q4 = 1 deg, within the tracker's 1 deg step, began at q4 = 0, q6 = 1 deg)."""
+    robot = load_robot("abb_irb2400")
+    start = np.radians([0.0, 0.0, 0.0, q4_deg, 0.0, 0.0])
+    T = robot.fk(start)
+    target = {"xyz": list(T.translation + [0.0, offset_m, 0.0]),
+              "rpy_deg": list(np.degrees(pin.rpy.matrixToRpy(T.rotation)))}
+    traj = plan(parse_task({"robot": "abb_irb2400", "start": {"joints_deg": list(np.degrees(start))},
+                            "moves": [{"lin": {"to": target}}], "singularity": {"method": "auto"},
+                            "output": {"period": 0.015625}}))
+    np.testing.assert_allclose(traj.q[0], start, atol=1e-12)
+    if offset_m == 0.0:  # nothing to do: the joints stay where they are
+        assert np.max(np.abs(traj.q - start)) < 1e-12

@@ -157,8 +157,10 @@ def _follow(C: np.ndarray, free: np.ndarray, du: np.ndarray, q0: np.ndarray, row
     refine: where two branches approach each other (the UR arm's q1, q3 and q5 pairs near the
     shoulder, elbow and wrist) the other row may be nearer on a coarse grid although it is not
     the continuation. Elsewhere the nearest row is searched again (it may be the same row).
-    Returns the first sample whose nearest row steps more than ``max_step`` and whose joints
-    are free (the caller solves it with a seed), or N. A sample with no finite row ends the
+    Returns the first sample whose joints are free (a singular pose, where the rows hold one
+    arbitrary split of the free joints: the caller solves it seeded with the previous joints, so
+    a move that starts on a singularity starts at its own joints and the free joints do not
+    jump), or N. A sample with no finite row ends the
     path: it and the rest become NaN, their steps inf. (Chains without a closed form have no
     rows and free joints everywhere: every sample goes to the caller.)
     """
@@ -172,7 +174,7 @@ def _follow(C: np.ndarray, free: np.ndarray, du: np.ndarray, q0: np.ndarray, row
                 steps[k] = step
                 continue
         row, step = nearest_row(C[k], prev)
-        if step > max_step and free[k]:
+        if free[k]:  # a singular pose: the rows hold one arbitrary split of the free joints
             return k
         if not math.isfinite(step):
             q[k:] = np.nan

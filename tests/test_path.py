@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 
 from singplan.errors import TaskError
-from singplan.kinematics.geometry import rotation_angle, rpy_deg_to_rotation
+from singplan.kinematics.geometry import rotation_angle, rotation_angles, rpy_deg_to_rotation
 from singplan.planning.path import make_circ, make_lin
 
 
@@ -85,3 +85,19 @@ def test_degenerate_circ_and_half_turn_are_bad_input() -> None:
     with pytest.raises(TaskError, match=r"the orientation turns 180\.0000 deg: a 180 deg turn is ambiguous") as info:
         make_lin(se3([1, 0, 0.5], [0, 0, 0]), se3([1, 0.1, 0.5], [0, 0, 180]), "moves[1].lin")
     assert info.value.field == "moves[1].lin.to.rpy_deg"
+
+
+def test_rotation_angles_equal_pinocchio_log3_pair_by_pair() -> None:
+    """The batch angle against log3 per pair: random pairs, tiny angles (1e-14 .. 1e-6 rad) where
+    a cosine alone would lose them, and angles within 1e-9 of pi."""
+    rng = np.random.default_rng(11)
+    R_a = np.array([pin.exp3(rng.normal(size=3)) for _ in range(300)])
+    axes = rng.normal(size=(300, 3))
+    axes /= np.linalg.norm(axes, axis=1)[:, None]
+    angles = np.concatenate([rng.uniform(0, np.pi, 100), 10.0 ** rng.uniform(-14, -6, 100),
+                             np.pi - 10.0 ** rng.uniform(-9, -3, 100)])
+    R_b = np.array([Ra @ pin.exp3(axis * angle) for Ra, axis, angle in zip(R_a, axes, angles, strict=True)])
+    batch = rotation_angles(R_a, R_b)
+    one_by_one = np.array([rotation_angle(Ra, Rb) for Ra, Rb in zip(R_a, R_b, strict=True)])
+    np.testing.assert_allclose(batch, one_by_one, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(batch[:200], angles[:200], rtol=1e-8, atol=1e-15)

@@ -93,15 +93,20 @@ def test_urdf_by_path_takes_the_default_tip_rule(robots) -> None:
 
 
 @pytest.mark.parametrize("name", ["abb_irb2400", "staubli_tx2_60", "ur5", "panda"])
-def test_batched_tcp_positions_and_jacobians_match_pinocchio(name: str, rng) -> None:
+def test_batched_tcp_frames_and_jacobians_match_pinocchio(name: str, rng) -> None:
     """The chunked numpy chain (one walk for both) against a Pinocchio call per sample, with a tool."""
     tool = pin.SE3(pin.rpy.rpyToMatrix(0.3, -0.2, 0.5), np.array([0.02, -0.03, 0.15]))
     robot = load_robot(name).with_tool(tool)
     q = random_q(robot, rng, 50)
     positions, jacobians = robot.tcp_positions(q), robot.tcp_jacobians(q)
+    frames, full = robot.tcp_frames(q), robot.jacobians(q)
+    np.testing.assert_array_equal(frames[0], positions)
+    np.testing.assert_array_equal(full[:, :3], jacobians)
     for k in range(len(q)):
-        np.testing.assert_allclose(positions[k], robot.fk(q[k]).translation, atol=1e-12)
-        np.testing.assert_allclose(jacobians[k], robot.jacobian(q[k])[:3], atol=1e-12)
+        T = robot.fk(q[k])
+        np.testing.assert_allclose(positions[k], T.translation, atol=1e-12)
+        np.testing.assert_allclose(frames[1][k], T.rotation, atol=1e-12)
+        np.testing.assert_allclose(full[k], robot.jacobian(q[k]), atol=1e-12)
 
 
 @pytest.mark.parametrize("name", ["abb_irb2400", "kuka_kr6_r900_2", "fanuc_lrmate200id", "staubli_tx2_60", "ur5"])

@@ -201,25 +201,45 @@ class Robot:
         q = np.asarray(q, dtype=float).reshape(-1, self.n_joints)
         out = np.empty((len(q), 3))
         for c in range(0, len(q), _FK_CHUNK):
-            out[c:c + _FK_CHUNK] = self._tcp_chunk(q[c:c + _FK_CHUNK])
+            out[c:c + _FK_CHUNK] = self._tcp_chunk(q[c:c + _FK_CHUNK])[0]
         return out
+
+    def tcp_frames(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """TCP positions [m] (N, 3) and rotations (N, 3, 3) in the base frame of joint samples q (N, n):
+        ``T_base_tcp`` of each, composed in numpy like :meth:`tcp_positions`."""
+        q = np.asarray(q, dtype=float).reshape(-1, self.n_joints)
+        position, rotation = np.empty((len(q), 3)), np.empty((len(q), 3, 3))
+        for c in range(0, len(q), _FK_CHUNK):
+            position[c:c + _FK_CHUNK], rotation[c:c + _FK_CHUNK] = self._tcp_chunk(q[c:c + _FK_CHUNK])
+        return position, rotation
 
     def tcp_jacobians(self, q: np.ndarray) -> np.ndarray:
-        """Linear part of the TCP Jacobian (N, 3, n) [m/rad] in the base frame, of joint samples q (N, n):
-        column j is ``axis_j x (p_tcp - origin_j)``, composed in numpy a chunk at a time like
+        """Linear part of the TCP Jacobian (N, 3, n) [m/rad] in the base frame, of joint samples q (N, n)
+        (:meth:`jacobians`' first three rows)."""
+        return self._jacobians(q, 3)
+
+    def jacobians(self, q: np.ndarray) -> np.ndarray:
+        """TCP Jacobians (N, 6, n) of joint samples q (N, n), as :meth:`jacobian` gives one (linear
+        rows [m/rad] at the TCP, angular rows [rad/rad], base coordinates): column j is
+        ``(axis_j x (p_tcp - origin_j), axis_j)``, composed in numpy a chunk at a time like
         :meth:`tcp_positions` (a Pinocchio call per sample costs ten times more)."""
+        return self._jacobians(q, 6)
+
+    def _jacobians(self, q: np.ndarray, rows: int) -> np.ndarray:
         q = np.asarray(q, dtype=float).reshape(-1, self.n_joints)
-        out = np.zeros((len(q), 3, self.n_joints))
+        out = np.zeros((len(q), rows, self.n_joints))
         for c in range(0, len(q), _FK_CHUNK):
             joints: list[tuple[int, np.ndarray, np.ndarray]] = []
-            tcp = self._tcp_chunk(q[c:c + _FK_CHUNK], joints)
+            tcp = self._tcp_chunk(q[c:c + _FK_CHUNK], joints)[0]
             for iq, origin, axis_base in joints:
-                out[c:c + _FK_CHUNK, :, iq] = np.cross(axis_base, tcp - origin)
+                out[c:c + _FK_CHUNK, :3, iq] = np.cross(axis_base, tcp - origin)
+                out[c:c + _FK_CHUNK, 3:, iq] = axis_base[:, :rows - 3]
         return out
 
-    def _tcp_chunk(self, q: np.ndarray, joints: list[tuple[int, np.ndarray, np.ndarray]] | None = None) -> np.ndarray:
-        """TCP positions (N, 3) of joint samples q (N, n); with ``joints``, also appends each chain
-        joint's (q index, origin (N, 3), unit axis (N, 3)) in the base frame to it."""
+    def _tcp_chunk(self, q: np.ndarray, joints: list[tuple[int, np.ndarray, np.ndarray]] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """TCP positions (N, 3) and rotations (N, 3, 3) of joint samples q (N, n); with ``joints``,
+        also appends each chain joint's (q index, origin (N, 3), unit axis (N, 3)) in the base frame to it."""
         rotation = np.broadcast_to(np.eye(3), (len(q), 3, 3))  # (N, 3, 3): base -> current joint frame
         position = np.zeros((len(q), 3))
         for placement, axis, iq in self._chain_steps:
@@ -229,7 +249,7 @@ class Robot:
                 joints.append((iq, position, rotation @ axis))
             rotation = rotation @ _rotations_about(axis, q[:, iq])
         tool = self.model.frames[self.tip_frame_id].placement * self.T_tip_tcp
-        return position + rotation @ tool.translation
+        return position + rotation @ tool.translation, rotation @ tool.rotation
 
     @cached_property
     def _chain_steps(self) -> list[tuple[pin.SE3, np.ndarray, int]]:

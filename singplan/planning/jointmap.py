@@ -175,27 +175,31 @@ class JointMap:
         return seed if q is None else q
 
     def fix_position(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Re-solve joints 1-3 so the TCP position is exact.
-
-        OPW and UR arms: the closed forms of :func:`singplan.kinematics.ik.solve.opw_arm_for_point` and
-        :func:`singplan.kinematics.ik.ur.ur_arm_for_point` (the solution nearest ``q``); other chains, or
-        where the point is out of the arm's reach: damped Newton from ``q``.
-        """
+        """Re-solve joints 1-3 of q (N, n) so the TCP position is exactly the path's at u (N,)."""
         assert self.poses is not None
-        targets = self.poses(u)[:, :3, 3]
-        rec = self.robot.recognition  # the closed forms work in their own base and flange frames
-        if self.robot.opw is not None:
-            out = opw_arm_for_point(self.robot.opw, q, rec.flange_point(self.robot.T_tip_tcp.translation),
-                                    rec.closed_points(targets))
-            lost = np.isnan(out[:, 0])  # the point is out of the arm's reach: the nearest Newton can do
-        elif self.robot.family == "ur":
-            out = ur_arm_for_point(self.robot, q, rec.closed_points(targets))
-            lost = np.isnan(out[:, 0])
-        else:
-            out, lost = q.copy(), np.ones(len(u), dtype=bool)
-        for k in np.nonzero(lost)[0]:
-            out[k] = position_solve(self.robot, q[k], targets[k])
-        return out
+        return exact_position(self.robot, q, self.poses(u)[:, :3, 3])
+
+
+def exact_position(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.ndarray:
+    """Joints (N, n): q with joints 1-3 re-solved so the TCP reaches targets_m (N, 3) [m].
+
+    OPW and UR arms: the closed forms of :func:`singplan.kinematics.ik.solve.opw_arm_for_point` and
+    :func:`singplan.kinematics.ik.ur.ur_arm_for_point` (the solution nearest ``q``); other chains, or
+    where the point is out of the arm's reach: damped Newton from ``q``.
+    """
+    rec = robot.recognition  # the closed forms work in their own base and flange frames
+    if robot.opw is not None:
+        out = opw_arm_for_point(robot.opw, q, rec.flange_point(robot.T_tip_tcp.translation),
+                                rec.closed_points(targets_m))
+        lost = np.isnan(out[:, 0])  # the point is out of the arm's reach: the nearest Newton can do
+    elif robot.family == "ur":
+        out = ur_arm_for_point(robot, q, rec.closed_points(targets_m))
+        lost = np.isnan(out[:, 0])
+    else:
+        out, lost = np.array(q, dtype=float), np.ones(len(q), dtype=bool)
+    for k in np.nonzero(lost)[0]:
+        out[k] = position_solve(robot, q[k], targets_m[k])
+    return out
 
 
 def position_solve(robot: Robot, q: np.ndarray, target_m: np.ndarray, joints: int = 3,
@@ -239,21 +243,21 @@ def axis_solve(robot: Robot, q: np.ndarray, T_target: np.ndarray, fixed: int, ex
         q[np.ix_(active, free)] += step
         active = active[np.abs(step).max(axis=1) >= 1e-13]
     if exact == "position":
-        return np.array([position_solve(robot, qk, T[:3, 3]) for qk, T in zip(q, T_target, strict=True)])
+        return exact_position(robot, q, T_target[:, :3, 3])
     return np.array([orientation_solve(robot, qk, T[:3, :3]) for qk, T in zip(q, T_target, strict=True)])
 
 
 def _weighted_residuals(robot: Robot, q: np.ndarray, T_target: np.ndarray, free: np.ndarray,
                         w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """axis_solve's residuals (N, 6) and their Jacobians over the free joints (N, 6, n - 1)."""
+    position, rotation = robot.tcp_frames(q)
+    J = robot.jacobians(q)  # (N, 6, n)
+    M = np.einsum("nji,njk->nik", T_target[:, :3, :3], rotation)  # R*^T R
     r = np.empty((len(q), 6))
-    J = np.empty((len(q), 6, robot.n_joints))
-    for k, (qk, target) in enumerate(zip(q, T_target, strict=True)):
-        T = robot.fk(qk)
-        M = target[:3, :3].T @ T.rotation
-        r[k, :3], r[k, 3:] = T.translation - target[:3, 3], pin.log3(M)
-        J[k] = robot.jacobian(qk)
-        J[k, 3:] = pin.Jlog3(M) @ T.rotation.T @ J[k, 3:]
+    r[:, :3] = position - T_target[:, :3, 3]
+    for k in range(len(q)):
+        r[k, 3:] = pin.log3(M[k])
+        J[k, 3:] = pin.Jlog3(M[k]) @ rotation[k].T @ J[k, 3:]
     return r * w, J[:, :, free] * w[:, None]
 
 

@@ -19,7 +19,7 @@ import pinocchio as pin
 from singplan.errors import TaskError
 from singplan.kinematics import reduced
 from singplan.kinematics.compiled import jit
-from singplan.kinematics.geometry import cross3, rotation_angle, rpy_deg_to_rotation
+from singplan.kinematics.geometry import cross3, rotation_angle, rotation_angles, rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot
 from singplan.task.schema import Move
 
@@ -183,7 +183,7 @@ def move_target(move: Move, T_start: pin.SE3) -> pin.SE3:
     return pin.SE3(rotation, np.asarray(move.to.xyz, dtype=float))
 
 
-_DEVIATION_CHUNK = 65_536  # programmed poses formed at once (128 bytes a sample)
+_DEVIATION_CHUNK = 65_536  # programmed and reached poses formed at once (~250 bytes a sample)
 
 
 def sample_deviations(robot: Robot, piece: CartesianPiece | None, u: np.ndarray,
@@ -196,12 +196,8 @@ def sample_deviations(robot: Robot, piece: CartesianPiece | None, u: np.ndarray,
     five = reduced.is_reduced(robot)
     for c in range(0, len(q), _DEVIATION_CHUNK):
         want = piece.poses(u[c:c + _DEVIATION_CHUNK])
-        R = np.empty_like(want[:, :3, :3])
-        for k, qk in enumerate(q[c:c + _DEVIATION_CHUNK]):
-            T = robot.fk(qk)
-            R[k] = T.rotation
-            pos[c + k] = float(np.linalg.norm(T.translation - want[k, :3, 3]))
-            ori[c + k] = 0.0 if five else rotation_angle(T.rotation, want[k, :3, :3])
-        if five:  # reduced order: only the tool's z axis is kept (singplan.kinematics.reduced)
-            ori[c:c + len(R)] = reduced.z_angles(R, want[:, :3, :3])
+        p, R = robot.tcp_frames(q[c:c + _DEVIATION_CHUNK])
+        pos[c:c + len(p)] = np.linalg.norm(p - want[:, :3, 3], axis=1)
+        # reduced order: only the tool's z axis is kept (singplan.kinematics.reduced)
+        ori[c:c + len(p)] = reduced.z_angles(R, want[:, :3, :3]) if five else rotation_angles(R, want[:, :3, :3])
     return pos, ori

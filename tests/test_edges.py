@@ -132,7 +132,7 @@ def test_a_move_starting_on_the_wrist_singularity_starts_at_its_own_joints(offse
     robot = load_robot("abb_irb2400")
     start = np.radians([0.0, 0.0, 0.0, q4_deg, 0.0, 0.0])
     T = robot.fk(start)
-    target = {"xyz": list(T.translation + [0.0, offset_m, 0.0]),
+    target = {"xyz": list(T.translation + np.array([0.0, offset_m, 0.0])),
               "rpy_deg": list(np.degrees(pin.rpy.matrixToRpy(T.rotation)))}
     traj = plan(parse_task({"robot": "abb_irb2400", "start": {"joints_deg": list(np.degrees(start))},
                             "moves": [{"lin": {"to": target}}], "singularity": {"method": "auto"},

@@ -41,7 +41,6 @@ from singplan.outputs.timeline import (
 )
 from singplan.outputs.viewer import joint_travel, programmed_path, replay_html, robot_of, tcp_path, viewer_dir
 from singplan.planning.pieces import move_piece
-from singplan.planning.weave import drawing_count
 from singplan.results.plan import plan
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.load import parse_task
@@ -278,7 +277,7 @@ def test_a_move_comes_back_from_the_recorded_task_mapping(seed: int) -> None:
 def test_the_programmed_path_is_the_planners_piece(demo: Trajectory, robot: Robot) -> None:
     path = programmed_path(demo, robot, tcp_path(demo, tcp_track(demo, robot), joint_travel(demo.q)))
     piece = move_piece(0, Move.from_mapping(demo.task["moves"][0]), robot.fk(demo.q[0]))
-    count = drawing_count(piece)
+    count = piece.drawing_count()
     assert np.array_equal(path[:count], piece.positions(np.linspace(0.0, 1.0, count)))
 
 

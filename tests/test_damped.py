@@ -11,7 +11,7 @@ import pytest
 from singplan.kinematics.ik.numeric import damped_solve, damped_step, pose_error
 from singplan.kinematics.robot import load_robot
 from singplan.planning.crossing.nullspace import hold_pose
-from singplan.planning.jointmap import axis_solve, orientation_solve, position_solve
+from singplan.planning.jointmap import axis_solve, exact_orientation, position_solve
 
 
 def test_damped_step_minimises_the_damped_residual_in_each_form() -> None:
@@ -62,13 +62,22 @@ def test_the_re_solves_reach_their_targets(arm_cases: list[tuple[np.ndarray, np.
         q = position_solve(robot, q0, T.translation)
         assert float(np.linalg.norm(robot.fk(q).translation - T.translation)) < 1e-11
         np.testing.assert_array_equal(q[3:], q0[3:])  # only the arm joints move
-        q = orientation_solve(robot, q0, T.rotation)
+        q = exact_orientation(robot, q0, T.rotation[None])[0]  # a batch of one (N, n)
         assert float(np.linalg.norm(pin.log3(robot.fk(q).rotation.T @ T.rotation))) < 1e-12
         np.testing.assert_array_equal(q[:3], q0[:3])
         start = q0.copy()
         start[3] = q_goal[3]  # five joints reach a full pose only with the held one at a solution's value
         q = hold_pose(robot, start, T.homogeneous, joint=3)
         assert float(np.max(np.abs(pose_error(robot, q, T.homogeneous)))) < 1e-12 and q[3] == q_goal[3]
+
+
+def test_the_orientation_re_solve_of_a_batch_equals_each_sample_alone(
+        arm_cases: list[tuple[np.ndarray, np.ndarray, pin.SE3]]) -> None:
+    robot = load_robot("abb_irb2400")
+    q0 = np.array([case[0] for case in arm_cases])
+    R = np.array([case[2].rotation for case in arm_cases])
+    alone = np.array([exact_orientation(robot, q0[k], R[k][None])[0] for k in range(len(q0))])
+    np.testing.assert_allclose(exact_orientation(robot, q0, R), alone, atol=1e-12)
 
 
 def test_axis_solve_keeps_the_held_joint_and_the_exact_component(

@@ -244,7 +244,7 @@ def axis_solve(robot: Robot, q: np.ndarray, T_target: np.ndarray, fixed: int, ex
         active = active[np.abs(step).max(axis=1) >= 1e-13]
     if exact == "position":
         return exact_position(robot, q, T_target[:, :3, 3])
-    return np.array([orientation_solve(robot, qk, T[:3, :3]) for qk, T in zip(q, T_target, strict=True)])
+    return exact_orientation(robot, q, T_target[:, :3, :3])
 
 
 def _weighted_residuals(robot: Robot, q: np.ndarray, T_target: np.ndarray, free: np.ndarray,
@@ -261,12 +261,26 @@ def _weighted_residuals(robot: Robot, q: np.ndarray, T_target: np.ndarray, free:
     return r * w, J[:, :, free] * w[:, None]
 
 
-def orientation_solve(robot: Robot, q: np.ndarray, R_target: np.ndarray, tol_rad: float = 1e-13,
+def exact_orientation(robot: Robot, q: np.ndarray, R_target: np.ndarray, tol_rad: float = 1e-13,
                       iterations: int = 30) -> np.ndarray:
-    """Move the wrist joints (the last three) so the TCP orientation is ``R_target``."""
-    def residual(qk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        T = robot.fk(qk)
-        return pin.log3(T.rotation.T @ R_target), T.rotation.T @ robot.jacobian(qk)[3:]  # body frame
+    """Joints (N, n): q with the wrist joints (the last three) moved so the TCP orientation is
+    R_target (N, 3, 3).
 
-    wrist = slice(robot.n_joints - 3, robot.n_joints)
-    return damped_solve(residual, q, wrist, damping=_DAMPING, tol=tol_rad, iterations=iterations)
+    Damped Gauss-Newton (:func:`~singplan.kinematics.ik.numeric.damped_step`'s normal equations)
+    on the body-frame error log3(R^T R*), every sample at once with the batched kinematics of
+    :class:`~singplan.kinematics.robot.Robot`, each until its error is under ``tol_rad``.
+    """
+    q = np.array(q, dtype=float).reshape(-1, robot.n_joints)
+    wrist = np.arange(robot.n_joints - 3, robot.n_joints)
+    active = np.arange(len(q))
+    for _ in range(iterations):
+        R = robot.tcp_frames(q[active])[1]
+        err = np.array([pin.log3(Rk.T @ Rt) for Rk, Rt in zip(R, R_target[active], strict=True)]).reshape(-1, 3)
+        moving = np.max(np.abs(err), axis=1) >= tol_rad
+        active, err, R = active[moving], err[moving], R[moving]
+        if active.size == 0:
+            break
+        J = np.einsum("nji,njk->nik", R, robot.jacobians(q[active])[:, 3:][:, :, wrist])  # body frame (M, 3, 3)
+        JJt = J @ J.transpose(0, 2, 1) + _DAMPING * np.eye(3)
+        q[np.ix_(active, wrist)] += np.einsum("nji,nj->ni", J, np.linalg.solve(JJt, err[:, :, None])[:, :, 0])
+    return q

@@ -208,11 +208,12 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
         if move.kind != "ptp" and not tracking:
             tracking.append(MoveTracking(robot, task, i, move, T))
         pm = plan_move(robot, task, i, move, T, q, method, tracking[0] if tracking else None)
-        if any(c.pause is not None for c in pm.crossings):
-            return Candidate(method, order, pm, refusal=refusal(robot, task, move, pm))
-        path = _timing_path(pm)
-        return Candidate(method, order, pm, path, duration_bound_s(path, pm.limits, task.period_s),
-                         refusal(robot, task, move, pm))
+        paused = any(c.pause is not None for c in pm.crossings)
+        path = None if paused else _timing_path(pm)
+        if len(methods) == 1:  # nothing to compare: no bound or refusal to tell
+            return Candidate(method, order, pm, path)
+        bound_s = 0.0 if path is None else duration_bound_s(path, pm.limits, task.period_s)
+        return Candidate(method, order, pm, path, bound_s, refusal(robot, task, move, pm))
 
     def finish(c: Candidate) -> tuple[PlannedMove, TimedMove]:
         pm = c.pm

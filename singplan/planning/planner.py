@@ -202,18 +202,23 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
     equals an earlier one's (wrist-joint hands a shoulder zone to exact) takes that one's outcome.
     """
     tracking: list[MoveTracking] = []  # made by the first candidate, inside it (a bad piece fails every method alike)
+    prepared: list[Candidate] = []
     outcomes: list[tuple[PlannedMove, TimedMove | PlanningError | BudgetError]] = []
 
     def prepare(method: CrossingMethod, order: int) -> Candidate:
         if move.kind != "ptp" and not tracking:
             tracking.append(MoveTracking(robot, task, i, move, T))
         pm = plan_move(robot, task, i, move, T, q, method, tracking[0] if tracking else None)
+        same = next((c for c in prepared if _same_motion(c.pm, pm)), None)
+        if same is not None:  # its timing path, bound and refusal are the earlier one's
+            return replace(same, method=method, order=order, pm=pm)
         paused = any(c.pause is not None for c in pm.crossings)
         path = None if paused else _timing_path(pm)
         if len(methods) == 1:  # nothing to compare: no bound or refusal to tell
             return Candidate(method, order, pm, path)
         bound_s = 0.0 if path is None else duration_bound_s(path, pm.limits, task.period_s)
-        return Candidate(method, order, pm, path, bound_s, refusal(robot, task, move, pm))
+        prepared.append(Candidate(method, order, pm, path, bound_s, refusal(robot, task, move, pm)))
+        return prepared[-1]
 
     def finish(c: Candidate) -> tuple[PlannedMove, TimedMove]:
         pm = c.pm

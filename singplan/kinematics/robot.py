@@ -207,34 +207,35 @@ class Robot:
     def tcp_frames(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """TCP positions [m] (N, 3) and rotations (N, 3, 3) in the base frame of joint samples q (N, n):
         ``T_base_tcp`` of each, composed in numpy like :meth:`tcp_positions`."""
-        q = np.asarray(q, dtype=float).reshape(-1, self.n_joints)
-        position, rotation = np.empty((len(q), 3)), np.empty((len(q), 3, 3))
-        for c in range(0, len(q), _FK_CHUNK):
-            position[c:c + _FK_CHUNK], rotation[c:c + _FK_CHUNK] = self._tcp_chunk(q[c:c + _FK_CHUNK])
+        position, rotation, _ = self.tcp_kinematics(q, 0)
         return position, rotation
 
     def tcp_jacobians(self, q: np.ndarray) -> np.ndarray:
         """Linear part of the TCP Jacobian (N, 3, n) [m/rad] in the base frame, of joint samples q (N, n)
-        (:meth:`jacobians`' first three rows)."""
-        return self._jacobians(q, 3)
+        (:meth:`tcp_kinematics`' first three rows)."""
+        return self.tcp_kinematics(q, 3)[2]
 
-    def jacobians(self, q: np.ndarray) -> np.ndarray:
-        """TCP Jacobians (N, 6, n) of joint samples q (N, n), as :meth:`jacobian` gives one (linear
-        rows [m/rad] at the TCP, angular rows [rad/rad], base coordinates): column j is
-        ``(axis_j x (p_tcp - origin_j), axis_j)``, composed in numpy a chunk at a time like
-        :meth:`tcp_positions` (a Pinocchio call per sample costs ten times more)."""
-        return self._jacobians(q, 6)
+    def tcp_kinematics(self, q: np.ndarray, rows: int = 6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """TCP positions [m] (N, 3), rotations (N, 3, 3) and Jacobians (N, rows, n) of joint samples q
+        (N, n), from one walk of the chain composed in numpy a chunk at a time like
+        :meth:`tcp_positions` (a Pinocchio call per sample costs ten times more).
 
-    def _jacobians(self, q: np.ndarray, rows: int) -> np.ndarray:
+        The Jacobian is :meth:`jacobian`'s (rows 0-2 the TCP point's linear velocity [m/rad], rows
+        3-5 the angular velocity [rad/rad], base coordinates), its first ``rows`` rows: column j
+        is ``(axis_j x (p_tcp - origin_j), axis_j)``.
+        """
         q = np.asarray(q, dtype=float).reshape(-1, self.n_joints)
-        out = np.zeros((len(q), rows, self.n_joints))
+        position, rotation = np.empty((len(q), 3)), np.empty((len(q), 3, 3))
+        jacobian = np.zeros((len(q), rows, self.n_joints))
         for c in range(0, len(q), _FK_CHUNK):
-            joints: list[tuple[int, np.ndarray, np.ndarray]] = []
-            tcp = self._tcp_chunk(q[c:c + _FK_CHUNK], joints)[0]
-            for iq, origin, axis_base in joints:
-                out[c:c + _FK_CHUNK, :3, iq] = np.cross(axis_base, tcp - origin)
-                out[c:c + _FK_CHUNK, 3:, iq] = axis_base[:, :rows - 3]
-        return out
+            joints: list[tuple[int, np.ndarray, np.ndarray]] | None = [] if rows else None
+            position[c:c + _FK_CHUNK], rotation[c:c + _FK_CHUNK] = self._tcp_chunk(q[c:c + _FK_CHUNK], joints)
+            for iq, origin, axis_base in joints or ():
+                arm = position[c:c + _FK_CHUNK] - origin
+                jacobian[c:c + _FK_CHUNK, :3, iq] = axis_base[:, [1, 2, 0]] * arm[:, [2, 0, 1]] - \
+                    axis_base[:, [2, 0, 1]] * arm[:, [1, 2, 0]]  # axis x arm
+                jacobian[c:c + _FK_CHUNK, 3:, iq] = axis_base[:, :rows - 3]
+        return position, rotation, jacobian
 
     def _tcp_chunk(self, q: np.ndarray, joints: list[tuple[int, np.ndarray, np.ndarray]] | None = None
                    ) -> tuple[np.ndarray, np.ndarray]:

@@ -250,8 +250,7 @@ def axis_solve(robot: Robot, q: np.ndarray, T_target: np.ndarray, fixed: int, ex
 def _weighted_residuals(robot: Robot, q: np.ndarray, T_target: np.ndarray, free: np.ndarray,
                         w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """axis_solve's residuals (N, 6) and their Jacobians over the free joints (N, 6, n - 1)."""
-    position, rotation = robot.tcp_frames(q)
-    J = robot.jacobians(q)  # (N, 6, n)
+    position, rotation, J = robot.tcp_kinematics(q)  # (N, 3), (N, 3, 3), (N, 6, n)
     M = np.einsum("nji,njk->nik", T_target[:, :3, :3], rotation)  # R*^T R
     r = np.empty((len(q), 6))
     r[:, :3] = position - T_target[:, :3, 3]
@@ -274,13 +273,13 @@ def exact_orientation(robot: Robot, q: np.ndarray, R_target: np.ndarray, tol_rad
     wrist = np.arange(robot.n_joints - 3, robot.n_joints)
     active = np.arange(len(q))
     for _ in range(iterations):
-        R = robot.tcp_frames(q[active])[1]
+        _, R, J = robot.tcp_kinematics(q[active])
         err = np.array([pin.log3(Rk.T @ Rt) for Rk, Rt in zip(R, R_target[active], strict=True)]).reshape(-1, 3)
         moving = np.max(np.abs(err), axis=1) >= tol_rad
-        active, err, R = active[moving], err[moving], R[moving]
+        active, err, R, J = active[moving], err[moving], R[moving], J[moving]
         if active.size == 0:
             break
-        J = np.einsum("nji,njk->nik", R, robot.jacobians(q[active])[:, 3:][:, :, wrist])  # body frame (M, 3, 3)
+        J = np.einsum("nji,njk->nik", R, J[:, 3:][:, :, wrist])  # body frame (M, 3, 3)
         JJt = J @ J.transpose(0, 2, 1) + _DAMPING * np.eye(3)
         q[np.ix_(active, wrist)] += np.einsum("nji,nj->ni", J, np.linalg.solve(JJt, err[:, :, None])[:, :, 0])
     return q

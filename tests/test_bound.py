@@ -104,8 +104,8 @@ def _bounded_timings(monkeypatch: pytest.MonkeyPatch) -> list[tuple[float, float
     real = planner.time_move
 
     def recording(jmap: JointMap, limits: MoveLimits, period_s: float, move: int, max_samples: int,
-                  path: Any = None) -> Any:
-        tm = real(jmap, limits, period_s, move, max_samples, path)
+                  path: Any = None, give_up: Any = None) -> Any:
+        tm = real(jmap, limits, period_s, move, max_samples, path, give_up)
         if path is not None:
             pairs.append((duration_bound_s(path, limits, period_s), tm.duration_s))
         return tm

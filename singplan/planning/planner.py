@@ -34,9 +34,9 @@ from singplan.planning.crossing.nullspace import time_with_pauses
 from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_move
 from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint
-from singplan.planning.select import Candidate, best_of
+from singplan.planning.select import Best, Candidate, best_of
 from singplan.planning.targets import task_arm
-from singplan.planning.timing import TimedMove, TimingError, TimingPath, time_move, timing_path
+from singplan.planning.timing import GiveUp, Scale, TimedMove, TimingError, TimingPath, time_move, timing_path
 from singplan.task.load import load_task
 from singplan.task.schema import Move, Task
 
@@ -171,12 +171,14 @@ def _time_chain(planned: list[PlannedMove], timed: list[TimedMove], blends: dict
             + _time_chain(planned, timed, blends, group[cut:], period_s, allowance))
 
 
-def _timed(pm: PlannedMove, period_s: float, max_samples: int, path: TimingPath | None = None) -> TimedMove:
-    """time_move (``path``: the joint map's timing path, where made), a failure located on the move."""
+def _timed(pm: PlannedMove, period_s: float, max_samples: int, path: TimingPath | None = None,
+           give_up: GiveUp | None = None) -> TimedMove:
+    """time_move (``path``: the joint map's timing path, where made; ``give_up``: see there), a
+    failure located on the move."""
     try:
         if any(c.pause is not None for c in pm.crossings):  # the TCP waits: timed in pieces
             return time_with_pauses(pm.jmap, pm.crossings, pm.limits, period_s, pm.index, max_samples)
-        return time_move(pm.jmap, pm.limits, period_s, pm.index, max_samples, path)
+        return time_move(pm.jmap, pm.limits, period_s, pm.index, max_samples, path, give_up)
     except TimingError as exc:
         raise _located(pm, exc) from exc
 
@@ -220,12 +222,13 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
         prepared.append(Candidate(method, order, pm, path, bound_s, refusal(robot, task, move, pm)))
         return prepared[-1]
 
-    def finish(c: Candidate) -> tuple[PlannedMove, TimedMove]:
+    def finish(c: Candidate, best: Best | None) -> tuple[PlannedMove, TimedMove]:
         pm = c.pm
         same = next(((seen, done) for seen, done in outcomes if _same_motion(seen, pm)), None)
         if same is None:
+            give_up = None if best is None or c.path is None else _cannot_beat(c, c.path, best, task.period_s)
             try:
-                timed = _timed(pm, task.period_s, max_samples, c.path)
+                timed = _timed(pm, task.period_s, max_samples, c.path, give_up)
                 check_config(robot, move, pm, timed.u, timed.q)
                 pm = replace(pm, deviations=check_tolerances(robot, task, pm, timed))
                 same = (pm, timed)
@@ -238,6 +241,15 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
         return replace(pm, deviations=seen.deviations), outcome
 
     return best_of(robot, i, move.kind, methods, prepare, finish)
+
+
+def _cannot_beat(c: Candidate, path: TimingPath, best: Best, period_s: float) -> GiveUp:
+    """After a timing pass: the bound at the tightened limits, if it shows ``c`` cannot beat ``best``."""
+    def give_up(scale: Scale) -> float | None:
+        bound_s = duration_bound_s(path, c.pm.limits.scaled(scale), period_s)
+        return bound_s if (bound_s, c.order) > best else None
+
+    return give_up
 
 
 def _same_motion(a: PlannedMove, b: PlannedMove) -> bool:

@@ -6,7 +6,8 @@ the reason, and asked for alone it is refused where the move meets a zone.
 
 Every candidate's joint map is planned first and bounded (:mod:`~singplan.planning.bound`: no
 timing of it can end sooner); they are then timed and checked fastest bound first, and one whose
-bound cannot beat the best duration found so far is not timed at all. Ties go to the method asked
+bound cannot beat the best duration found so far is not timed at all, or no further than the
+timing pass whose tightened limits show it (:class:`~singplan.planning.timing.Outrun`). Ties go to the method asked
 for first, as if every candidate had been timed: the choice is the same, only the losers'
 durations are replaced by their bounds.
 """
@@ -23,7 +24,7 @@ from singplan.planning.budget import BudgetError
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Exact
 from singplan.planning.records import PlannedMove
-from singplan.planning.timing import TimedMove, TimingPath
+from singplan.planning.timing import Outrun, TimedMove, TimingPath
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,7 @@ class Candidate:
         bound_s: no timing of the joint map ends sooner [s] (0: no bound known).
         refusal: a failure certain before timing (the configuration the joint map ends in); the
             candidate is timed only if no other one plans the move, so that the error is the full one.
+        outrun: its timing stopped at a pass whose tightened limits gave ``bound_s``.
     """
 
     method: CrossingMethod
@@ -47,10 +49,13 @@ class Candidate:
     path: TimingPath | None = None
     bound_s: float = 0.0
     refusal: PlanningError | None = None
+    outrun: bool = False  # its timing stopped at a pass whose tightened limits gave ``bound_s``
 
 
+Best = tuple[float, int]  # the best (duration [s], order) so far: a candidate must come before it to win
 Prepare = Callable[[CrossingMethod, int], Candidate]  # plan one method's joint map and bound its duration
-Finish = Callable[[Candidate], tuple[PlannedMove, TimedMove]]  # time and check it
+# time and check a candidate; it may stop (timing.Outrun) once it cannot beat the best so far
+Finish = Callable[[Candidate, Best | None], tuple[PlannedMove, TimedMove]]
 _Failure = tuple[int, str, str, PlanningError | BudgetError]  # order, method name and variant, why
 
 
@@ -103,13 +108,16 @@ def _timed_best_first(candidates: list[Candidate], finish: Finish
     results: list[tuple[PlannedMove, TimedMove, int]] = []
     skipped: list[Candidate] = []
     failures: list[_Failure] = []
-    best: tuple[float, int] | None = None  # the best (duration [s], order) so far
+    best: Best | None = None
     for c in sorted(candidates, key=lambda c: (c.refusal is not None, c.bound_s, c.order)):
         if best is not None and (c.refusal is not None or (c.bound_s, c.order) > best):
             skipped.append(c)
             continue
         try:
-            pm, tm = finish(c)
+            pm, tm = finish(c, best)
+        except Outrun as stop:  # a timing pass tightened its limits past what could win
+            skipped.append(replace(c, bound_s=stop.at_least_s, outrun=True))
+            continue
         except (PlanningError, BudgetError) as exc:
             failures.append((c.order, c.method.name, c.method.variant, exc))
             continue
@@ -119,9 +127,10 @@ def _timed_best_first(candidates: list[Candidate], finish: Finish
 
 
 def _untimed(c: Candidate, best_s: float) -> Alternative:
+    how = "timing stopped after a pass: at its tightened limits" if c.outrun else "not timed:"
     tie = " (a tie goes to the method listed first)" if c.bound_s == best_s else ""
     return Alternative(c.method.name, None, c.method.variant, at_least_s=c.bound_s,
-                       reason=f"not timed: no timing of its joint map ends before {c.bound_s:.3f} s, and the "
+                       reason=f"{how} no timing of its joint map ends before {c.bound_s:.3f} s, and the "
                               f"chosen method's move takes {best_s:.3f} s{tie}")
 
 

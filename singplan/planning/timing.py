@@ -79,6 +79,21 @@ class TimingError(PlanningError):
         super().__init__(f"move {move}{f' ({kind})' if kind else ''}: {reason} at {where}")
 
 
+Scale = tuple[float, float, float, float]  # factors on the joint speed, TCP speed, acceleration and torque limits
+# given the scales a failed pass tightened the limits to: a bound [s] that shows the timing cannot
+# win what it is compared with (auto's best so far), or None to go on
+GiveUp = Callable[[Scale], float | None]
+
+
+class Outrun(Exception):  # noqa: N818 - not an error: the timing stopped because it cannot win
+    """time_move stopped after a pass: at its tightened limits no timing of the move ends before
+    ``at_least_s`` [s], and that cannot beat what it is compared with."""
+
+    def __init__(self, at_least_s: float) -> None:
+        super().__init__(f"no timing ends before {at_least_s:.3f} s")
+        self.at_least_s = at_least_s
+
+
 @dataclass(frozen=True)
 class TimedMove:
     """A move sampled at the controller period.
@@ -126,6 +141,13 @@ class MoveLimits:
     # moves joined by fly-by corners: each move's own joint speed limits, (N,) u -> (N, n); None:
     # velocity_rad_s everywhere (which is then the largest of them)
     velocity_at: Callable[[np.ndarray], np.ndarray] | None = None
+
+    def scaled(self, scale: Scale) -> MoveLimits:
+        """These limits with the joint speed, TCP speed and acceleration limits times ``scale``'s factors."""
+        scale_v, scale_c, scale_a, _ = scale
+        return replace(self, velocity_rad_s=self.velocity_rad_s * scale_v,
+                       acceleration_rad_s2=self.acceleration_rad_s2 * scale_a,
+                       tcp_speed_m_s=None if self.tcp_speed_m_s is None else self.tcp_speed_m_s * scale_c)
 
     def step_velocities(self, u: np.ndarray) -> np.ndarray:
         """Joint speed limits [rad/s] of the steps between samples at u (K + 1,): (K, n), or (n,)
@@ -212,7 +234,7 @@ class TimingPath:
     grid: np.ndarray  # (G,) TOPP-RA's grid points
     tcp_capped: bool  # the last coordinate is the TCP's clock at a reference speed (a speed cap applies)
 
-    def scaled_limits(self, limits: MoveLimits, scale: tuple[float, float, float, float]
+    def scaled_limits(self, limits: MoveLimits, scale: Scale
                       ) -> tuple[float, np.ndarray, np.ndarray]:
         """tau [s], and the velocity (n + 1,) and acceleration (n + 1,) limits in dimensionless units,
         the joints' and TCP speed's times ``scale`` (velocity, TCP speed, acceleration, torque)."""
@@ -247,7 +269,7 @@ def timing_path(jmap: JointMap, limits: MoveLimits, move_index: int) -> TimingPa
     return TimingPath(u, q, length, spline, _grid(u), clock is not None)
 
 
-def _toppra_profile(path: TimingPath, limits: MoveLimits, scale: tuple[float, float, float, float],
+def _toppra_profile(path: TimingPath, limits: MoveLimits, scale: Scale,
                     move_index: int) -> _Profile:
     """TOPP-RA on the move made dimensionless (:class:`TimingPath`); ``scale`` multiplies the joint
     velocity, TCP speed, acceleration and torque limits (the tightening passes)."""
@@ -396,17 +418,19 @@ def end_step_ratio(q: np.ndarray, period_s: float, amax: np.ndarray) -> float:
 
 
 def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: int,
-              max_samples: int, path: TimingPath | None = None) -> TimedMove:
+              max_samples: int, path: TimingPath | None = None, give_up: GiveUp | None = None) -> TimedMove:
     """Fastest uniform sampling of the move within the limits, every sample on the path.
 
     ``max_samples``: what is left of the task's allowance of output samples (bad input if over).
     ``path``: the joint map's :func:`timing_path`, where the caller already made it.
+    ``give_up``: asked after each pass that tightens the limits; where it gives a bound, the
+    timing stops there (:class:`Outrun`).
     """
     path = path if path is not None else timing_path(jmap, limits, move_index)
     if path.spline is None:
         logger.info("move %d changes nothing: one period at rest", move_index)
         return TimedMove(np.array([0.0, 1.0]), path.q[[0, -1]], period_s, 0.0, 0.0)
-    optimal, profile = _optimal(jmap, path, limits, period_s, move_index, max_samples)
+    optimal, profile = _optimal(jmap, path, limits, period_s, move_index, max_samples, give_up)
     if limits.jerk_rad_s3 is None and not limits.quintic:
         return optimal
     laws: list[TimeLaw]
@@ -452,7 +476,7 @@ def _s_curves(profile: _Profile, limits: MoveLimits) -> list[SCurveLaw]:
 
 
 def _optimal(jmap: JointMap, path: TimingPath, limits: MoveLimits, period_s: float, move_index: int,
-             max_samples: int) -> tuple[TimedMove, _Profile]:
+             max_samples: int, give_up: GiveUp | None) -> tuple[TimedMove, _Profile]:
     """The acceleration-limited samples (TOPP-RA, tightened until the samples keep the limits) and their profile."""
     # separate scales: on a chain of moves a TCP-speed slip on one move must not slow a PTP's joints
     scale_v = scale_c = scale_a = scale_t = 1.0
@@ -478,6 +502,9 @@ def _optimal(jmap: JointMap, path: TimingPath, limits: MoveLimits, period_s: flo
         scale_a *= 0.995 / worst_a if worst_a > 1.0 else 1.0
         if worst_t > 1.0:
             scale_t *= 0.995 / worst_t
+        at_least_s = give_up((scale_v, scale_c, scale_a, scale_t)) if give_up is not None else None
+        if at_least_s is not None:  # later passes only tighten further
+            raise Outrun(at_least_s)
     ends = end_step_ratio(q, period_s, limits.acceleration_rad_s2)
     worst_k = (torque_at if worst_t > max(worst_v, worst_c, worst_a)
                else worst_sample(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2))

@@ -19,7 +19,7 @@ from singplan.planning import planner
 from singplan.planning.bound import duration_bound_s
 from singplan.planning.crossing.registry import candidates
 from singplan.planning.jointmap import JointMap, JointPart
-from singplan.planning.timing import MoveLimits, time_move, timing_path
+from singplan.planning.timing import MoveLimits, Outrun, time_move, timing_path
 from singplan.results.plan import plan
 from singplan.task.load import load_task, parse_task
 from singplan.task.schema import Task
@@ -85,6 +85,31 @@ def test_bound_is_never_above_the_timing_of_a_curved_joint_path(points: list[flo
     duration = time_move(jmap, limits, PERIOD_S, 0, 10_000_000, path).duration_s
     assert bound <= duration
     assert (bound > 0.0) == (path.spline is not None)  # a bound wherever something moves
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(st.lists(st.floats(-2.0, 2.0), min_size=18, max_size=18), st.floats(0.2, 3.0), st.floats(1.0, 20.0),
+       st.one_of(st.none(), st.floats(0.01, 2.0)))
+def test_a_bound_at_the_tightened_limits_is_never_above_the_timing(points: list[float], v: float, a: float,
+                                                                   tcp_speed: float | None) -> None:
+    """What time_move asks ``give_up`` after each pass that tightens the limits: the bound at those
+    limits never exceeds the duration the timing ends with; and a bound given back stops it."""
+    p0, p1, bulge = np.reshape(points, (3, 6))
+    jmap = _Curve(p0, p1, bulge)
+    limits = MoveLimits(np.full(6, v) * np.linspace(0.5, 1.0, 6), np.full(6, a), 0.0 if tcp_speed is None else 0.5,
+                        tcp_speed)
+    path = timing_path(jmap, limits, 0)
+    asked: list[float] = []
+
+    def record(scale: tuple[float, float, float, float]) -> None:
+        asked.append(duration_bound_s(path, limits, PERIOD_S, scale))
+
+    duration = time_move(jmap, limits, PERIOD_S, 0, 10_000_000, path, record).duration_s
+    assert all(bound <= duration for bound in asked)
+    if asked:  # a pass was tightened: giving its bound back stops the timing there
+        with pytest.raises(Outrun) as stop:
+            time_move(jmap, limits, PERIOD_S, 0, 10_000_000, path, lambda scale: asked[0])
+        assert stop.value.at_least_s == asked[0]
 
 
 def test_no_bound_where_the_timing_is_not_topp_ra_alone() -> None:

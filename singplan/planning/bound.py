@@ -33,21 +33,24 @@ import math
 import numpy as np
 from numba import njit
 
-from singplan.planning.timing import TCP_MARGIN, MoveLimits, TimingPath
+from singplan.planning.timing import TCP_MARGIN, MoveLimits, Scale, TimingPath
 
 _MARGIN = 1.0 + 1e-6  # TOPP-RA's solver keeps its constraints to about 1e-9 in these units
 
 
-def duration_bound_s(path: TimingPath, limits: MoveLimits, period_s: float) -> float:
+def duration_bound_s(path: TimingPath, limits: MoveLimits, period_s: float,
+                     scale: Scale = (1.0, 1.0, 1.0, 1.0)) -> float:
     """No timing of ``path`` under ``limits`` ends sooner than this [s], a whole number of periods.
 
+    ``scale``: where a timing pass has tightened the limits to these factors (the later passes
+    only tighten further); the samples are still checked against ``limits`` themselves.
     0 where no bound is known: a jerk limit or the quintic law (their time laws are checked on the
     samples only), a chain of moves (varying limits), a move that changes nothing.
     """
     if (path.spline is None or limits.jerk_rad_s3 is not None or limits.quintic
             or limits.velocity_at is not None or limits.clock is not None):
         return 0.0
-    tau, vmax_1, amax_1 = path.scaled_limits(limits, (1.0, 1.0, 1.0, 1.0))
+    tau, vmax_1, amax_1 = path.scaled_limits(limits, scale)
     d1 = np.ascontiguousarray(path.spline(path.grid, 1), dtype=float)  # (G, n + 1) dq/ds
     d2 = np.ascontiguousarray(path.spline(path.grid, 2), dtype=float)  # (G, n + 1) d2q/ds2
     caps = _speed_caps(path.grid, d1, d2, vmax_1, amax_1)  # (G,) C_i, dimensionless

@@ -246,7 +246,7 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
 def _cannot_beat(c: Candidate, path: TimingPath, best: Best, period_s: float) -> GiveUp:
     """After a timing pass: the bound at the tightened limits, if it shows ``c`` cannot beat ``best``."""
     def give_up(scale: Scale) -> float | None:
-        bound_s = duration_bound_s(path, c.pm.limits.scaled(scale), period_s)
+        bound_s = duration_bound_s(path, c.pm.limits, period_s, scale)
         return bound_s if (bound_s, c.order) > best else None
 
     return give_up

@@ -142,13 +142,6 @@ class MoveLimits:
     # velocity_rad_s everywhere (which is then the largest of them)
     velocity_at: Callable[[np.ndarray], np.ndarray] | None = None
 
-    def scaled(self, scale: Scale) -> MoveLimits:
-        """These limits with the joint speed, TCP speed and acceleration limits times ``scale``'s factors."""
-        scale_v, scale_c, scale_a, _ = scale
-        return replace(self, velocity_rad_s=self.velocity_rad_s * scale_v,
-                       acceleration_rad_s2=self.acceleration_rad_s2 * scale_a,
-                       tcp_speed_m_s=None if self.tcp_speed_m_s is None else self.tcp_speed_m_s * scale_c)
-
     def step_velocities(self, u: np.ndarray) -> np.ndarray:
         """Joint speed limits [rad/s] of the steps between samples at u (K + 1,): (K, n), or (n,)
         where they do not vary."""

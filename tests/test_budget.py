@@ -31,7 +31,6 @@ from singplan.planning.targets import load_task_robot
 from singplan.planning.timing import sample_ratios
 from singplan.results import build as trajectory_build
 from singplan.results.plan import plan
-from singplan.results.trajectory import finite_differences
 from singplan.task.load import parse_task
 from singplan.task.schema import MAX_OUTPUT_SAMPLES, Task
 
@@ -185,16 +184,14 @@ def test_estimates_are_lower_bounds_of_the_planned_samples(moves: list[dict[str,
     assert all(m.output_samples >= 0.5 * real for m, real in timed_lin if m.length_m > 0.05)  # not vacuous
 
 
-def test_chunked_build_figures_equal_the_whole_array_ones(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The build's chunked differences and ratios (bounded temporaries) give the same numbers."""
+def test_chunked_build_ratios_equal_the_whole_array_ones(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The build's chunked ratios (bounded temporaries) give the same numbers (its differences:
+    test_dynamics.test_central_differences_equal_the_record_formula_bit_for_bit)."""
     monkeypatch.setattr(trajectory_build, "_CHUNK", 7)
     rng = np.random.default_rng(1)
     vmax, amax = np.full(6, 1.0), np.full(6, 3.0)
     for n in (1, 2, 3, 8, 9, 51):
         q = rng.normal(size=(n, 6))
-        qd, qdd = trajectory_build._chunked_differences(q, 0.004)
-        want_qd, want_qdd = finite_differences(q, 0.004)
-        assert np.array_equal(qd, want_qd) and np.array_equal(qdd, want_qdd)
         assert trajectory_build._chunked_ratios(q, 0.004, vmax, amax) == sample_ratios(q, 0.004, vmax, amax)
 
 

@@ -14,7 +14,15 @@ import yaml
 
 from singplan.cli import main
 from singplan.errors import TaskError
-from singplan.kinematics.dynamics import effort_limits_nm, has_inertias, no_dynamics_reason, trajectory_torques
+from singplan.kinematics import dynamics
+from singplan.kinematics.dynamics import (
+    central_differences,
+    effort_limits_nm,
+    has_inertias,
+    no_dynamics_reason,
+    span_differences,
+    trajectory_torques,
+)
 from singplan.kinematics.robot import bundled_robots, load_robot
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
@@ -76,8 +84,6 @@ def test_rnea_torques_match_mass_matrix_and_nonlinear_effects_of_the_full_urdf(n
 
 
 def test_peaks_do_not_depend_on_the_chunk_size(monkeypatch: pytest.MonkeyPatch) -> None:
-    import singplan.kinematics.dynamics as dynamics
-
     robot = load_robot("ur5")
     q = _sine_samples(robot, 301, 0.004)
     whole, _ = trajectory_torques(robot, q, 0.004, effort_limits_nm(robot))
@@ -85,6 +91,51 @@ def test_peaks_do_not_depend_on_the_chunk_size(monkeypatch: pytest.MonkeyPatch) 
     chunked, _ = trajectory_torques(robot, q, 0.004, effort_limits_nm(robot))
     assert (chunked.sample, chunked.joint) == (whole.sample, whole.joint)
     np.testing.assert_allclose(chunked.peak_nm, whole.peak_nm, rtol=1e-12)
+
+
+def _whole_array_differences(q: np.ndarray, period_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The trajectory record's qd, qdd as results/trajectory.py formed them before the formula had
+    one home (kept here as the reference the record must not drift from)."""
+    qd = np.zeros_like(q)
+    qdd = np.zeros_like(q)
+    if len(q) > 2:
+        qd[1:-1] = (q[2:] - q[:-2]) / (2 * period_s)
+        qdd[1:-1] = (q[2:] - 2 * q[1:-1] + q[:-2]) / period_s**2
+    return qd, qdd
+
+
+@pytest.mark.parametrize("chunk", [1, 2, 7, 65_536])
+def test_central_differences_equal_the_record_formula_bit_for_bit(monkeypatch: pytest.MonkeyPatch,
+                                                                   chunk: int) -> None:
+    monkeypatch.setattr(dynamics, "_CHUNK", chunk)
+    rng = np.random.default_rng(12)
+    for count in (0, 1, 2, 3, 8, 9, 51):
+        q = rng.normal(scale=3.0, size=(count, 7))
+        for period_s in (0.004, 0.001, 0.0123):
+            qd, qdd = central_differences(q, period_s)
+            want_qd, want_qdd = _whole_array_differences(q, period_s)
+            assert qd.dtype == want_qd.dtype and qd.shape == want_qd.shape
+            assert np.array_equal(qd, want_qd) and np.array_equal(qdd, want_qdd), (chunk, count, period_s)
+
+
+def test_span_differences_from_rest_set_only_the_end_accelerations() -> None:
+    rng = np.random.default_rng(3)
+    q, period_s = rng.normal(size=(9, 6)), 0.004
+    qd, qdd = span_differences(q, period_s, 0, len(q), ends_from_rest=True)
+    want_qd, want_qdd = _whole_array_differences(q, period_s)
+    assert np.array_equal(qd, want_qd) and np.array_equal(qdd[1:-1], want_qdd[1:-1])
+    assert np.array_equal(qdd[0], 2.0 * (q[1] - q[0]) / period_s**2)
+    assert np.array_equal(qdd[-1], 2.0 * (q[-2] - q[-1]) / period_s**2)
+    # a span inside the samples has no end sample of q: its rows are the whole array's
+    inner_qd, inner_qdd = span_differences(q, period_s, 2, 6, ends_from_rest=True)
+    assert np.array_equal(inner_qd, want_qd[2:6]) and np.array_equal(inner_qdd, want_qdd[2:6])
+
+
+def test_the_records_velocities_and_accelerations_are_the_central_differences_of_its_samples() -> None:
+    traj = plan(parse_task(UR5_TASK))
+    want_qd, want_qdd = _whole_array_differences(traj.q, traj.period)
+    assert np.array_equal(traj.qd, want_qd) and np.array_equal(traj.qdd, want_qdd)
+    assert np.abs(traj.qdd).max() > 1.0  # not vacuous: the arm moves
 
 
 def test_only_urdfs_with_real_inertias_have_dynamics(tmp_path: Path) -> None:

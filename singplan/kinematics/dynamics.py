@@ -119,7 +119,7 @@ def trajectory_torques(robot: Robot, q: np.ndarray, period_s: float, limit_nm: n
     ratios = np.empty(q.shape, dtype=np.float32) if series else None  # for plots: half the memory
     for c in range(0, len(q), _CHUNK):
         end = min(c + _CHUNK, len(q))
-        qd, qdd = _central_differences(q, c, end, period_s, ends_from_rest)
+        qd, qdd = span_differences(q, period_s, c, end, ends_from_rest)
         tau = np.abs(torques_nm(robot, q[c:end], qd, qdd))
         peak = np.maximum(peak, tau.max(axis=0))
         r = tau / limit_nm
@@ -131,18 +131,33 @@ def trajectory_torques(robot: Robot, q: np.ndarray, period_s: float, limit_nm: n
     return TorquePeaks(best[0], best[1], best[2], peak), ratios
 
 
-def _central_differences(q: np.ndarray, c: int, end: int, period_s: float,
-                         ends_from_rest: bool) -> tuple[np.ndarray, np.ndarray]:
-    """qd, qdd of samples c .. end - 1 of q: central differences; zero speed at the first and last sample."""
-    qd, qdd = np.zeros((end - c, q.shape[1])), np.zeros((end - c, q.shape[1]))
-    a, b = max(c, 1), min(end, len(q) - 1)  # interior samples in this chunk
+def central_differences(q: np.ndarray, period_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Velocities [rad/s] and accelerations [rad/s^2] (K, n) of samples q (K, n): :func:`span_differences`
+    of all samples, written into whole arrays a chunk at a time (its temporaries stay bounded)."""
+    qd, qdd = np.empty(q.shape), np.empty(q.shape)
+    for c in range(0, len(q), _CHUNK):
+        end = min(c + _CHUNK, len(q))
+        qd[c:end], qdd[c:end] = span_differences(q, period_s, c, end)
+    return qd, qdd
+
+
+def span_differences(q: np.ndarray, period_s: float, start: int, stop: int,
+                     ends_from_rest: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """qd [rad/s], qdd [rad/s^2] (stop - start, n) of samples start .. stop - 1 of q (K, n).
+
+    The velocities and accelerations a checker reads from the samples: central differences, and
+    zero speed and acceleration at the first and last sample of q (at rest). With
+    ``ends_from_rest`` those two get the acceleration their step implies from rest instead.
+    """
+    qd, qdd = np.zeros((stop - start, q.shape[1])), np.zeros((stop - start, q.shape[1]))
+    a, b = max(start, 1), min(stop, len(q) - 1)  # interior samples in this span
     if b > a:
-        qd[a - c:b - c] = (q[a + 1:b + 1] - q[a - 1:b - 1]) / (2 * period_s)
-        qdd[a - c:b - c] = (q[a + 1:b + 1] - 2 * q[a:b] + q[a - 1:b - 1]) / period_s**2
+        qd[a - start:b - start] = (q[a + 1:b + 1] - q[a - 1:b - 1]) / (2 * period_s)
+        qdd[a - start:b - start] = (q[a + 1:b + 1] - 2 * q[a:b] + q[a - 1:b - 1]) / period_s**2
     if ends_from_rest and len(q) > 1:
-        if c == 0:
+        if start == 0:
             qdd[0] = 2.0 * (q[1] - q[0]) / period_s**2
-        if end == len(q):
+        if stop == len(q):
             qdd[-1] = 2.0 * (q[-2] - q[-1]) / period_s**2
     return qd, qdd
 

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from singplan.kinematics.configuration import distances_batch, labels_from_distances
-from singplan.kinematics.dynamics import effort_limits_nm, no_dynamics_reason, trajectory_torques
+from singplan.kinematics.dynamics import central_differences, effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.kinematics.robot import Robot
 from singplan.kinematics.stopping import stopping_distances, worst_stopping
 from singplan.kinematics.vendor_config import vendor_configs
@@ -36,7 +36,7 @@ from singplan.results.metrics import (
     Metrics,
     TorqueFigures,
 )
-from singplan.results.trajectory import Event, MoveRecord, Segment, SegmentKind, Trajectory, finite_differences
+from singplan.results.trajectory import Event, MoveRecord, Segment, SegmentKind, Trajectory
 from singplan.task.schema import Task
 
 
@@ -77,7 +77,7 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     arm, q = (held.full, held.expand(q_planned)) if held is not None else (robot, q_planned)
     speed, accel = _chunked_ratios(q, period, arm.velocity_rad_s * task.limits.velocity_scale,
                                    arm.acceleration_rad_s2)
-    qd, qdd = _chunked_differences(q, period)
+    qd, qdd = central_differences(q, period)
     stopping_m = stopping_distances(arm, q, qd, arm.acceleration_rad_s2)
     stop_mm, stop_at_s = worst_stopping(stopping_m, period)
     metrics = Metrics(worst_pos * 1e3, math.degrees(worst_ori), speed, accel, float(t[-1]), planning_time_s, len(t),
@@ -105,7 +105,7 @@ def _move_records(robot: Robot, task: Task, segments: list[Segment], q: np.ndarr
                  for (i, segs), v in zip(spans.items(), vendor, strict=True))
 
 
-_CHUNK = 65_536  # samples whose ratios and differences are formed at once
+_CHUNK = 65_536  # samples whose ratios are formed at once
 
 
 def _jerk_metrics(robot: Robot, task: Task, q: np.ndarray, timed: list[TimedMove]) -> JerkFigures | None:
@@ -163,17 +163,6 @@ def _chunked_ratios(q: np.ndarray, period: float, vmax: np.ndarray, amax: np.nda
     sample); chunks overlap by the two samples a second difference spans, so the maxima are exact."""
     ratios = [sample_ratios(q[c:c + _CHUNK + 2], period, vmax, amax) for c in range(0, max(len(q) - 2, 1), _CHUNK)]
     return max(r[0] for r in ratios), max(r[1] for r in ratios)
-
-
-def _chunked_differences(q: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`finite_differences` written into whole arrays a chunk at a time (same values: the
-    central differences of a chunk overlapping its neighbours by one sample)."""
-    qd, qdd = np.zeros_like(q), np.zeros_like(q)
-    for c in range(1, len(q) - 1, _CHUNK):
-        end = min(c + _CHUNK, len(q) - 1)  # interior samples c .. end - 1
-        part_qd, part_qdd = finite_differences(q[c - 1:end + 1], period)
-        qd[c:end], qdd[c:end] = part_qd[1:-1], part_qdd[1:-1]
-    return qd, qdd
 
 
 def _sample_at(u: np.ndarray, value: float) -> int:

@@ -220,16 +220,6 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
-def finite_differences(q: np.ndarray, period_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Velocities and accelerations (K, n) of samples q (K, n): central differences, 0 at the ends."""
-    qd = np.zeros_like(q)
-    qdd = np.zeros_like(q)
-    if len(q) > 2:
-        qd[1:-1] = (q[2:] - q[:-2]) / (2 * period_s)
-        qdd[1:-1] = (q[2:] - 2 * q[1:-1] + q[:-2]) / period_s**2
-    return qd, qdd
-
-
 def write_csv(stream: TextIO, traj: Trajectory) -> None:
     """trajectory.csv: header ``t,<joint names>``, then one row per sample (as ``%.17g``)."""
     stream.write("t," + ",".join(traj.joint_names) + "\n")

@@ -20,6 +20,7 @@ from singplan.cli import main
 from singplan.kinematics.robot import Robot, load_robot
 from singplan.planning.pieces import move_piece
 from singplan.planning.redundancy import HeldJoint, hold_joint
+from singplan.planning.targets import task_arm
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
 
@@ -252,3 +253,20 @@ def test_minimum_norm_tracking_past_a_joint_limit_exits_3_naming_move_and_joint(
     assert main(["plan", str(task_file), "-o", str(tmp_path / "out")], out=io.StringIO(), err=err) == 3
     assert "move 0 (lin)" in err.getvalue() and "panda_joint7 to 166.2" in err.getvalue()
     assert "along the path" in err.getvalue() and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("acceleration", "jerk"), [(list(range(11, 18)), list(range(101, 108))), (13.0, 150.0)])
+def test_the_chain_s_task_and_robot_drop_the_held_joint_s_limits_alike(acceleration: Any, jerk: Any) -> None:
+    task = parse_task(_panda_task([{"ptp": {"to": {"joints_deg": PANDA_THROUGH}}}],
+                                  limits={"acceleration": acceleration, "jerk": jerk}))
+    arm = task_arm(task)
+    assert arm.held is not None and arm.held.index == 2
+    per_joint = isinstance(acceleration, list)
+    want_acc = [11.0, 12.0, 14.0, 15.0, 16.0, 17.0] if per_joint else [13.0]
+    want_jerk = [101.0, 102.0, 104.0, 105.0, 106.0, 107.0] if per_joint else [150.0]
+    assert list(arm.task.limits.acceleration_rad_s2) == want_acc
+    assert arm.task.limits.jerk_rad_s3 is not None and list(arm.task.limits.jerk_rad_s3) == want_jerk
+    np.testing.assert_array_equal(arm.robot.acceleration_rad_s2,
+                                  np.broadcast_to(arm.task.limits.acceleration_rad_s2, (6,)))
+    assert arm.task.start_joints_deg == tuple(PANDA_START[:2] + PANDA_START[3:])
+    assert arm.task.moves[0].to_joints_deg == tuple(PANDA_THROUGH[:2] + PANDA_THROUGH[3:])

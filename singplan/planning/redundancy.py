@@ -59,18 +59,20 @@ class HeldJoint:
         return np.delete(np.asarray(q, dtype=float), self.index, axis=-1)
 
     def reduce_task(self, task: Task) -> Task:
-        """The task as the 6R chain sees it: joint values and per-joint accelerations without the held joint."""
-        acc = task.limits.acceleration_rad_s2
+        """The task as the 6R chain sees it: joint values and per-joint limits without the held joint."""
         jerk = task.limits.jerk_rad_s3
-        limits = replace(task.limits, acceleration_rad_s2=acc if len(acc) == 1 else self._drop(acc),
-                         jerk_rad_s3=jerk if jerk is None or len(jerk) == 1 else self._drop(jerk))
-        moves = tuple(replace(m, to_joints_deg=self._drop(m.to_joints_deg)) if m.to_joints_deg is not None else m
-                      for m in task.moves)
-        start = self._drop(task.start_joints_deg) if task.start_joints_deg is not None else None
+        limits = replace(task.limits, acceleration_rad_s2=_without(task.limits.acceleration_rad_s2, self.index),
+                         jerk_rad_s3=_without(jerk, self.index) if jerk is not None else None)
+        moves = tuple(replace(m, to_joints_deg=_without(m.to_joints_deg, self.index))
+                      if m.to_joints_deg is not None else m for m in task.moves)
+        start = _without(task.start_joints_deg, self.index) if task.start_joints_deg is not None else None
         return replace(task, start_joints_deg=start, moves=moves, limits=limits, redundancy=None)
 
-    def _drop(self, values: tuple[float, ...]) -> tuple[float, ...]:
-        return values[:self.index] + values[self.index + 1:]
+
+def _without(values: tuple[float, ...], index: int) -> tuple[float, ...]:
+    """Per-joint values of the 7-joint arm without joint ``index``'s; one value (a limit every
+    joint shares) is the 6R chain's as it is."""
+    return values if len(values) == 1 else values[:index] + values[index + 1:]
 
 
 def hold_joint(robot: Robot, joint: str, value_rad: float, field: str = "redundancy") -> HeldJoint:
@@ -85,8 +87,8 @@ def hold_joint(robot: Robot, joint: str, value_rad: float, field: str = "redunda
     q_lock = pin.neutral(robot.model)
     q_lock[index] = value_rad
     model = pin.buildReducedModel(robot.model, [robot.model.getJointId(joint)], q_lock)
-    reduced = Robot(robot.name, robot.urdf_path, model, robot.tip, robot.T_tip_tcp, robot.entry,
-                    np.delete(robot.acceleration_rad_s2, index))
+    acceleration_rad_s2 = np.array(_without(tuple(robot.acceleration_rad_s2.tolist()), index))
+    reduced = Robot(robot.name, robot.urdf_path, model, robot.tip, robot.T_tip_tcp, robot.entry, acceleration_rad_s2)
     return HeldJoint(robot, reduced, index, value_rad)
 
 

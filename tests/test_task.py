@@ -235,3 +235,14 @@ def test_a_parsed_range_error_names_the_list_item() -> None:
     with pytest.raises(TaskError, match="must be positive") as info:
         parse_task(task)
     assert info.value.field == "limits.jerk[2]"
+
+
+def test_the_joint_speed_scale_of_the_task_and_of_each_move() -> None:
+    """limits.velocity_scale for the trajectory and its LINs, times its own velocity_scale for a PTP."""
+    task = parse_task({"robot": "abb_irb2400", "start": {"joints_deg": [0, 0, 0, 0, 30, 0]},
+                       "limits": {"velocity_scale": 0.5},
+                       "moves": [{"ptp": {"to": {"joints_deg": [10, 0, 0, 0, 30, 0]}, "velocity_scale": 0.4}},
+                                 {"lin": {"to": {"xyz": [0.9, 0.1, 1.2], "rpy_deg": [0, 90, 0]}}}]})
+    assert task.joint_speed_scale() == 0.5
+    assert task.joint_speed_scale(task.moves[0]) == pytest.approx(0.2, rel=1e-15)
+    assert task.joint_speed_scale(task.moves[1]) == 0.5

@@ -197,7 +197,7 @@ def _whole(periods: float) -> int:
 
 
 def _ptp_samples(task: Task, robot: Robot, move: Move, q_from: np.ndarray, q_to: np.ndarray) -> int:
-    v_rad_s = robot.velocity_rad_s * task.limits.velocity_scale * move.velocity_scale
+    v_rad_s = robot.velocity_rad_s * task.joint_speed_scale(move)
     return _whole(float(np.max(np.abs(q_to - q_from) / v_rad_s)) / task.period_s)
 
 

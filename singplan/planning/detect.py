@@ -44,12 +44,12 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     check_task(task, robot, q, STEP_M, STEP_RAD, timed=False)  # before any path is sampled
     T = robot.fk(q)
     out = []
-    vmax = robot.velocity_rad_s * task.limits.velocity_scale
     for i, move in enumerate(task.moves):
         if move.kind == "ptp":
             q_from, q = q, ptp_target(robot, i, move, q)
             T = robot.fk(q)
-            out.append(MoveZones(i, "ptp", 0.0, (), ptp_estimate(robot, q_from, q, vmax * move.velocity_scale)))
+            vmax = robot.velocity_rad_s * task.joint_speed_scale(move)
+            out.append(MoveZones(i, "ptp", 0.0, (), ptp_estimate(robot, q_from, q, vmax)))
             continue
         piece = move_piece(i, move, T)
         grid = piece.grid(STEP_M, STEP_RAD)
@@ -59,6 +59,7 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         zones = find_zones(tracked.u, dist, thresholds, refiner(robot, ref))
         out.append(MoveZones(i, move.kind, piece.length_m, tuple(zones),
-                             path_estimate(robot, tracked.u, tracked.q, piece.length_m, move.speed_m_s, vmax)))
+                             path_estimate(robot, tracked.u, tracked.q, piece.length_m, move.speed_m_s,
+                                           robot.velocity_rad_s * task.joint_speed_scale(move))))
         q, T = tracked.q[-1], piece.T_end
     return out

@@ -98,7 +98,7 @@ def ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.ndar
 
 def move_limits(robot: Robot, task: Task, move: Move, length_m: float) -> MoveLimits:
     """The limits one move is timed under (a PTP's velocity_scale, a LIN / CIRC's TCP speed)."""
-    scale = task.limits.velocity_scale * (move.velocity_scale if move.kind == "ptp" else 1.0)
+    scale = task.joint_speed_scale(move)
     torque = (TorqueLimit(robot, effort_limits_nm(robot) * task.limits.torque_scale)
               if task.limits.torque_scale is not None else None)
     jerk = (np.broadcast_to(np.asarray(task.limits.jerk_rad_s3, dtype=float), (robot.n_joints,)).copy()

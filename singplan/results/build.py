@@ -75,7 +75,7 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
                                         s.details) for s in segs if isinstance(s.details, CrossingFigures))
         k0 = k1
     arm, q = (held.full, held.expand(q_planned)) if held is not None else (robot, q_planned)
-    speed, accel = _chunked_ratios(q, period, arm.velocity_rad_s * task.limits.velocity_scale,
+    speed, accel = _chunked_ratios(q, period, arm.velocity_rad_s * task.joint_speed_scale(),
                                    arm.acceleration_rad_s2)
     qd, qdd = central_differences(q, period)
     stopping_m = stopping_distances(arm, q, qd, arm.acceleration_rad_s2)

@@ -60,7 +60,7 @@ def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: 
             if not v <= 1.0 + _ROUND_OFF and k not in unlimited}
     if not over:
         return
-    vmax, amax = robot.velocity_rad_s * task.limits.velocity_scale, robot.acceleration_rad_s2
+    vmax, amax = robot.velocity_rad_s * task.joint_speed_scale(), robot.acceleration_rad_s2
     torques = traj.metrics.torques
     if list(over) == ["max_torque_ratio"] and not isinstance(torques, str):
         k = round(torques.max_torque_at_s / traj.period)

@@ -236,6 +236,12 @@ class Task:
     period_s: float = DEFAULT_PERIOD_S
     redundancy: Redundancy | None = None
 
+    def joint_speed_scale(self, move: Move | None = None) -> float:
+        """The fraction of the URDF's joint speed limits the trajectory (or ``move``) may use:
+        ``limits.velocity_scale``, times a PTP's own ``velocity_scale``."""
+        own = move.velocity_scale if move is not None and move.kind == "ptp" else 1.0
+        return self.limits.velocity_scale * own
+
     def with_method(self, method: str) -> Task:
         """The same task planned with another crossing method."""
         _check_choice("singularity.method", method, method_names())

@@ -16,10 +16,12 @@ from hypothesis import strategies as st
 from singplan.errors import PlanningError
 from singplan.kinematics.robot import load_robot
 from singplan.planning import planner
-from singplan.planning.bound import duration_bound_s
+from singplan.planning.bound import duration_bound_s, speed_caps
 from singplan.planning.crossing.registry import candidates
 from singplan.planning.jointmap import JointMap, JointPart
-from singplan.planning.timing import MoveLimits, Outrun, time_move, timing_path
+from singplan.planning.move_plan import plan_move
+from singplan.planning.targets import task_arm
+from singplan.planning.timing import MoveLimits, Outrun, _toppra_profile, time_move, timing_path
 from singplan.results.plan import plan
 from singplan.task.load import load_task, parse_task
 from singplan.task.schema import Task
@@ -153,6 +155,29 @@ def test_every_candidate_alone_takes_at_least_its_bound(example: str, monkeypatc
     assert len(pairs) >= 3
     for bound, duration in pairs:
         assert 0.95 * duration <= bound <= duration
+
+
+@pytest.mark.parametrize("example", ["abb_near_miss_auto", "ur5_wrist_auto", "fanuc_near_miss_exact"])
+def test_topp_ra_keeps_under_the_speed_caps_within_the_margin(example: str) -> None:
+    """The bound rests on TOPP-RA's profile staying under the relaxation's speed caps; its solver
+    keeps that to about 3e-8 (relative), which the bound's 1e-6 margin covers."""
+    task = load_task(EXAMPLES / f"{example}.yaml")
+    arm = task_arm(task)
+    q0 = arm.robot.fk(arm.q_start)
+    checked = 0
+    for method in candidates("auto", task.moves[0]):
+        try:
+            pm = plan_move(arm.robot, arm.task, 0, arm.task.moves[0], q0, arm.q_start, method)
+        except PlanningError:
+            continue
+        path = timing_path(pm.jmap, pm.limits, 0)
+        tau, vmax_1, amax_1 = path.scaled_limits(pm.limits, (1.0, 1.0, 1.0, 1.0))
+        caps = speed_caps(path, vmax_1, amax_1)
+        profile = _toppra_profile(path, pm.limits, (1.0, 1.0, 1.0, 1.0), 0)
+        np.testing.assert_array_equal(profile.grid, path.grid)
+        assert np.all((profile.sd * tau) ** 2 <= caps * (1.0 + 1e-6) + 1e-12)
+        checked += 1
+    assert checked >= 3
 
 
 def _first_move_alone(seed: int) -> Task | None:

@@ -14,7 +14,7 @@ import tempfile
 from dataclasses import dataclass
 from functools import cache, cached_property
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -215,7 +215,7 @@ class Robot:
         (:meth:`tcp_kinematics`' first three rows)."""
         return self.tcp_kinematics(q, 3)[2]
 
-    def tcp_kinematics(self, q: np.ndarray, rows: int = 6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def tcp_kinematics(self, q: np.ndarray, rows: Literal[0, 3, 6] = 6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """TCP positions [m] (N, 3), rotations (N, 3, 3) and Jacobians (N, rows, n) of joint samples q
         (N, n), from one walk of the chain composed in numpy a chunk at a time like
         :meth:`tcp_positions` (a Pinocchio call per sample costs ten times more).

@@ -74,27 +74,31 @@ def _segment_lines(s: Segment) -> list[str]:
 
 def _choice(alternatives: Sequence[Alternative]) -> str:
     """'auto chose X (n s); runner-up Y (m s), k s saved; infeasible: Z' from a crossing's
-    alternatives (a runner-up not timed is given by its bound: '>= m s')."""
+    alternatives. Where a candidate not timed might come second, the runner-up is given by the
+    least duration it can have: 'runner-up >= m s (nearest bound: Y, not timed), >= k s saved'."""
     feasible = [a for a in alternatives if a.feasible and a.duration_s is not None]
     if len(alternatives) < 2 or not feasible:
         return ""
-
-    def name(a: Alternative) -> str:
-        return f"{a.method}{' ' + a.variant if a.variant else ''}"
-
     best = feasible[0]
-    text = f"auto chose {name(best)} ({best.duration_s:.3f} s move)"
+    text = f"auto chose {_name(best)} ({best.duration_s:.3f} s move)"
     ranked = sorted(feasible[1:] + [a for a in alternatives if a.feasible is None], key=_seconds)
     others = [a for a in ranked if a.method != best.method] or ranked
     if others:
-        at_least = ">= " if others[0].feasible is None else ""
-        saved = _seconds(others[0]) - float(best.duration_s or 0.0)
-        text += (f"; runner-up {name(others[0])} ({at_least}{_seconds(others[0]):.3f} s"
-                 f"{', not timed' if at_least else ''}), {at_least}{saved:.3f} s saved")
+        second = others[0]
+        saved = _seconds(second) - float(best.duration_s or 0.0)
+        if second.feasible:
+            text += f"; runner-up {_name(second)} ({_seconds(second):.3f} s), {saved:.3f} s saved"
+        else:
+            text += (f"; runner-up >= {_seconds(second):.3f} s (nearest bound: {_name(second)}, not timed), "
+                     f">= {saved:.3f} s saved")
     infeasible = sorted({a.method for a in alternatives if a.feasible is False})
     if infeasible:
         text += f"; infeasible: {', '.join(infeasible)}"
     return text
+
+
+def _name(a: Alternative) -> str:
+    return f"{a.method}{' ' + a.variant if a.variant else ''}"
 
 
 def _seconds(a: Alternative) -> float:

@@ -19,39 +19,50 @@ from singplan.planning.zones import Zone
 from singplan.task.schema import Move, Task
 
 
-def check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove) -> SampleDeviations | None:
+def check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove,
+                     crossings_checked: bool = False) -> SampleDeviations | None:
     """A crossing may deviate up to the task's tolerances; more is no plan (exit 3).
 
-    Returns the samples' deviations (None for a PTP move), for the trajectory record to reuse.
+    Checked on the samples, and on each crossing's own joints (:func:`crossing_deviation`; not
+    again where ``crossings_checked``). Returns the samples' deviations (None for a PTP move), for
+    the trajectory record to reuse.
     """
     if pm.piece is None:
         return None
     pos, ori = sample_deviations(robot, pm.piece, tm.u, tm.q)
     error = _over_tolerance(task, pm, tm.u, pos, ori)
+    if error is None and not crossings_checked:
+        error = crossing_deviation(robot, task, pm)
     if error is not None:
         raise error
     return SampleDeviations(tm.u, tm.q, pos, ori)
 
 
-def refusal(robot: Robot, task: Task, move: Move, pm: PlannedMove) -> PlanningError | None:
-    """Why no timing of the move can be kept, told before timing; None when only the samples can tell.
-
-    The configuration its joint map ends in (the first and last samples of any timing are its
-    ends), or a crossing whose own joints (its reference samples, between which it interpolates)
-    leave the path by more than the tolerances: its motion leaves the tolerance band there, whether
-    or not a sample would land on that point.
-    """
-    u = np.array([0.0, 1.0])
-    try:
-        check_config(robot, move, pm, u, pm.jmap.evaluate(u))
-    except PlanningError as exc:
-        return exc
+def crossing_deviation(robot: Robot, task: Task, pm: PlannedMove) -> SingularityError | None:
+    """The tolerance error of a crossing's own joints (its reference samples, through which its
+    joint map passes), if any: a motion that leaves the tolerance band there leaves it whether or
+    not an output sample lands on that point."""
     parts = [part for crossing in pm.crossings for part in crossing.parts]
     if pm.piece is None or not parts:
         return None
     u = np.concatenate([part.u for part in parts])
     pos, ori = sample_deviations(robot, pm.piece, u, np.concatenate([part.q for part in parts]))
     return _over_tolerance(task, pm, u, pos, ori)
+
+
+def refusal(robot: Robot, task: Task, move: Move, pm: PlannedMove) -> PlanningError | None:
+    """Why no timing of the move can be kept, told before timing; None when only the samples can tell.
+
+    The configuration its joint map ends in (the first and last samples of any timing are its
+    ends), or a crossing's own joints over the tolerances (:func:`crossing_deviation`, which
+    :func:`check_tolerances` applies to every timed move too).
+    """
+    u = np.array([0.0, 1.0])
+    try:
+        check_config(robot, move, pm, u, pm.jmap.evaluate(u))
+    except PlanningError as exc:
+        return exc
+    return crossing_deviation(robot, task, pm)
 
 
 def _over_tolerance(task: Task, pm: PlannedMove, u: np.ndarray, pos: np.ndarray,

@@ -23,6 +23,7 @@ from scipy.interpolate import CubicSpline
 
 from singplan.kinematics.angles import nearest_shifted
 from singplan.kinematics.compiled import jit
+from singplan.kinematics.geometry import relative_rotations
 from singplan.kinematics.ik.numeric import damped_solve
 from singplan.kinematics.ik.solve import closed_form_branches, opw_arm_for_point, solve_newton
 from singplan.kinematics.ik.ur import ur_arm_for_point
@@ -251,7 +252,7 @@ def _weighted_residuals(robot: Robot, q: np.ndarray, T_target: np.ndarray, free:
                         w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """axis_solve's residuals (N, 6) and their Jacobians over the free joints (N, 6, n - 1)."""
     position, rotation, J = robot.tcp_kinematics(q)  # (N, 3), (N, 3, 3), (N, 6, n)
-    M = np.einsum("nji,njk->nik", T_target[:, :3, :3], rotation)  # R*^T R
+    M = relative_rotations(T_target[:, :3, :3], rotation)  # R*^T R
     r = np.empty((len(q), 6))
     r[:, :3] = position - T_target[:, :3, 3]
     for k in range(len(q)):
@@ -279,7 +280,7 @@ def exact_orientation(robot: Robot, q: np.ndarray, R_target: np.ndarray, tol_rad
         active, err, R, J = active[moving], err[moving], R[moving], J[moving]
         if active.size == 0:
             break
-        J = np.einsum("nji,njk->nik", R, J[:, 3:][:, :, wrist])  # body frame (M, 3, 3)
+        J = np.einsum("nji,njk->nik", R, J[:, 3:][:, :, wrist])  # in the tool's frame: R^T J (M, 3, 3)
         JJt = J @ J.transpose(0, 2, 1) + _DAMPING * np.eye(3)
         q[np.ix_(active, wrist)] += np.einsum("nji,nj->ni", J, np.linalg.solve(JJt, err[:, :, None])[:, :, 0])
     return q

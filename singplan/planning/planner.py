@@ -34,7 +34,7 @@ from singplan.planning.crossing.nullspace import time_with_pauses
 from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_move
 from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint
-from singplan.planning.select import Best, Candidate, best_of
+from singplan.planning.select import Candidate, Rank, best_of
 from singplan.planning.targets import task_arm
 from singplan.planning.timing import GiveUp, Scale, TimedMove, TimingError, TimingPath, time_move, timing_path
 from singplan.task.load import load_task
@@ -219,10 +219,10 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
         if len(methods) == 1:  # nothing to compare: no bound or refusal to tell
             return Candidate(method, order, pm, path)
         bound_s = 0.0 if path is None else duration_bound_s(path, pm.limits, task.period_s)
-        prepared.append(Candidate(method, order, pm, path, bound_s, refusal(robot, task, move, pm)))
+        prepared.append(Candidate(method, order, pm, path, bound_s, refusal(robot, task, move, pm), screened=True))
         return prepared[-1]
 
-    def finish(c: Candidate, best: Best | None) -> tuple[PlannedMove, TimedMove]:
+    def finish(c: Candidate, best: Rank | None) -> tuple[PlannedMove, TimedMove]:
         pm = c.pm
         same = next(((seen, done) for seen, done in outcomes if _same_motion(seen, pm)), None)
         if same is None:
@@ -230,7 +230,7 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
             try:
                 timed = _timed(pm, task.period_s, max_samples, c.path, give_up)
                 check_config(robot, move, pm, timed.u, timed.q)
-                pm = replace(pm, deviations=check_tolerances(robot, task, pm, timed))
+                pm = replace(pm, deviations=check_tolerances(robot, task, pm, timed, c.screened))
                 same = (pm, timed)
             except (PlanningError, BudgetError) as exc:
                 same = (pm, exc)
@@ -243,11 +243,11 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
     return best_of(robot, i, move.kind, methods, prepare, finish)
 
 
-def _cannot_beat(c: Candidate, path: TimingPath, best: Best, period_s: float) -> GiveUp:
+def _cannot_beat(c: Candidate, path: TimingPath, best: Rank, period_s: float) -> GiveUp:
     """After a timing pass: the bound at the tightened limits, if it shows ``c`` cannot beat ``best``."""
     def give_up(scale: Scale) -> float | None:
         bound_s = duration_bound_s(path, c.pm.limits, period_s, scale)
-        return bound_s if (bound_s, c.order) > best else None
+        return bound_s if Rank(bound_s, c.order) > best else None
 
     return give_up
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 from singplan.errors import PlanningError, SingularityError, UnreachableError
 from singplan.kinematics.robot import Robot
@@ -40,6 +41,8 @@ class Candidate:
         bound_s: no timing of the joint map ends sooner [s] (0: no bound known).
         refusal: a failure certain before timing (the configuration the joint map ends in); the
             candidate is timed only if no other one plans the move, so that the error is the full one.
+        screened: ``refusal`` was looked for (and the crossings' own joints found within the
+            tolerances where it is None): the checks after timing need not look again.
         outrun: its timing stopped at a pass whose tightened limits gave ``bound_s``.
     """
 
@@ -49,14 +52,33 @@ class Candidate:
     path: TimingPath | None = None
     bound_s: float = 0.0
     refusal: PlanningError | None = None
-    outrun: bool = False  # its timing stopped at a pass whose tightened limits gave ``bound_s``
+    screened: bool = False
+    outrun: bool = False
 
 
-Best = tuple[float, int]  # the best (duration [s], order) so far: a candidate must come before it to win
+class Rank(NamedTuple):
+    """Where a candidate stands: a shorter duration wins, a tie goes to the method asked for first."""
+
+    duration_s: float  # its duration, or a bound on it [s]
+    order: int  # its place among the methods asked for
+
+
+class _Result(NamedTuple):
+    pm: PlannedMove
+    tm: TimedMove
+    order: int
+
+
+class _Failure(NamedTuple):
+    order: int
+    method: str
+    variant: str
+    error: PlanningError | BudgetError
+
+
 Prepare = Callable[[CrossingMethod, int], Candidate]  # plan one method's joint map and bound its duration
 # time and check a candidate; it may stop (timing.Outrun) once it cannot beat the best so far
-Finish = Callable[[Candidate, Best | None], tuple[PlannedMove, TimedMove]]
-_Failure = tuple[int, str, str, PlanningError | BudgetError]  # order, method name and variant, why
+Finish = Callable[[Candidate, Rank | None], tuple[PlannedMove, TimedMove]]
 
 
 def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prepare: Prepare,
@@ -68,22 +90,22 @@ def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prep
     """
     serving, refused = _serving(robot, methods)
     candidates, failures = _prepared(serving or [Exact()], prepare)  # nothing serves: exact's motion, if no zone
-    if not serving and candidates and candidates[0].pm.zones:
-        raise _refusal(robot, candidates[0].pm, refused)
     results, skipped, timing_failures = _timed_best_first(candidates, finish)
-    failures = sorted(failures + timing_failures, key=lambda f: f[0])
-    failures += [(len(methods), name, "", PlanningError(f"{name} {why} (this arm is {robot.family})"))
+    if not serving and results and results[0].pm.zones:
+        raise _refusal(robot, results[0].pm, refused)
+    failures = sorted(failures + timing_failures, key=lambda f: f.order)
+    failures += [_Failure(len(methods), name, "", PlanningError(f"{name} {why} (this arm is {robot.family})"))
                  for name, why in refused.items()]
     if not results:
         raise _no_plan(i, kind, failures)
-    results.sort(key=lambda r: (r[1].duration_s, r[2]))
-    best_pm, best_tm, _ = results[0]
-    alternatives = tuple([Alternative(pm.method, True, pm.variant, tm.duration_s) for pm, tm, _ in results]
-                         + [_untimed(c, best_tm.duration_s) for c in skipped if c.refusal is None]
-                         + [Alternative(name, False, variant, reason=str(exc)) for _, name, variant, exc in failures]
+    results.sort(key=lambda r: Rank(r.tm.duration_s, r.order))
+    best = results[0]
+    alternatives = tuple([Alternative(r.pm.method, True, r.pm.variant, r.tm.duration_s) for r in results]
+                         + [_untimed(c, best.tm.duration_s) for c in skipped if c.refusal is None]
+                         + [Alternative(f.method, False, f.variant, reason=str(f.error)) for f in failures]
                          + [Alternative(c.method.name, False, c.method.variant, reason=str(c.refusal)) for c in skipped
                             if c.refusal is not None])
-    return replace(best_pm, alternatives=alternatives if len(methods) > 1 else ()), best_tm
+    return replace(best.pm, alternatives=alternatives if len(methods) > 1 else ()), best.tm
 
 
 def _prepared(methods: list[CrossingMethod], prepare: Prepare) -> tuple[list[Candidate], list[_Failure]]:
@@ -94,7 +116,7 @@ def _prepared(methods: list[CrossingMethod], prepare: Prepare) -> tuple[list[Can
         try:
             candidate = prepare(method, order)
         except (PlanningError, BudgetError) as exc:  # a slow method over the allowance: another may fit
-            failures.append((order, method.name, method.variant, exc))
+            failures.append(_Failure(order, method.name, method.variant, exc))
             continue
         candidates.append(candidate)
         if not candidate.pm.zones:
@@ -103,14 +125,14 @@ def _prepared(methods: list[CrossingMethod], prepare: Prepare) -> tuple[list[Can
 
 
 def _timed_best_first(candidates: list[Candidate], finish: Finish
-                      ) -> tuple[list[tuple[PlannedMove, TimedMove, int]], list[Candidate], list[_Failure]]:
+                      ) -> tuple[list[_Result], list[Candidate], list[_Failure]]:
     """Time and check the candidates fastest bound first, skipping those that cannot win."""
-    results: list[tuple[PlannedMove, TimedMove, int]] = []
+    results: list[_Result] = []
     skipped: list[Candidate] = []
     failures: list[_Failure] = []
-    best: Best | None = None
+    best: Rank | None = None
     for c in sorted(candidates, key=lambda c: (c.refusal is not None, c.bound_s, c.order)):
-        if best is not None and (c.refusal is not None or (c.bound_s, c.order) > best):
+        if best is not None and (c.refusal is not None or Rank(c.bound_s, c.order) > best):
             skipped.append(c)
             continue
         try:
@@ -119,10 +141,10 @@ def _timed_best_first(candidates: list[Candidate], finish: Finish
             skipped.append(replace(c, bound_s=stop.at_least_s, outrun=True))
             continue
         except (PlanningError, BudgetError) as exc:
-            failures.append((c.order, c.method.name, c.method.variant, exc))
+            failures.append(_Failure(c.order, c.method.name, c.method.variant, exc))
             continue
-        results.append((replace(pm, method=c.method.name, variant=c.method.variant), tm, c.order))
-        best = min(best or (tm.duration_s, c.order), (tm.duration_s, c.order))
+        results.append(_Result(replace(pm, method=c.method.name, variant=c.method.variant), tm, c.order))
+        best = min(best or Rank(tm.duration_s, c.order), Rank(tm.duration_s, c.order))
     return results, sorted(skipped, key=lambda c: (c.bound_s, c.order)), failures
 
 
@@ -138,11 +160,11 @@ def _no_plan(i: int, kind: str, failures: list[_Failure]) -> PlanningError | Bud
     """The error when no method plans the move: the path's own or the task's size when that is why,
     or the one wall every method met, else each method's reason."""
     decisive: list[PlanningError | BudgetError] = [
-        exc for *_, exc in failures if isinstance(exc, (UnreachableError, BudgetError))]
-    if len(failures) == 1 or decisive or len({str(exc) for *_, exc in failures}) == 1:
-        return (decisive or [failures[0][3]])[0]
+        f.error for f in failures if isinstance(f.error, (UnreachableError, BudgetError))]
+    if len(failures) == 1 or decisive or len({str(f.error) for f in failures}) == 1:
+        return (decisive or [failures[0].error])[0]
     return PlanningError(f"move {i} ({kind}): no method could plan it: "
-                         + "; ".join(f"{name}: {exc}" for _, name, _, exc in failures))
+                         + "; ".join(f"{f.method}: {f.error}" for f in failures))
 
 
 def _serving(robot: Robot, methods: list[CrossingMethod]) -> tuple[list[CrossingMethod], dict[str, str]]:

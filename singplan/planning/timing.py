@@ -30,6 +30,7 @@ import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 import toppra as ta
@@ -225,7 +226,8 @@ class TimingPath:
     length: float  # L: the largest travel of any joint [rad] or of the TCP [m] (path_scale)
     spline: ta.SplineInterpolator | None  # u -> ((q - q[0]) / L, TCP coordinate / L), (n + 1,); None: L = 0
     grid: np.ndarray  # (G,) TOPP-RA's grid points
-    tcp_capped: bool  # the last coordinate is the TCP's clock at a reference speed (a speed cap applies)
+    # the TCP coordinate's speed cap [m/s] (the coordinate is the TCP's clock times it); None: uncapped
+    tcp_speed_m_s: float | None
 
     def scaled_limits(self, limits: MoveLimits, scale: Scale
                       ) -> tuple[float, np.ndarray, np.ndarray]:
@@ -234,10 +236,17 @@ class TimingPath:
         scale_v, scale_c, scale_a, _ = scale
         amax = limits.acceleration_rad_s2 * scale_a
         tau = math.sqrt(self.length / float(np.min(amax)))
-        ref = limits.tcp_speed_m_s or 1.0
-        vmax = np.append(limits.velocity_rad_s * scale_v, ref * scale_c if self.tcp_capped else _UNLIMITED)
+        tcp = self.tcp_speed_m_s * scale_c if self.tcp_speed_m_s is not None else _UNLIMITED
+        vmax = np.append(limits.velocity_rad_s * scale_v, tcp)
         return (tau, np.minimum(vmax * tau / self.length, _UNLIMITED),
                 np.append(amax * tau**2 / self.length, _UNLIMITED))
+
+    @cached_property
+    def derivatives(self) -> tuple[np.ndarray, np.ndarray]:
+        """The spline's first and second derivatives at the grid points, (G, n + 1) each."""
+        assert self.spline is not None
+        return (np.ascontiguousarray(self.spline(self.grid, 1), dtype=float),
+                np.ascontiguousarray(self.spline(self.grid, 2), dtype=float))
 
 
 def timing_path(jmap: JointMap, limits: MoveLimits, move_index: int) -> TimingPath:
@@ -251,15 +260,16 @@ def timing_path(jmap: JointMap, limits: MoveLimits, move_index: int) -> TimingPa
         raise TimingError(move_index, float(u[missing[0]]), "no joint values (no inverse kinematics solution)")
     length = path_scale(q, limits)
     if length == 0.0:
-        return TimingPath(u, q, 0.0, None, u, False)
+        return TimingPath(u, q, 0.0, None, u, None)
     # the TCP's clock (time at programmed speed, whose rate is capped at 1) times a reference speed,
     # so the coordinate keeps the size of an arc length
     # (a chain's clock kinks where its moves' speeds change, which a spline would ring at: there the
     # coordinate is u itself and the clock's rate caps its speed in the varying bounds)
     clock = limits.tcp_clock(u) if limits.clock is None else None
-    extra = clock * (limits.tcp_speed_m_s or 1.0) if clock is not None else u * length  # no cap: the move's size
+    tcp_speed_m_s = limits.tcp_speed_m_s if clock is not None else None
+    extra = clock * tcp_speed_m_s if clock is not None and tcp_speed_m_s else u * length  # no cap: the move's size
     spline = ta.SplineInterpolator(u, np.hstack([q - q[0], extra[:, None]]) / length)  # from 0: no digits lost
-    return TimingPath(u, q, length, spline, _grid(u), clock is not None)
+    return TimingPath(u, q, length, spline, _grid(u), tcp_speed_m_s)
 
 
 def _toppra_profile(path: TimingPath, limits: MoveLimits, scale: Scale,
@@ -473,13 +483,13 @@ def _optimal(jmap: JointMap, path: TimingPath, limits: MoveLimits, period_s: flo
     """The acceleration-limited samples (TOPP-RA, tightened until the samples keep the limits) and their profile."""
     # separate scales: on a chain of moves a TCP-speed slip on one move must not slow a PTP's joints
     scale_v = scale_c = scale_a = scale_t = 1.0
-    for _ in range(_TIGHTEN_PASSES):
+    for passes_left in range(_TIGHTEN_PASSES - 1, -1, -1):
         profile = _toppra_profile(path, limits, (scale_v, scale_c, scale_a, scale_t), move_index)
         u, duration = _sample(profile, period_s, move_index, max_samples)
         q = jmap.evaluate(u)
         speed, accel = sample_ratios(q, period_s, limits.step_velocities(u), limits.acceleration_rad_s2)
         torque, torque_at = move_torque_ratio(limits.torque, q, period_s) if limits.torque else (0.0, 0)
-        worst_c = _tcp_ratio(u, limits, period_s) / _SPEED_MARGIN
+        worst_c = _tcp_ratio(u, limits, period_s) / TCP_MARGIN
         worst_v = speed / _SPEED_MARGIN
         worst_a = max(accel / _ACCEL_MARGIN,
                       end_step_ratio(q, period_s, limits.acceleration_rad_s2))  # may reach its bound exactly
@@ -495,8 +505,9 @@ def _optimal(jmap: JointMap, path: TimingPath, limits: MoveLimits, period_s: flo
         scale_a *= 0.995 / worst_a if worst_a > 1.0 else 1.0
         if worst_t > 1.0:
             scale_t *= 0.995 / worst_t
-        at_least_s = give_up((scale_v, scale_c, scale_a, scale_t)) if give_up is not None else None
-        if at_least_s is not None:  # later passes only tighten further
+        # later passes only tighten further (after the last one the timing fails: not an outrun)
+        at_least_s = give_up((scale_v, scale_c, scale_a, scale_t)) if give_up and passes_left else None
+        if at_least_s is not None:
             raise Outrun(at_least_s)
     ends = end_step_ratio(q, period_s, limits.acceleration_rad_s2)
     worst_k = (torque_at if worst_t > max(worst_v, worst_c, worst_a)
@@ -524,7 +535,7 @@ def _tcp_ratio(u: np.ndarray, limits: MoveLimits, period_s: float) -> float:
     clock = limits.tcp_clock(u)
     if clock is None or len(u) < 2:
         return 0.0
-    return float(np.max(np.diff(clock)) / period_s) * _SPEED_MARGIN / TCP_MARGIN
+    return float(np.max(np.diff(clock)) / period_s)
 
 
 def _surrogate(optimal: TimedMove) -> Callable[[np.ndarray], np.ndarray]:
@@ -568,7 +579,7 @@ def _measured(u: np.ndarray, q: np.ndarray, limits: MoveLimits, period_s: float)
     torque = move_torque_ratio(limits.torque, q, period_s)[0] if limits.torque else 0.0
     jerk = jerk_ratio(q, period_s, limits.jerk_rad_s3) if limits.jerk_rad_s3 is not None else 0.0
     accel_like = max(accel / _ACCEL_MARGIN, end_step_ratio(q, period_s, limits.acceleration_rad_s2))
-    worst = max(max(speed, _tcp_ratio(u, limits, period_s)) / _SPEED_MARGIN, math.sqrt(accel_like),
+    worst = max(speed / _SPEED_MARGIN, _tcp_ratio(u, limits, period_s) / TCP_MARGIN, math.sqrt(accel_like),
                 (jerk / _JERK_MARGIN) ** (1.0 / 3.0), math.sqrt(torque / _TORQUE_MARGIN))
     duration = (len(u) - 1) * period_s
     return TimedMove(u, q, duration, speed, accel, torque, jerk), worst

@@ -158,23 +158,23 @@ def _follow(C: np.ndarray, free: np.ndarray, du: np.ndarray, q0: np.ndarray, row
     shoulder, elbow and wrist) the other row may be nearer on a coarse grid although it is not
     the continuation. Elsewhere the nearest row is searched again (it may be the same row).
     Returns the first sample whose joints are free (a singular pose, where the rows hold one
-    arbitrary split of the free joints: the caller solves it seeded with the previous joints, so
-    a move that starts on a singularity starts at its own joints and the free joints do not
-    jump), or N. A sample with no finite row ends the
-    path: it and the rest become NaN, their steps inf. (Chains without a closed form have no
-    rows and free joints everywhere: every sample goes to the caller.)
+    arbitrary split of the free joints: the caller keeps the nearer of that and a solve seeded
+    with the previous joints, so a move that starts on a singularity starts at its own joints),
+    or N. A sample with no finite row ends the path: it and the rest become NaN, their steps inf.
+    (Chains without a closed form have no rows and free joints everywhere: every sample goes to
+    the caller.)
     """
     n_samples = C.shape[0]
     for k in range(start, n_samples):
         prev = q[k - 1] if k > 0 else q0
-        if row >= 0:
+        if row >= 0 and not free[k]:
             step = row_step(C[k, row], prev)
-            if step <= max_step or (math.isfinite(step) and du[k] > min_du and not free[k]):
+            if step <= max_step or (math.isfinite(step) and du[k] > min_du):
                 shift_row_into(C[k, row], prev, q[k])
                 steps[k] = step
                 continue
         row, step = nearest_row(C[k], prev)
-        if free[k]:  # a singular pose: the rows hold one arbitrary split of the free joints
+        if free[k]:
             return k
         if not math.isfinite(step):
             q[k:] = np.nan

@@ -290,6 +290,39 @@ def test_a_move_too_short_for_a_sample_between_two_corners_stops_its_first_corne
     _check(tmp_path, doc, traj)
 
 
+SOAK_CORNER = {  # found by the soak: a 1 mm corner after a PTP, crossed within one 13.7 ms period
+    "robot": "abb_irb2400", "start": {"joints_deg": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]},
+    "moves": [{"lin": {"to": {"xyz": [0.94, 0.0, 1.4549999999999998], "rpy_deg": [0.0, 89.99999999999999, 0.0]}}},
+              {"ptp": {"to": {"xyz": [1.1478491872788357, 0.0, 1.1746535363232182],
+                              "rpy_deg": [180.0, 73.10655959784906, 180.0]}, "blend_mm": 1.0}},
+              {"circ": {"via": {"xyz": [1.1553517183996715, 0.0, 1.2671686703789016]},
+                        "to": {"xyz": [1.1407296233821331, 0.0, 1.4481962086251337],
+                               "rpy_deg": [0.0, 88.38508244232, 0.0]}}}],
+    "singularity": {"method": "auto"}, "limits": {"acceleration": 20.16531570767569},
+    "output": {"period": 0.013662499686820893}}
+
+
+@pytest.mark.parametrize("ramp", RAMPS)
+def test_a_flown_corner_has_a_sample_inside_its_sphere(tmp_path: Path, ramp: Ramp,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """A corner crossed within one output period has no sample to show it kept inside its sphere
+    (the checker then holds its two neighbours to the sphere, and they are on the paths outside
+    it): such a corner is stopped at, with the reason; a flown one has samples inside, all within."""
+    monkeypatch.setattr(planner_module, "RAMPS", (ramp,))  # each ramp alone must keep the rule
+    traj = plan(parse_task(SOAK_CORNER))
+    (corner,) = traj.metrics.blends
+    segment = next((seg for seg in traj.segments if seg.kind == "blend"), None)
+    if corner.flown:
+        assert segment is not None
+        k0, k1 = round(segment.t0 / traj.period), round(segment.t1 / traj.period)
+        assert k1 - k0 >= 2
+        inner = _tcp(traj, range(k0 + 1, k1)) - np.asarray(SOAK_CORNER["moves"][1]["ptp"]["to"]["xyz"])
+        assert np.max(np.linalg.norm(inner, axis=1)) <= 1e-3 + 1e-9
+    else:
+        assert segment is None and "within one output period" in corner.reduced
+    _check(tmp_path, SOAK_CORNER, traj)
+
+
 def test_a_jerk_limited_chain_that_loses_time_is_split_and_never_slower_than_stopping() -> None:
     doc = _fanuc([[0.33, -0.04, 0.25], [0.29, 0.0, 0.25], [0.21, 0.0, 0.25]], [5, 5, 0], jerk=5.0)
     traj = plan(parse_task(doc))

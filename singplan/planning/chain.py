@@ -168,13 +168,20 @@ def chain_limits(members: list[PlannedMove], chain: ChainMap) -> MoveLimits:
                    quintic=False, clock=chain.clock, velocity_at=chain.velocities)
 
 
-def starved(chain: ChainMap, timed: TimedMove) -> int | None:
-    """The first move whose own stretch of the chain holds no output sample (its two corners meet
-    within one period), or None: such a move cannot be told apart from its corners."""
+def starved(chain: ChainMap, timed: TimedMove) -> tuple[int, str] | None:
+    """The first stretch of the chain that holds no output sample, as the move whose corner must
+    be stopped at and why; None if every stretch has one.
+
+    A move whose own stretch has none (its two corners meet within one period) cannot be told
+    apart from its corners: the corner into it is stopped at. A corner with no sample strictly
+    inside (crossed within one period) has none inside its sphere to show it kept there: it is.
+    """
     w = timed.u
     for p in chain.pieces:
         if p.blend is None and not np.any((w >= p.w0 - 1e-15) & (w <= p.w1 + 1e-15)):
-            return p.move
+            return p.move - 1, f"move {p.move}'s own path between its corners is shorter than one period at its speed"
+        if p.blend is not None and not np.any((w > p.w0) & (w < p.w1 - 1e-15)):
+            return p.move, "the corner is crossed within one output period: no sample falls inside its sphere"
     return None
 
 

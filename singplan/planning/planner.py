@@ -141,7 +141,8 @@ def _time_chains(planned: list[PlannedMove], timed: list[TimedMove], blends: dic
 def _time_chain(planned: list[PlannedMove], timed: list[TimedMove], blends: dict[int, Blend], group: list[int],
                 period_s: float, allowance: int) -> list[TimedMove]:
     """One chain timed in one pass. Where a move between two corners gets no sample of its own
-    path, the corner into it is stopped at; where the chain ends later than its moves stopping at
+    path, the corner into it is stopped at, and so is a corner with no sample inside (:func:`starved`);
+    where the chain ends later than its moves stopping at
     every corner (a jerk limit's uniform stretch spans the whole chain), its middle corner is;
     either way each part is timed again, and the corner's reason reported."""
     if len(group) == 1:
@@ -159,8 +160,7 @@ def _time_chain(planned: list[PlannedMove], timed: list[TimedMove], blends: dict
     if short is None and tm.duration_s <= stop_s:
         return split(cmap, tm, limits, period_s)
     if short is not None:
-        cut = group.index(short)
-        reason = f"move {short}'s own path between its corners is shorter than one period at its speed"
+        cut, reason = group.index(short[0]) + 1, short[1]
     else:
         cut = len(group) // 2
         why = " (the jerk limit's uniform slowing spans the whole chain)" if limits.jerk_rad_s3 is not None else ""

@@ -198,49 +198,63 @@ def _located(pm: PlannedMove, exc: TimingError) -> TimingError:
 def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
              methods: list[CrossingMethod], max_samples: int) -> tuple[PlannedMove, TimedMove]:
     """Plan each method's joint map, then time and check the candidates that can still win;
-    :func:`select.best_of` keeps the fastest.
+    :func:`select.best_of` keeps the fastest."""
+    candidates = _MoveCandidates(robot, task, i, move, T, q, len(methods), max_samples)
+    return best_of(robot, i, move.kind, methods, candidates.prepare, candidates.finish)
 
-    The candidates share the move's tracking (:class:`MoveTracking`); a candidate whose joint map
-    equals an earlier one's (wrist-joint hands a shoulder zone to exact) takes that one's outcome.
-    """
-    tracking: list[MoveTracking] = []  # made by the first candidate, inside it (a bad piece fails every method alike)
-    prepared: list[Candidate] = []
-    outcomes: list[tuple[PlannedMove, TimedMove | PlanningError | BudgetError]] = []
 
-    def prepare(method: CrossingMethod, order: int) -> Candidate:
-        if move.kind != "ptp" and not tracking:
-            tracking.append(MoveTracking(robot, task, i, move, T))
-        pm = plan_move(robot, task, i, move, T, q, method, tracking[0] if tracking else None)
-        same = next((c for c in prepared if _same_motion(c.pm, pm)), None)
-        if same is not None:  # its timing path, bound and refusal are the earlier one's
+class _MoveCandidates:
+    """One move's candidate plans: each method's joint map (sharing the move's tracking,
+    :class:`MoveTracking`), its timing path, bound and refusal, then its timing and checks. A
+    candidate whose joint map equals an earlier one's (wrist-joint hands a shoulder zone to exact)
+    takes that one's timing path, bound, refusal and outcome."""
+
+    def __init__(self, robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray, count: int,
+                 max_samples: int) -> None:
+        self.robot, self.task, self.index, self.move, self.T, self.q = robot, task, i, move, T, q
+        self.compared = count > 1  # one candidate alone needs no bound or refusal
+        self.max_samples = max_samples
+        self.tracking: MoveTracking | None = None  # made by the first candidate (a bad piece fails every method alike)
+        self.prepared: list[Candidate] = []
+        self.outcomes: list[tuple[PlannedMove, TimedMove | PlanningError | BudgetError]] = []
+
+    def prepare(self, method: CrossingMethod, order: int) -> Candidate:
+        """The method's joint map, with what lets it be skipped before timing."""
+        if self.move.kind != "ptp" and self.tracking is None:
+            self.tracking = MoveTracking(self.robot, self.task, self.index, self.move, self.T)
+        pm = plan_move(self.robot, self.task, self.index, self.move, self.T, self.q, method, self.tracking)
+        same = next((c for c in self.prepared if _same_motion(c.pm, pm)), None)
+        if same is not None:
             return replace(same, method=method, order=order, pm=pm)
-        paused = any(c.pause is not None for c in pm.crossings)
-        path = None if paused else _timing_path(pm)
-        if len(methods) == 1:  # nothing to compare: no bound or refusal to tell
+        path = None if any(c.pause is not None for c in pm.crossings) else _timing_path(pm)
+        if not self.compared:
             return Candidate(method, order, pm, path)
-        bound_s = 0.0 if path is None else duration_bound_s(path, pm.limits, task.period_s)
-        prepared.append(Candidate(method, order, pm, path, bound_s, refusal(robot, task, move, pm), screened=True))
-        return prepared[-1]
+        bound_s = 0.0 if path is None else duration_bound_s(path, pm.limits, self.task.period_s)
+        why_not = refusal(self.robot, self.task, self.move, pm)
+        self.prepared.append(Candidate(method, order, pm, path, bound_s, why_not, screened=True))
+        return self.prepared[-1]
 
-    def finish(c: Candidate, best: Rank | None) -> tuple[PlannedMove, TimedMove]:
-        pm = c.pm
-        same = next(((seen, done) for seen, done in outcomes if _same_motion(seen, pm)), None)
+    def finish(self, c: Candidate, best: Rank | None) -> tuple[PlannedMove, TimedMove]:
+        """The candidate timed and checked (timing.Outrun once it cannot beat ``best``)."""
+        same = next(((seen, done) for seen, done in self.outcomes if _same_motion(seen, c.pm)), None)
         if same is None:
-            give_up = None if best is None or c.path is None else _cannot_beat(c, c.path, best, task.period_s)
-            try:
-                timed = _timed(pm, task.period_s, max_samples, c.path, give_up)
-                check_config(robot, move, pm, timed.u, timed.q)
-                pm = replace(pm, deviations=check_tolerances(robot, task, pm, timed, c.screened))
-                same = (pm, timed)
-            except (PlanningError, BudgetError) as exc:
-                same = (pm, exc)
-            outcomes.append(same)
+            same = self._timed_and_checked(c, best)
+            self.outcomes.append(same)
         seen, outcome = same
         if isinstance(outcome, (PlanningError, BudgetError)):
             raise outcome
-        return replace(pm, deviations=seen.deviations), outcome
+        return replace(c.pm, deviations=seen.deviations), outcome
 
-    return best_of(robot, i, move.kind, methods, prepare, finish)
+    def _timed_and_checked(self, c: Candidate, best: Rank | None
+                           ) -> tuple[PlannedMove, TimedMove | PlanningError | BudgetError]:
+        period_s = self.task.period_s
+        give_up = None if best is None or c.path is None else _cannot_beat(c, c.path, best, period_s)
+        try:
+            timed = _timed(c.pm, period_s, self.max_samples, c.path, give_up)
+            check_config(self.robot, self.move, c.pm, timed.u, timed.q)
+            return replace(c.pm, deviations=check_tolerances(self.robot, self.task, c.pm, timed, c.screened)), timed
+        except (PlanningError, BudgetError) as exc:
+            return c.pm, exc
 
 
 def _cannot_beat(c: Candidate, path: TimingPath, best: Rank, period_s: float) -> GiveUp:

@@ -31,8 +31,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from singplan.kinematics.compiled import jit
 from singplan.planning.timing import TCP_MARGIN, MoveLimits, Scale, TimingPath
 
 # TOPP-RA's profile was measured up to 3.3e-8 (relative) over the caps on the public examples (its
@@ -70,7 +70,7 @@ def speed_caps(path: TimingPath, vmax_1: np.ndarray, amax_1: np.ndarray) -> np.n
     return caps
 
 
-@njit(cache=True)
+@jit
 def _velocity_caps(d1: np.ndarray, vmax: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
     """V_i (G,) from every coordinate's speed limit, 0 at the start."""
     g, m = d1.shape
@@ -83,7 +83,7 @@ def _velocity_caps(d1: np.ndarray, vmax: np.ndarray) -> np.ndarray:  # pragma: n
     return cap
 
 
-@njit(cache=True)
+@jit
 def _forward(grid: np.ndarray, d1: np.ndarray, d2: np.ndarray, amax: np.ndarray,
              cap: np.ndarray) -> None:  # pragma: no cover - compiled
     """cap_{i+1} = min(cap_{i+1}, X_{i+1}): as fast as every acceleration line lets x grow."""
@@ -100,7 +100,7 @@ def _forward(grid: np.ndarray, d1: np.ndarray, d2: np.ndarray, amax: np.ndarray,
         cap[i + 1] = max(reach, 0.0)
 
 
-@njit(cache=True)
+@jit
 def _backward(grid: np.ndarray, d1: np.ndarray, d2: np.ndarray, amax: np.ndarray,
               cap: np.ndarray) -> None:  # pragma: no cover - compiled
     """cap_i = min(cap_i, Y_i), from rest at the end: slow enough for every line to stop in time."""
@@ -119,7 +119,7 @@ def _backward(grid: np.ndarray, d1: np.ndarray, d2: np.ndarray, amax: np.ndarray
         cap[i] = max(cap[i], 0.0)
 
 
-@njit(cache=True)
+@jit
 def _line(d1: np.ndarray, d2: np.ndarray, i: int, j: int, ds: float) -> tuple[float, float]:  # pragma: no cover
     """Joint j % m's acceleration at stage i as a u + b x: at s_i (j < m), or at s_{i+1} reached
     with x + 2 ds u (TOPP-RA's interpolation scheme, j >= m)."""
@@ -129,7 +129,7 @@ def _line(d1: np.ndarray, d2: np.ndarray, i: int, j: int, ds: float) -> tuple[fl
     return d1[i + 1, j - m] + 2.0 * ds * d2[i + 1, j - m], d2[i + 1, j - m]
 
 
-@njit(cache=True, error_model="numpy")
+@jit
 def _fewest_samples(grid: np.ndarray, caps: np.ndarray, period_1: float,
                     clock_step: float) -> int:  # pragma: no cover - compiled
     """Periods to the end, each step as far as the speed caps (G,) let the path go in ``period_1``
@@ -139,9 +139,9 @@ def _fewest_samples(grid: np.ndarray, caps: np.ndarray, period_1: float,
     root = np.sqrt(caps)
     t_node = np.zeros(g)  # the least time to reach each grid point under the caps
     for i in range(g - 1):
+        if root[i] + root[i + 1] == 0.0:
+            return 0  # the caps stop the path: TOPP-RA will say where
         t_node[i + 1] = t_node[i] + 2.0 * (grid[i + 1] - grid[i]) / (root[i] + root[i + 1])
-    if not math.isfinite(t_node[g - 1]):
-        return 0
     count, s, t = 0, 0.0, 0.0  # samples so far; where the last one is and the least time to it
     while s < 1.0 - 1e-12:
         count += 1
@@ -159,13 +159,13 @@ def _fewest_samples(grid: np.ndarray, caps: np.ndarray, period_1: float,
     return count
 
 
-@njit(cache=True)
+@jit
 def _interval(nodes: np.ndarray, value: float) -> int:  # pragma: no cover - compiled
     """The interval [nodes[i], nodes[i + 1]) holding value (the last one at the end)."""
     return min(max(int(np.searchsorted(nodes, value, side="right")) - 1, 0), len(nodes) - 2)
 
 
-@njit(cache=True)
+@jit
 def _position_at(grid: np.ndarray, caps: np.ndarray, root: np.ndarray, t_node: np.ndarray, i: int,
                  t: float) -> float:  # pragma: no cover - compiled
     """Path parameter at time t in interval i when the path runs at the caps (constant path acceleration)."""
@@ -174,7 +174,7 @@ def _position_at(grid: np.ndarray, caps: np.ndarray, root: np.ndarray, t_node: n
     return min(grid[i] + root[i] * tau + (caps[i + 1] - caps[i]) / ds * tau * tau / 4.0, grid[i + 1])
 
 
-@njit(cache=True)
+@jit
 def _time_at(grid: np.ndarray, caps: np.ndarray, root: np.ndarray, t_node: np.ndarray, i: int,
              s: float) -> float:  # pragma: no cover - compiled
     """The least time to path parameter s in interval i (the inverse of :func:`_position_at`)."""

@@ -95,7 +95,8 @@ def test_bound_is_never_above_the_timing_of_a_curved_joint_path(points: list[flo
 def test_a_bound_at_the_tightened_limits_is_never_above_the_timing(points: list[float], v: float, a: float,
                                                                    tcp_speed: float | None) -> None:
     """What time_move asks ``give_up`` after each pass that tightens the limits: the bound at those
-    limits never exceeds the duration the timing ends with; and a bound given back stops it."""
+    limits and after that pass's own duration never exceeds the duration the timing ends with;
+    and a bound given back stops it."""
     p0, p1, bulge = np.reshape(points, (3, 6))
     jmap = _Curve(p0, p1, bulge)
     limits = MoveLimits(np.full(6, v) * np.linspace(0.5, 1.0, 6), np.full(6, a), 0.0 if tcp_speed is None else 0.5,
@@ -103,14 +104,14 @@ def test_a_bound_at_the_tightened_limits_is_never_above_the_timing(points: list[
     path = timing_path(jmap, limits, 0)
     asked: list[float] = []
 
-    def record(scale: tuple[float, float, float, float]) -> None:
-        asked.append(duration_bound_s(path, limits, PERIOD_S, scale))
+    def record(scale: tuple[float, float, float, float], pass_s: float) -> None:
+        asked.append(duration_bound_s(path, limits, PERIOD_S, scale, pass_s))
 
     duration = time_move(jmap, limits, PERIOD_S, 0, 10_000_000, path, record).duration_s
     assert all(bound <= duration for bound in asked)
     if asked:  # a pass was tightened: giving its bound back stops the timing there
         with pytest.raises(Outrun) as stop:
-            time_move(jmap, limits, PERIOD_S, 0, 10_000_000, path, lambda scale: asked[0])
+            time_move(jmap, limits, PERIOD_S, 0, 10_000_000, path, lambda scale, pass_s: asked[0])
         assert stop.value.at_least_s == asked[0]
 
 

@@ -41,11 +41,13 @@ _MARGIN = 1.0 + 1e-6
 
 
 def duration_bound_s(path: TimingPath, limits: MoveLimits, period_s: float,
-                     scale: Scale = (1.0, 1.0, 1.0, 1.0)) -> float:
+                     scale: Scale = (1.0, 1.0, 1.0, 1.0), pass_s: float = 0.0) -> float:
     """No timing of ``path`` under ``limits`` ends sooner than this [s], a whole number of periods.
 
     ``scale``: where a timing pass has tightened the limits to these factors (the later passes
     only tighten further); the samples are still checked against ``limits`` themselves.
+    ``pass_s``: that pass's own TOPP-RA duration [s]: the later passes, at tighter limits, take no
+    less (TOPP-RA is time-optimal for its constraints), so the bound is at least it, rounded.
     0 where no bound is known: a jerk limit or the quintic law (their time laws are checked on the
     samples only), a chain of moves (varying limits), a move that changes nothing.
     """
@@ -57,7 +59,8 @@ def duration_bound_s(path: TimingPath, limits: MoveLimits, period_s: float,
     clock = limits.tcp_clock(np.array([1.0]))  # the TCP's time at programmed speed to the end [s]
     clock_step = math.inf if clock is None else TCP_MARGIN * period_s / float(clock[0]) * _MARGIN
     samples = _fewest_samples(path.grid, caps, period_s / tau * _MARGIN, clock_step)  # the period in tau
-    return samples * period_s if samples > 0 else 0.0
+    after_pass = max(1, math.ceil(pass_s / _MARGIN / period_s - 1e-9)) if pass_s > 0.0 else 0  # as _sample rounds
+    return max(samples, after_pass) * period_s if samples > 0 else 0.0
 
 
 def speed_caps(path: TimingPath, vmax_1: np.ndarray, amax_1: np.ndarray) -> np.ndarray:

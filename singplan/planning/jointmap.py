@@ -105,6 +105,7 @@ class JointMap:
         self.robot = robot
         self.poses = poses
         self.parts = parts
+        self._starts: dict[int, CubicSpline] = {}  # by part index: an axis part's spline through its solutions
 
     @property
     def straight(self) -> bool:
@@ -159,8 +160,18 @@ class JointMap:
         start = hermite(part, u)
         if len(part.u) > 3:
             free = np.arange(start.shape[1]) != part.axis
-            start[:, free] = CubicSpline(part.u, part.q[:, free], axis=0)(u)
+            start[:, free] = self._start(part, free)(u)
         return axis_solve(self.robot, start, self.poses(u), part.axis, part.exact)
+
+    def _start(self, part: JointPart, free: np.ndarray) -> CubicSpline:
+        """The spline through an axis part's solutions (its free joints), made once per part of this map."""
+        key = next((k for k, p in enumerate(self.parts) if p is part), -1)
+        spline = self._starts.get(key) if key >= 0 else None
+        if spline is None:
+            spline = CubicSpline(part.u, part.q[:, free], axis=0)
+            if key >= 0:
+                self._starts[key] = spline
+        return spline
 
     def _exact_near(self, q_ref: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Exact IK at each u: the branch and turn nearest the reference joint values."""

@@ -259,8 +259,8 @@ class _MoveCandidates:
 
 def _cannot_beat(c: Candidate, path: TimingPath, best: Rank, period_s: float) -> GiveUp:
     """After a timing pass: the bound at the tightened limits, if it shows ``c`` cannot beat ``best``."""
-    def give_up(scale: Scale) -> float | None:
-        bound_s = duration_bound_s(path, c.pm.limits, period_s, scale)
+    def give_up(scale: Scale, pass_s: float) -> float | None:
+        bound_s = duration_bound_s(path, c.pm.limits, period_s, scale, pass_s)
         return bound_s if Rank(bound_s, c.order) > best else None
 
     return give_up

@@ -81,9 +81,10 @@ class TimingError(PlanningError):
 
 
 Scale = tuple[float, float, float, float]  # factors on the joint speed, TCP speed, acceleration and torque limits
-# given the scales a failed pass tightened the limits to: a bound [s] that shows the timing cannot
-# win what it is compared with (auto's best so far), or None to go on
-GiveUp = Callable[[Scale], float | None]
+# given the scales a failed pass tightened the limits to and that pass's own duration [s] (TOPP-RA's,
+# before rounding; the later passes, at tighter limits, take no less): a bound [s] that shows the
+# timing cannot win what it is compared with (auto's best so far), or None to go on
+GiveUp = Callable[[Scale, float], float | None]
 
 
 class Outrun(Exception):  # noqa: N818 - not an error: the timing stopped because it cannot win
@@ -506,7 +507,8 @@ def _optimal(jmap: JointMap, path: TimingPath, limits: MoveLimits, period_s: flo
         if worst_t > 1.0:
             scale_t *= 0.995 / worst_t
         # later passes only tighten further (after the last one the timing fails: not an outrun)
-        at_least_s = give_up((scale_v, scale_c, scale_a, scale_t)) if give_up and passes_left else None
+        scale = (scale_v, scale_c, scale_a, scale_t)
+        at_least_s = give_up(scale, float(profile.t_nodes[-1])) if give_up and passes_left else None
         if at_least_s is not None:
             raise Outrun(at_least_s)
     ends = end_step_ratio(q, period_s, limits.acceleration_rad_s2)

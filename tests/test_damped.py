@@ -8,7 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from singplan.kinematics.ik.numeric import damped_solve, damped_step, pose_error
+from singplan.kinematics.ik.numeric import damped_solve, damped_solve_rows, damped_step, pose_error
 from singplan.kinematics.robot import load_robot
 from singplan.planning.crossing.nullspace import hold_pose
 from singplan.planning.jointmap import axis_solve, exact_orientation, position_solve
@@ -24,6 +24,36 @@ def test_damped_step_minimises_the_damped_residual_in_each_form() -> None:
             gradient = J.T @ (J @ normal - err) + damping * normal  # zero at the minimum
             assert float(np.max(np.abs(gradient))) < 1e-9
         np.testing.assert_allclose(damped_step(J, err, 0.0), np.linalg.lstsq(J, err, rcond=None)[0], atol=0.0)
+
+
+def test_a_batch_of_damped_steps_equals_each_step_alone() -> None:
+    rng = np.random.default_rng(5)
+    for rows, cols in [(6, 6), (3, 3), (5, 6), (6, 5)]:
+        J, err = rng.normal(size=(7, rows, cols)), rng.normal(size=(7, rows))
+        for damping in (0.0, 1e-6, 1.0):
+            alone = np.array([damped_step(J[k], err[k], damping) for k in range(7)])
+            # (6, 5) at damping 1e-6: JJ^T + 1e-6 I has condition ~1e6, round-off grows alike
+            np.testing.assert_allclose(damped_step(J, err, damping), alone, rtol=1e-7, atol=1e-9)
+
+
+def test_damped_solve_rows_drops_each_row_when_it_is_done() -> None:
+    """Rows of a diagonal linear system: each row's error leaves the batch below ``tol``, and each
+    row's result is what damped_solve gives it alone."""
+    A = np.array([np.diag([1.0, 2.0, 4.0]), np.diag([1.0, 1.0, 1.0]), np.diag([3.0, 0.5, 2.0])])
+    targets = np.array([[3.0, -1.0, 2.0], [0.0, 0.0, 0.0], [1.0, 2.0, -3.0]])
+    asked: list[np.ndarray] = []
+
+    def residual(q: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        asked.append(at.copy())
+        return targets[at] - np.einsum("kij,kj->ki", A[at], q), A[at]
+
+    q = damped_solve_rows(residual, np.zeros((3, 3)), np.arange(3), damping=1e-3, tol=1e-13, iterations=60)
+    np.testing.assert_allclose(np.einsum("kij,kj->ki", A, q), targets, atol=1e-13)
+    assert 1 not in asked[1]  # row 1 starts at its target: gone after the first look
+    for k in range(3):
+        alone = damped_solve(lambda qk, k=k: (targets[k] - A[k] @ qk, A[k]), np.zeros(3), slice(None),
+                             damping=1e-3, tol=1e-13, iterations=60)
+        np.testing.assert_allclose(q[k], alone, atol=1e-14)
 
 
 def test_damped_solve_caps_steps_and_stops_on_the_error_or_the_step() -> None:
@@ -59,7 +89,7 @@ def arm_cases() -> list[tuple[np.ndarray, np.ndarray, pin.SE3]]:
 def test_the_re_solves_reach_their_targets(arm_cases: list[tuple[np.ndarray, np.ndarray, pin.SE3]]) -> None:
     robot = load_robot("abb_irb2400")
     for q0, q_goal, T in arm_cases:
-        q = position_solve(robot, q0, T.translation)
+        q = position_solve(robot, q0, T.translation[None])[0]  # a batch of one (N, n)
         assert float(np.linalg.norm(robot.fk(q).translation - T.translation)) < 1e-11
         np.testing.assert_array_equal(q[3:], q0[3:])  # only the arm joints move
         q = exact_orientation(robot, q0, T.rotation[None])[0]  # a batch of one (N, n)

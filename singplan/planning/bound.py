@@ -33,6 +33,7 @@ import math
 import numpy as np
 
 from singplan.kinematics.compiled import jit
+from singplan.planning.profile import fewest_samples
 from singplan.planning.timing import TCP_MARGIN, MoveLimits, Scale, TimingPath
 
 # TOPP-RA's profile was measured up to 3.3e-8 (relative) over the caps on the public examples (its
@@ -58,7 +59,7 @@ def duration_bound_s(path: TimingPath, limits: MoveLimits, period_s: float,
     caps = speed_caps(path, vmax_1, amax_1)  # (G,) C_i, dimensionless
     clock = limits.tcp_clock(np.array([1.0]))  # the TCP's time at programmed speed to the end [s]
     clock_step = math.inf if clock is None else TCP_MARGIN * period_s / float(clock[0]) * _MARGIN
-    samples = _fewest_samples(path.grid, caps, period_s / tau * _MARGIN, clock_step)  # the period in tau
+    samples = fewest_samples(path.grid, np.sqrt(caps), period_s / tau * _MARGIN, clock_step)  # the period in tau
     after_pass = max(1, math.ceil(pass_s / _MARGIN / period_s - 1e-9)) if pass_s > 0.0 else 0  # as _sample rounds
     return max(samples, after_pass) * period_s if samples > 0 else 0.0
 
@@ -130,58 +131,3 @@ def _line(d1: np.ndarray, d2: np.ndarray, i: int, j: int, ds: float) -> tuple[fl
     if j < m:
         return d1[i, j], d2[i, j]
     return d1[i + 1, j - m] + 2.0 * ds * d2[i + 1, j - m], d2[i + 1, j - m]
-
-
-@jit
-def _fewest_samples(grid: np.ndarray, caps: np.ndarray, period_1: float,
-                    clock_step: float) -> int:  # pragma: no cover - compiled
-    """Periods to the end, each step as far as the speed caps (G,) let the path go in ``period_1``
-    (the period in units of tau) and at most ``clock_step`` of path parameter; 0 if the caps stop
-    the path."""
-    g = len(grid)
-    root = np.sqrt(caps)
-    t_node = np.zeros(g)  # the least time to reach each grid point under the caps
-    for i in range(g - 1):
-        if root[i] + root[i + 1] == 0.0:
-            return 0  # the caps stop the path: TOPP-RA will say where
-        t_node[i + 1] = t_node[i] + 2.0 * (grid[i + 1] - grid[i]) / (root[i] + root[i + 1])
-    count, s, t = 0, 0.0, 0.0  # samples so far; where the last one is and the least time to it
-    while s < 1.0 - 1e-12:
-        count += 1
-        target = min(s + clock_step, 1.0)
-        t_next = t + period_1
-        if t_next >= t_node[g - 1]:
-            reach = 1.0
-        else:
-            reach = _position_at(grid, caps, root, t_node, _interval(t_node, t_next), t_next)
-        if reach <= target:
-            s, t = reach, t_next
-        else:
-            s = target
-            t = _time_at(grid, caps, root, t_node, _interval(grid, s), s)
-    return count
-
-
-@jit
-def _interval(nodes: np.ndarray, value: float) -> int:  # pragma: no cover - compiled
-    """The interval [nodes[i], nodes[i + 1]) holding value (the last one at the end)."""
-    return min(max(int(np.searchsorted(nodes, value, side="right")) - 1, 0), len(nodes) - 2)
-
-
-@jit
-def _position_at(grid: np.ndarray, caps: np.ndarray, root: np.ndarray, t_node: np.ndarray, i: int,
-                 t: float) -> float:  # pragma: no cover - compiled
-    """Path parameter at time t in interval i when the path runs at the caps (constant path acceleration)."""
-    ds = grid[i + 1] - grid[i]
-    tau = t - t_node[i]
-    return min(grid[i] + root[i] * tau + (caps[i + 1] - caps[i]) / ds * tau * tau / 4.0, grid[i + 1])
-
-
-@jit
-def _time_at(grid: np.ndarray, caps: np.ndarray, root: np.ndarray, t_node: np.ndarray, i: int,
-             s: float) -> float:  # pragma: no cover - compiled
-    """The least time to path parameter s in interval i (the inverse of :func:`_position_at`)."""
-    ds = grid[i + 1] - grid[i]
-    w = s - grid[i]
-    x = caps[i] + (caps[i + 1] - caps[i]) * w / ds
-    return t_node[i] + 2.0 * w / (root[i] + math.sqrt(max(x, 0.0)))

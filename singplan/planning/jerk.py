@@ -145,9 +145,7 @@ def jerk_ratio(q: np.ndarray, period_s: float, jmax: np.ndarray) -> float:
     if len(steps) >= 2:
         second = np.abs(np.stack([steps[1] - 2.0 * steps[0], steps[-2] - 2.0 * steps[-1]]))
         worst = max(worst, float(np.max(second / (unit * 5.0 / 6.0))))
-    if len(steps) >= 3:
-        worst = max(worst, float(np.max(np.abs(np.diff(steps, n=2, axis=0)) / unit)))
-    return worst
+    return max(worst, third_difference_ratio(q, period_s, jmax))
 
 
 _CHUNK_SAMPLES = 65536  # bounds the temporaries of a long trajectory's differences

@@ -24,7 +24,7 @@ from scipy.interpolate import CubicSpline
 from singplan.kinematics.angles import nearest_shifted
 from singplan.kinematics.compiled import jit
 from singplan.kinematics.geometry import relative_rotations
-from singplan.kinematics.ik.numeric import damped_solve
+from singplan.kinematics.ik.numeric import damped_solve_rows
 from singplan.kinematics.ik.solve import closed_form_branches, opw_arm_for_point, solve_newton
 from singplan.kinematics.ik.ur import ur_arm_for_point
 from singplan.kinematics.robot import Robot
@@ -209,22 +209,25 @@ def exact_position(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.nda
         lost = np.isnan(out[:, 0])
     else:
         out, lost = np.array(q, dtype=float), np.ones(len(q), dtype=bool)
-    for k in np.nonzero(lost)[0]:
-        out[k] = position_solve(robot, q[k], targets_m[k])
+    out[lost] = position_solve(robot, np.asarray(q)[lost], targets_m[lost])
     return out
 
 
-def position_solve(robot: Robot, q: np.ndarray, target_m: np.ndarray, joints: int = 3,
+def position_solve(robot: Robot, q: np.ndarray, targets_m: np.ndarray, joints: int = 3,
                    tol_m: float = 1e-12, iterations: int = 30) -> np.ndarray:
-    """Move the first ``joints`` joints so the TCP reaches ``target_m`` [m]; the others stay.
+    """Joints (N, n): q (N, n) with the first ``joints`` joints moved so the TCP reaches targets_m
+    (N, 3) [m]; the others stay.
 
-    Damped Newton on the TCP position with Pinocchio's Jacobian; returns the best found.
+    Damped Newton on the TCP position (:func:`~singplan.kinematics.ik.numeric.damped_solve_rows`,
+    the batched kinematics of :class:`~singplan.kinematics.robot.Robot`); the best found.
     """
-    def residual(qk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return target_m - robot.fk(qk).translation, robot.jacobian(qk)[:3]
+    def residual(rows: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        position, _, J = robot.tcp_kinematics(rows, 3)
+        return targets_m[at] - position, J[:, :, :joints]
 
     # constant damping: directions the joints barely move (a shoulder singularity) stay put
-    return damped_solve(residual, q, slice(0, joints), damping=_DAMPING, tol=tol_m, iterations=iterations)
+    return damped_solve_rows(residual, np.reshape(q, (-1, robot.n_joints)), np.arange(joints), damping=_DAMPING,
+                             tol=tol_m, iterations=iterations)
 
 
 _EXACT_WEIGHT = 1e4  # weight of the kept component against the minimised one (per m / per rad)
@@ -246,14 +249,12 @@ def axis_solve(robot: Robot, q: np.ndarray, T_target: np.ndarray, fixed: int, ex
     T_target = np.asarray(T_target, dtype=float).reshape(-1, 4, 4)
     free = np.arange(robot.n_joints) != fixed
     w = np.array([_EXACT_WEIGHT] * 3 + [1.0] * 3) if exact == "position" else np.array([1.0] * 3 + [_EXACT_WEIGHT] * 3)
-    active = np.arange(len(q))
-    for _ in range(iterations):
-        if active.size == 0:
-            break
-        r, Jr = _weighted_residuals(robot, q[active], T_target[active], free, w)
-        step = np.einsum("kij,kj->ki", np.linalg.pinv(Jr), -r)  # least squares, one per sample
-        q[np.ix_(active, free)] += step
-        active = active[np.abs(step).max(axis=1) >= 1e-13]
+
+    def residual(rows: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r, Jr = _weighted_residuals(robot, rows, T_target[at], free, w)
+        return -r, Jr
+
+    q = damped_solve_rows(residual, q, np.flatnonzero(free), step_tol=1e-13, iterations=iterations)  # least squares
     if exact == "position":
         return exact_position(robot, q, T_target[:, :3, 3])
     return exact_orientation(robot, q, T_target[:, :3, :3])
@@ -277,21 +278,16 @@ def exact_orientation(robot: Robot, q: np.ndarray, R_target: np.ndarray, tol_rad
     """Joints (N, n): q with the wrist joints (the last three) moved so the TCP orientation is
     R_target (N, 3, 3).
 
-    Damped Gauss-Newton (:func:`~singplan.kinematics.ik.numeric.damped_step`'s normal equations)
-    on the body-frame error log3(R^T R*), every sample at once with the batched kinematics of
+    Damped Gauss-Newton (:func:`~singplan.kinematics.ik.numeric.damped_solve_rows`) on the
+    body-frame error log3(R^T R*), every sample at once with the batched kinematics of
     :class:`~singplan.kinematics.robot.Robot`, each until its error is under ``tol_rad``.
     """
-    q = np.array(q, dtype=float).reshape(-1, robot.n_joints)
     wrist = np.arange(robot.n_joints - 3, robot.n_joints)
-    active = np.arange(len(q))
-    for _ in range(iterations):
-        _, R, J = robot.tcp_kinematics(q[active])
-        err = np.array([pin.log3(Rk.T @ Rt) for Rk, Rt in zip(R, R_target[active], strict=True)]).reshape(-1, 3)
-        moving = np.max(np.abs(err), axis=1) >= tol_rad
-        active, err, R, J = active[moving], err[moving], R[moving], J[moving]
-        if active.size == 0:
-            break
-        J = np.einsum("nji,njk->nik", R, J[:, 3:][:, :, wrist])  # in the tool's frame: R^T J (M, 3, 3)
-        JJt = J @ J.transpose(0, 2, 1) + _DAMPING * np.eye(3)
-        q[np.ix_(active, wrist)] += np.einsum("nji,nj->ni", J, np.linalg.solve(JJt, err[:, :, None])[:, :, 0])
-    return q
+
+    def residual(rows: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        _, R, J = robot.tcp_kinematics(rows)
+        err = np.array([pin.log3(Rk.T @ Rt) for Rk, Rt in zip(R, R_target[at], strict=True)]).reshape(-1, 3)
+        return err, np.einsum("nji,njk->nik", R, J[:, 3:][:, :, wrist])  # in the tool's frame: R^T J (M, 3, 3)
+
+    return damped_solve_rows(residual, np.reshape(q, (-1, robot.n_joints)), wrist, damping=_DAMPING, tol=tol_rad,
+                             iterations=iterations)

@@ -43,6 +43,7 @@ from singplan.kinematics.dynamics import PathDynamics, TorqueLimit, move_torque_
 from singplan.planning.budget import check_move_samples
 from singplan.planning.jerk import QuinticLaw, SCurveLaw, SmoothedLaw, jerk_ratio, quintic_duration
 from singplan.planning.jointmap import JointMap
+from singplan.planning.profile import Profile
 
 logger = logging.getLogger(__name__)
 logging.getLogger("toppra").setLevel(logging.ERROR)  # its retries are not our warnings
@@ -181,28 +182,6 @@ def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
     return u, q
 
 
-@dataclass(frozen=True)
-class _Profile:
-    """TOPP-RA's result: path speed ``sd`` at the grid points, constant path acceleration between."""
-
-    grid: np.ndarray  # (G,) path parameter u
-    sd: np.ndarray  # (G,) du/dt
-
-    @property
-    def t_nodes(self) -> np.ndarray:
-        dt = 2.0 * np.diff(self.grid) / (self.sd[:-1] + self.sd[1:])
-        return np.concatenate([[0.0], np.cumsum(dt)])
-
-    def u_at(self, t: np.ndarray) -> np.ndarray:
-        """Path parameter at times t (exact for the constant-acceleration profile)."""
-        nodes = self.t_nodes
-        i = np.clip(np.searchsorted(nodes, t, side="right") - 1, 0, len(self.grid) - 2)
-        ds = np.diff(self.grid)
-        sdd = (self.sd[1:] ** 2 - self.sd[:-1] ** 2) / (2.0 * ds)
-        tau = t - nodes[i]
-        return np.minimum(self.grid[i] + self.sd[i] * tau + 0.5 * sdd[i] * tau**2, self.grid[i + 1])
-
-
 def path_scale(q: np.ndarray, limits: MoveLimits) -> float:
     """The move's size: the largest travel of any joint [rad] or of the TCP [m] along it."""
     travel = float(np.max(np.sum(np.abs(np.diff(q, axis=0)), axis=0), initial=0.0))
@@ -274,7 +253,7 @@ def timing_path(jmap: JointMap, limits: MoveLimits, move_index: int) -> TimingPa
 
 
 def _toppra_profile(path: TimingPath, limits: MoveLimits, scale: Scale,
-                    move_index: int) -> _Profile:
+                    move_index: int) -> Profile:
     """TOPP-RA on the move made dimensionless (:class:`TimingPath`); ``scale`` multiplies the joint
     velocity, TCP speed, acceleration and torque limits (the tightening passes)."""
     scale_v, scale_c, _, scale_t = scale
@@ -297,7 +276,7 @@ def _toppra_profile(path: TimingPath, limits: MoveLimits, scale: Scale,
                           f"joint velocity{', acceleration and torque' if limits.torque else ' and acceleration'} "
                           f"limits cannot hold the path there{where})")
     sd = np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0) / tau  # du/dt in real time
-    return _Profile(np.asarray(data.gridpoints, dtype=float), sd)
+    return Profile(np.asarray(data.gridpoints, dtype=float), sd)
 
 
 def _velocity_constraint(limits: MoveLimits, vmax_1: np.ndarray, factor: float, clock_factor: float,
@@ -385,7 +364,7 @@ def _grid(u: np.ndarray) -> np.ndarray:
     return np.unique(np.concatenate([u, extra]))
 
 
-def _sample(profile: _Profile, period_s: float, move_index: int, max_samples: int) -> tuple[np.ndarray, float]:
+def _sample(profile: Profile, period_s: float, move_index: int, max_samples: int) -> tuple[np.ndarray, float]:
     duration = float(profile.t_nodes[-1])
     count = max(1, math.ceil(duration / period_s - 1e-9))
     check_move_samples(move_index, count, max_samples, duration, period_s)  # before the samples are allocated
@@ -396,14 +375,21 @@ def _sample(profile: _Profile, period_s: float, move_index: int, max_samples: in
     return u, count * period_s
 
 
+def difference_ratios(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Of samples q (K+1, n), K >= 1: each step's largest |qd| / vmax (K,) and each inner sample's
+    largest |qdd| / amax (K-1,), by forward differences (the checker's definition); ``vmax`` (n,)
+    or one row a step (K, n)."""
+    qd = np.diff(q, axis=0) / period_s
+    return np.max(np.abs(qd) / vmax, axis=1), np.max(np.abs(np.diff(qd, axis=0)) / period_s / amax, axis=1)
+
+
 def sample_ratios(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.ndarray) -> tuple[float, float]:
     """Largest |qd|/vmax and |qdd|/amax by finite differences of samples q (K+1, n)."""
     if len(q) < 2:
         return 0.0, 0.0
-    qd = np.diff(q, axis=0) / period_s
-    speed = float(np.max(np.abs(qd) / vmax))
-    accel = float(np.max(np.abs(np.diff(qd, axis=0)) / period_s / amax)) if len(qd) > 1 else 0.0
-    return speed, accel
+    speed, accel = difference_ratios(q, period_s, vmax, amax)
+    return float(np.max(speed)), float(np.max(accel, initial=0.0))
 
 
 def end_step_ratio(q: np.ndarray, period_s: float, amax: np.ndarray) -> float:
@@ -467,7 +453,7 @@ def time_move(jmap: JointMap, limits: MoveLimits, period_s: float, move_index: i
     return replace(best, optimal_duration_s=optimal.duration_s)
 
 
-def _s_curves(profile: _Profile, limits: MoveLimits) -> list[SCurveLaw]:
+def _s_curves(profile: Profile, limits: MoveLimits) -> list[SCurveLaw]:
     """S-curves in u with TOPP-RA's peak path speed and acceleration, and the path jerk the joint
     limits allow where the joint map is straight (the exact optimum of a PTP) or less."""
     assert limits.jerk_rad_s3 is not None
@@ -480,7 +466,7 @@ def _s_curves(profile: _Profile, limits: MoveLimits) -> list[SCurveLaw]:
 
 
 def _optimal(jmap: JointMap, path: TimingPath, limits: MoveLimits, period_s: float, move_index: int,
-             max_samples: int, give_up: GiveUp | None) -> tuple[TimedMove, _Profile]:
+             max_samples: int, give_up: GiveUp | None) -> tuple[TimedMove, Profile]:
     """The acceleration-limited samples (TOPP-RA, tightened until the samples keep the limits) and their profile."""
     # separate scales: on a chain of moves a TCP-speed slip on one move must not slow a PTP's joints
     scale_v = scale_c = scale_a = scale_t = 1.0
@@ -523,10 +509,8 @@ def _optimal(jmap: JointMap, path: TimingPath, limits: MoveLimits, period_s: flo
 def worst_sample(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.ndarray) -> int:
     """The sample of q (K, n), at rest before and after, whose speed or acceleration is furthest over its limit
     (end steps included)."""
-    padded = np.concatenate([q[:1], q, q[-1:]])
-    qd = np.diff(padded, axis=0) / period_s
-    speed = np.max(np.abs(qd) / vmax, axis=1)  # step k -> k+1 of padded
-    accel = np.max(np.abs(np.diff(qd, axis=0)) / period_s / amax, axis=1)  # at q[k]
+    # speed: step k -> k+1 of the padded samples; accel: at q[k]
+    speed, accel = difference_ratios(np.concatenate([q[:1], q, q[-1:]]), period_s, vmax, amax)
     accel[[0, -1]] *= 2.0  # an end step's bound is amax * period^2 / 2 (end_step_ratio)
     over = np.maximum(accel, np.maximum(speed[:-1], speed[1:]))
     return int(np.argmax(over))

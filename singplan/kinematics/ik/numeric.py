@@ -18,9 +18,9 @@ they agree modulo whole turns (6R) or carry the same configuration label (7R: on
 configuration found, the one nearest the seed).
 
 :func:`newton` is the fast seeded solve the per-sample tracking uses (no limits, no search).
-:func:`damped_step` and :func:`damped_solve` are the package's one damped least-squares step
-and loop: the planner's re-solves (position, orientation, axis, null-space) call them with
-their own residual, joints and damping.
+:func:`damped_step`, :func:`damped_solve` and :func:`damped_solve_rows` are the package's one
+damped least-squares step and its loop, for one joint vector or a batch: the planner's re-solves
+(position, orientation, axis, null-space) call them with their own residual, joints and damping.
 """
 
 from __future__ import annotations
@@ -72,7 +72,8 @@ Residual = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]  # q -> (error 
 
 def damped_step(J: np.ndarray, err: np.ndarray, damping: float, rcond: float | None = None,
                 stacked: bool = False) -> np.ndarray:
-    """The step ``dq`` minimising ``|J dq - err|^2 + damping |dq|^2``; J of shape (m, n).
+    """The step ``dq`` minimising ``|J dq - err|^2 + damping |dq|^2``; J of shape (m, n), or a batch
+    (N, m, n) with err (N, m) solved row by row (each its own step, no stacking).
 
     ``damping`` 0 gives the minimum-norm least-squares step, singular values under ``rcond``
     times the largest dropped. ``stacked`` solves ``[J; sqrt(damping) I] dq = [err; 0]`` by
@@ -80,12 +81,24 @@ def damped_step(J: np.ndarray, err: np.ndarray, damping: float, rcond: float | N
     five-joint arm's reduced rows: a roll about the tool axis moves nothing they keep), where
     the normal equations would divide round-off by a vanishing damping.
     """
+    if J.ndim == 3:
+        return _damped_steps(J, err, damping, rcond)
     if damping == 0.0:
         return np.linalg.lstsq(J, err, rcond=rcond)[0]
     if stacked:
         lifted = np.vstack([J, math.sqrt(damping) * np.eye(J.shape[1])])
         return np.linalg.lstsq(lifted, np.concatenate([err, np.zeros(J.shape[1])]), rcond=rcond)[0]
     return J.T @ np.linalg.solve(J @ J.T + damping * np.eye(J.shape[0]), err)
+
+
+def _damped_steps(J: np.ndarray, err: np.ndarray, damping: float, rcond: float | None) -> np.ndarray:
+    """damped_step of a batch: J (N, m, n), err (N, m) -> steps (N, n) (numpy has no batched lstsq:
+    the minimum-norm step is the pseudo-inverse's)."""
+    if damping == 0.0:
+        pinv = np.linalg.pinv(J) if rcond is None else np.linalg.pinv(J, rcond=rcond)
+        return np.einsum("kij,kj->ki", pinv, err)
+    JJt = J @ J.transpose(0, 2, 1) + damping * np.eye(J.shape[1])
+    return np.einsum("kji,kj->ki", J, np.linalg.solve(JJt, err[:, :, None])[:, :, 0])
 
 
 def damped_solve(residual: Residual, q: np.ndarray, joints: slice | list[int] | np.ndarray, damping: float = 0.0,
@@ -109,6 +122,36 @@ def damped_solve(residual: Residual, q: np.ndarray, joints: slice | list[int] | 
         q[joints] += step if size <= max_step else step * (max_step / size)
         if size < step_tol:
             break
+    return q
+
+
+RowsResidual = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+# (q rows (M, n), their row numbers (M,)) -> (errors (M, m), their Jacobians over the moved joints (M, m, k))
+
+
+def damped_solve_rows(residual: RowsResidual, q: np.ndarray, joints: np.ndarray, damping: float = 0.0,
+                      tol: float = 0.0, step_tol: float = 0.0, iterations: int = 30) -> np.ndarray:
+    """:func:`damped_solve` of many joint vectors q (N, n) at once, ``joints`` (k,) moved: each
+    row's steps (:func:`damped_step` of the batch) until its own error is under ``tol`` (max norm,
+    before a step) or its step under ``step_tol``; the rows that are done leave the batch.
+
+    ``residual`` is asked for the rows still moving only, with their row numbers (a row's target).
+    """
+    q = np.array(q, dtype=float)
+    active = np.arange(len(q))
+    for _ in range(iterations):
+        if active.size == 0:
+            break
+        err, J = residual(q[active], active)
+        if tol > 0.0:
+            moving = np.max(np.abs(err), axis=1) >= tol
+            active, err, J = active[moving], err[moving], J[moving]
+            if active.size == 0:
+                break
+        step = damped_step(J, err, damping)
+        q[np.ix_(active, joints)] += step
+        if step_tol > 0.0:
+            active = active[np.abs(step).max(axis=1) >= step_tol]
     return q
 
 

@@ -9,7 +9,13 @@ import pinocchio as pin
 import pytest
 
 from singplan.errors import TaskError
-from singplan.kinematics.geometry import rotation_angle, rotation_angles, rpy_deg_to_rotation
+from singplan.kinematics.geometry import (
+    rotation_angle,
+    rotation_angles,
+    rotation_log_jacobians,
+    rotation_logs,
+    rpy_deg_to_rotation,
+)
 from singplan.planning.path import make_circ, make_lin
 
 
@@ -101,3 +107,37 @@ def test_rotation_angles_equal_pinocchio_log3_pair_by_pair() -> None:
     one_by_one = np.array([rotation_angle(Ra, Rb) for Ra, Rb in zip(R_a, R_b, strict=True)])
     np.testing.assert_allclose(batch, one_by_one, rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(batch[:200], angles[:200], rtol=1e-8, atol=1e-15)
+
+
+def _rotations_of_every_size(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Rotations (N, 3, 3) and their rotation vectors (N, 3): random axes at angles from 0 and 1e-14
+    rad up to within 1e-9 of a half turn, across the batch formulas' switch points."""
+    angles = np.concatenate([[0.0], 10.0 ** rng.uniform(-14, -3, 60), rng.uniform(0, np.pi, 60), [1e-4, 2e-4],
+                             np.pi - 10.0 ** rng.uniform(-9, -1, 60)])
+    axes = rng.normal(size=(len(angles), 3))
+    logs = axes / np.linalg.norm(axes, axis=1)[:, None] * angles[:, None]
+    return np.array([pin.exp3(w) for w in logs]), logs
+
+
+def test_rotation_logs_equal_pinocchio_log3_one_by_one() -> None:
+    M, logs = _rotations_of_every_size(np.random.default_rng(21))
+    batch = rotation_logs(M)
+    np.testing.assert_allclose(batch, np.array([pin.log3(m) for m in M]), rtol=0.0, atol=1e-12)
+    away = np.linalg.norm(logs, axis=1) < 3.0  # nearer a half turn the rotation itself pins its log less well
+    np.testing.assert_allclose(batch[away], logs[away], rtol=0.0, atol=1e-12)
+
+
+def test_rotation_log_jacobians_match_finite_differences_and_pinocchio() -> None:
+    """d log3(R exp(dw)) / dw by central differences (h = 1e-6 rad, up to 3 rad: nearer a half turn
+    the log's derivatives grow and so does the differences' error), and Pinocchio's Jlog3 (off by
+    ~2e-9 near its own small-angle switch, 2e-4 rad, where the differences decide)."""
+    M, logs = _rotations_of_every_size(np.random.default_rng(22))
+    keep = np.linalg.norm(logs, axis=1) < 3.0
+    M, logs = M[keep], logs[keep]
+    J = rotation_log_jacobians(rotation_logs(M))
+    h = 1e-6
+    for k in range(len(M)):
+        fd = np.array([(pin.log3(M[k] @ pin.exp3(h * e)) - pin.log3(M[k] @ pin.exp3(-h * e))) / (2 * h)
+                       for e in np.eye(3)]).T
+        np.testing.assert_allclose(J[k], fd, rtol=0.0, atol=1e-8)
+        np.testing.assert_allclose(J[k], pin.Jlog3(M[k]), rtol=0.0, atol=5e-9)

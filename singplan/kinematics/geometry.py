@@ -36,3 +36,50 @@ def rotation_angles(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
                         + (M[:, 1, 0] - M[:, 0, 1]) ** 2)
     cos = 0.5 * (M[:, 0, 0] + M[:, 1, 1] + M[:, 2, 2] - 1.0)
     return np.arctan2(sin, cos)
+
+
+_NEAR_PI_RAD = 0.1  # within this of a half turn, theta / sin(theta) (over 30) costs digits: Pinocchio's log3 per pair
+_SMALL_RAD = 1e-4  # under this, the closed forms of Jlog3 cancel: their Taylor series instead
+
+
+def rotation_logs(M: np.ndarray) -> np.ndarray:
+    """log3 (N, 3) [rad] of rotations M (N, 3, 3): the rotation vector theta * axis, as Pinocchio's
+    ``log3`` of each, without a call per rotation. ``theta / sin(theta)`` times the skew part
+    (``sin(theta) * axis``), theta from :func:`rotation_angles`' atan2; rotations near a half turn
+    (where that ratio loses digits) go to ``pin.log3`` one by one."""
+    skew = 0.5 * np.stack([M[:, 2, 1] - M[:, 1, 2], M[:, 0, 2] - M[:, 2, 0], M[:, 1, 0] - M[:, 0, 1]], axis=1)
+    sin = np.sqrt(np.sum(skew**2, axis=1))
+    theta = np.arctan2(sin, 0.5 * (M[:, 0, 0] + M[:, 1, 1] + M[:, 2, 2] - 1.0))
+    ratio = np.ones_like(theta)  # theta / sin(theta), 1 + theta^2 / 6 near 0
+    big = theta > _SMALL_RAD
+    ratio[big] = theta[big] / sin[big]
+    ratio[~big] += theta[~big] ** 2 / 6.0
+    logs = skew * ratio[:, None]
+    for k in np.flatnonzero(theta > np.pi - _NEAR_PI_RAD):
+        logs[k] = pin.log3(M[k])
+    return logs
+
+
+def rotation_log_jacobians(logs: np.ndarray) -> np.ndarray:
+    """Pinocchio's ``Jlog3`` (N, 3, 3) at rotation vectors ``logs`` (N, 3) (:func:`rotation_logs`):
+    d log3(R exp(dw)) / dw = (theta/2) cot(theta/2) I + (1/theta^2 - cot(theta/2) / (2 theta)) r r^T
+    + [r]x / 2, r = logs (Bullo and Murray 1995; Pinocchio's ``Jlog3``); Taylor series for small theta."""
+    theta = np.linalg.norm(logs, axis=1)
+    diag = np.empty_like(theta)  # (theta/2) cot(theta/2)
+    outer = np.empty_like(theta)  # 1/theta^2 - cot(theta/2) / (2 theta)
+    big = theta > _SMALL_RAD
+    half_cot = 0.5 / np.tan(0.5 * theta[big])
+    diag[big] = theta[big] * half_cot
+    outer[big] = (1.0 - diag[big]) / theta[big] ** 2
+    small = theta[~big] ** 2
+    diag[~big] = 1.0 - small / 12.0
+    outer[~big] = 1.0 / 12.0 + small / 720.0
+    J = diag[:, None, None] * np.eye(3) + outer[:, None, None] * logs[:, :, None] * logs[:, None, :]
+    x, y, z = logs.T
+    J[:, 0, 1] -= 0.5 * z
+    J[:, 0, 2] += 0.5 * y
+    J[:, 1, 0] += 0.5 * z
+    J[:, 1, 2] -= 0.5 * x
+    J[:, 2, 0] -= 0.5 * y
+    J[:, 2, 1] += 0.5 * x
+    return J

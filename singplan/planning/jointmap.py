@@ -23,7 +23,7 @@ from scipy.interpolate import CubicSpline
 
 from singplan.kinematics.angles import nearest_shifted
 from singplan.kinematics.compiled import jit
-from singplan.kinematics.geometry import relative_rotations
+from singplan.kinematics.geometry import relative_rotations, rotation_log_jacobians, rotation_logs
 from singplan.kinematics.ik.numeric import damped_solve_rows
 from singplan.kinematics.ik.solve import closed_form_branches, opw_arm_for_point, solve_newton
 from singplan.kinematics.ik.ur import ur_arm_for_point
@@ -239,8 +239,9 @@ def axis_solve(robot: Robot, q: np.ndarray, T_target: np.ndarray, fixed: int, ex
     (N, 4, 4): one pose component exact, the other's error minimised.
 
     Gauss-Newton on the weighted residual ``[w_p (p - p*), w_o log3(R*^T R)]`` over the free
-    joints, with Pinocchio's Jacobian and ``Jlog3``, each sample until its step is under 1e-13
-    (the samples' least-squares steps are solved together); then the kept component is made
+    joints (batched kinematics, :func:`~singplan.kinematics.geometry.rotation_log_jacobians` for
+    ``Jlog3``), each sample until its step is under 1e-13 (the samples' least-squares steps are
+    solved together); then the kept component is made
     exact by the three joints that control it (arm joints for the position, wrist joints for
     the orientation). SEEDS 000: wrist zone -> A4 held, position exact; shoulder -> A1 held,
     orientation exact; elbow -> A2 held, orientation exact.
@@ -267,9 +268,8 @@ def _weighted_residuals(robot: Robot, q: np.ndarray, T_target: np.ndarray, free:
     M = relative_rotations(T_target[:, :3, :3], rotation)  # R*^T R
     r = np.empty((len(q), 6))
     r[:, :3] = position - T_target[:, :3, 3]
-    for k in range(len(q)):
-        r[k, 3:] = pin.log3(M[k])
-        J[k, 3:] = pin.Jlog3(M[k]) @ rotation[k].T @ J[k, 3:]
+    r[:, 3:] = rotation_logs(M)
+    J[:, 3:] = rotation_log_jacobians(r[:, 3:]) @ rotation.transpose(0, 2, 1) @ J[:, 3:]
     return r * w, J[:, :, free] * w[:, None]
 
 
@@ -286,7 +286,7 @@ def exact_orientation(robot: Robot, q: np.ndarray, R_target: np.ndarray, tol_rad
 
     def residual(rows: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         _, R, J = robot.tcp_kinematics(rows)
-        err = np.array([pin.log3(Rk.T @ Rt) for Rk, Rt in zip(R, R_target[at], strict=True)]).reshape(-1, 3)
+        err = rotation_logs(relative_rotations(R, R_target[at]))
         return err, np.einsum("nji,njk->nik", R, J[:, 3:][:, :, wrist])  # in the tool's frame: R^T J (M, 3, 3)
 
     return damped_solve_rows(residual, np.reshape(q, (-1, robot.n_joints)), wrist, damping=_DAMPING, tol=tol_rad,

@@ -36,6 +36,22 @@ def test_a_batch_of_damped_steps_equals_each_step_alone() -> None:
             np.testing.assert_allclose(damped_step(J, err, damping), alone, rtol=1e-7, atol=1e-9)
 
 
+
+def test_a_batch_drops_the_small_singular_values_one_step_drops() -> None:
+    """A Jacobian one round-off from rank-deficient: the batch's pseudo-inverse cuts where one row's
+    lstsq does (eps * max(m, n)), so no step grows to 1e14 along the vanishing direction."""
+    rng = np.random.default_rng(6)
+    U, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+    V, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+    J = U @ np.diag([1.0, 0.8, 0.6, 0.4, 0.2, 1.17e-15]) @ V.T  # 1e-15 (pinv's default) < 1.17e-15 < 6 eps
+    err = rng.normal(size=6)
+    alone = damped_step(J, err, 0.0)
+    np.testing.assert_allclose(damped_step(J[None], err[None], 0.0)[0], alone, atol=1e-12)
+    assert float(np.max(np.abs(alone))) < 100.0
+    with pytest.raises(ValueError, match="stacked"):
+        damped_step(J[None], err[None], 1e-3, stacked=True)
+
+
 def test_damped_solve_rows_drops_each_row_when_it_is_done() -> None:
     """Rows of a diagonal linear system: each row's error leaves the batch below ``tol``, and each
     row's result is what damped_solve gives it alone."""
@@ -54,6 +70,23 @@ def test_damped_solve_rows_drops_each_row_when_it_is_done() -> None:
         alone = damped_solve(lambda qk, k=k: (targets[k] - A[k] @ qk, A[k]), np.zeros(3), slice(None),
                              damping=1e-3, tol=1e-13, iterations=60)
         np.testing.assert_allclose(q[k], alone, atol=1e-14)
+
+
+
+def test_damped_solve_rows_drops_each_row_when_its_step_is_small() -> None:
+    """step_tol alone: an exact linear solve moves every row once; the next step of each is zero,
+    so each row is asked twice and then leaves the batch, whatever ``iterations`` allows."""
+    A = np.array([np.diag([1.0, 2.0, 4.0]), np.diag([3.0, 0.5, 2.0])])
+    targets = np.array([[3.0, -1.0, 2.0], [1.0, 2.0, -3.0]])
+    asked: list[np.ndarray] = []
+
+    def residual(q: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        asked.append(at.copy())
+        return targets[at] - np.einsum("kij,kj->ki", A[at], q), A[at]
+
+    q = damped_solve_rows(residual, np.zeros((2, 3)), np.arange(3), step_tol=1e-12, iterations=50)
+    assert [a.tolist() for a in asked] == [[0, 1], [0, 1]]
+    np.testing.assert_allclose(np.einsum("kij,kj->ki", A, q), targets, atol=1e-15)
 
 
 def test_damped_solve_caps_steps_and_stops_on_the_error_or_the_step() -> None:

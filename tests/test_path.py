@@ -119,25 +119,57 @@ def _rotations_of_every_size(rng: np.random.Generator) -> tuple[np.ndarray, np.n
     return np.array([pin.exp3(w) for w in logs]), logs
 
 
+HALF_TURNS = np.array([np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0])])
+
+
 def test_rotation_logs_equal_pinocchio_log3_one_by_one() -> None:
+    """Against the rotation vectors the rotations were made from (to 1e-15 rad up to 1e-3 rad, where
+    the small-angle series decides, and 1e-12 up to 3 rad), Pinocchio's log3 everywhere, and
+    exp3 of each log giving its rotation back, exact half turns too, with no floating-point warning."""
     M, logs = _rotations_of_every_size(np.random.default_rng(21))
-    batch = rotation_logs(M)
-    np.testing.assert_allclose(batch, np.array([pin.log3(m) for m in M]), rtol=0.0, atol=1e-12)
-    away = np.linalg.norm(logs, axis=1) < 3.0  # nearer a half turn the rotation itself pins its log less well
+    with np.errstate(all="raise"):
+        batch = rotation_logs(np.concatenate([M, HALF_TURNS]))
+    np.testing.assert_allclose([pin.exp3(w) for w in batch], np.concatenate([M, HALF_TURNS]), rtol=0.0, atol=1e-13)
+    np.testing.assert_allclose(np.linalg.norm(batch[len(M):], axis=1), np.pi, rtol=0.0, atol=1e-15)
+    batch = batch[:len(M)]
+    np.testing.assert_allclose(batch, np.array([pin.log3(m) for m in M]), rtol=0.0, atol=1e-10)
+    theta = np.linalg.norm(logs, axis=1)
+    small, away = theta <= 1e-3, theta < 3.0  # nearer a half turn the rotation itself pins its log less well
+    np.testing.assert_allclose(batch[small], logs[small], rtol=0.0, atol=1e-15)
     np.testing.assert_allclose(batch[away], logs[away], rtol=0.0, atol=1e-12)
 
 
+def _jlog3_reference(logs: np.ndarray) -> np.ndarray:
+    """Jlog3 (N, 3, 3) in 80-bit floats: the closed form from 1e-2 rad, its series to theta^6 below
+    ((theta/2) cot(theta/2) = 1 - theta^2/12 - theta^4/720 - theta^6/30240 - ...)."""
+    r = logs.astype(np.longdouble)
+    theta = np.sqrt(np.sum(r * r, axis=1))
+    t2, closed = theta**2, theta >= 1e-2
+    series_diag = 1 - t2 / 12 - t2**2 / 720 - t2**3 / 30240
+    series_outer = 1 / 12 + t2 / 720 + t2**2 / 30240 + t2**3 / 1209600
+    diag = np.where(closed, theta / 2 / np.tan(np.maximum(theta, 1e-2) / 2), series_diag)
+    outer = np.where(closed, (1 - diag) / np.maximum(t2, 1e-4), series_outer)
+    skew = np.zeros((len(r), 3, 3), dtype=np.longdouble)
+    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -r[:, 2], r[:, 1], -r[:, 0]
+    skew -= skew.transpose(0, 2, 1)
+    J = diag[:, None, None] * np.eye(3) + outer[:, None, None] * r[:, :, None] * r[:, None, :] + skew / 2
+    return J.astype(float)
+
+
 def test_rotation_log_jacobians_match_finite_differences_and_pinocchio() -> None:
-    """d log3(R exp(dw)) / dw by central differences (h = 1e-6 rad, up to 3 rad: nearer a half turn
-    the log's derivatives grow and so does the differences' error), and Pinocchio's Jlog3 (off by
-    ~2e-9 near its own small-angle switch, 2e-4 rad, where the differences decide)."""
+    """d log3(R exp(dw)) / dw against an 80-bit evaluation of the closed form and its series (to
+    1e-14, every angle: the small-angle terms are 1e-9 at 1e-4 rad), central differences (h = 1e-6
+    rad, up to 3 rad: nearer a half turn the log's derivatives grow and so does the differences'
+    error), and Pinocchio's Jlog3 (off by ~3e-9 near its own small-angle switch, 2e-4 rad)."""
     M, logs = _rotations_of_every_size(np.random.default_rng(22))
-    keep = np.linalg.norm(logs, axis=1) < 3.0
-    M, logs = M[keep], logs[keep]
-    J = rotation_log_jacobians(rotation_logs(M))
+    batch_logs = rotation_logs(M)
+    J = rotation_log_jacobians(batch_logs)
+    np.testing.assert_allclose(J, _jlog3_reference(batch_logs), rtol=0.0, atol=1e-14)
     h = 1e-6
     for k in range(len(M)):
+        np.testing.assert_allclose(J[k], pin.Jlog3(M[k]), rtol=0.0, atol=5e-9)
+        if np.linalg.norm(logs[k]) >= 3.0:
+            continue
         fd = np.array([(pin.log3(M[k] @ pin.exp3(h * e)) - pin.log3(M[k] @ pin.exp3(-h * e))) / (2 * h)
                        for e in np.eye(3)]).T
         np.testing.assert_allclose(J[k], fd, rtol=0.0, atol=1e-8)
-        np.testing.assert_allclose(J[k], pin.Jlog3(M[k]), rtol=0.0, atol=5e-9)

@@ -38,7 +38,9 @@ def rotation_angles(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
     return np.arctan2(sin, cos)
 
 
-_NEAR_PI_RAD = 0.1  # within this of a half turn, theta / sin(theta) (over 30) costs digits: Pinocchio's log3 per pair
+# within this of a half turn theta / sin(theta) (over 1000) costs more digits than Pinocchio's log3,
+# which works from the symmetric part there: its log3 per pair (at pi - 1e-3 both err by ~1e-12 rad)
+_NEAR_PI_RAD = 1e-3
 _SMALL_RAD = 1e-4  # under this, the closed forms of Jlog3 cancel: their Taylor series instead
 
 
@@ -50,12 +52,14 @@ def rotation_logs(M: np.ndarray) -> np.ndarray:
     skew = 0.5 * np.stack([M[:, 2, 1] - M[:, 1, 2], M[:, 0, 2] - M[:, 2, 0], M[:, 1, 0] - M[:, 0, 1]], axis=1)
     sin = np.sqrt(np.sum(skew**2, axis=1))
     theta = np.arctan2(sin, 0.5 * (M[:, 0, 0] + M[:, 1, 1] + M[:, 2, 2] - 1.0))
+    half_turn = theta > np.pi - _NEAR_PI_RAD  # sin may be 0 there: no division, Pinocchio instead
+    small = theta <= _SMALL_RAD
+    big = ~small & ~half_turn
     ratio = np.ones_like(theta)  # theta / sin(theta), 1 + theta^2 / 6 near 0
-    big = theta > _SMALL_RAD
     ratio[big] = theta[big] / sin[big]
-    ratio[~big] += theta[~big] ** 2 / 6.0
+    ratio[small] += theta[small] ** 2 / 6.0
     logs = skew * ratio[:, None]
-    for k in np.flatnonzero(theta > np.pi - _NEAR_PI_RAD):
+    for k in np.flatnonzero(half_turn):
         logs[k] = pin.log3(M[k])
     return logs
 

@@ -105,7 +105,8 @@ class JointMap:
         self.robot = robot
         self.poses = poses
         self.parts = parts
-        self._starts: dict[int, CubicSpline] = {}  # by part index: an axis part's spline through its solutions
+        # an axis part's spline through its solutions, by the part's id (the part is kept: its id stays its own)
+        self._starts: dict[int, tuple[JointPart, CubicSpline]] = {}
 
     @property
     def straight(self) -> bool:
@@ -165,13 +166,9 @@ class JointMap:
 
     def _start(self, part: JointPart, free: np.ndarray) -> CubicSpline:
         """The spline through an axis part's solutions (its free joints), made once per part of this map."""
-        key = next((k for k, p in enumerate(self.parts) if p is part), -1)
-        spline = self._starts.get(key) if key >= 0 else None
-        if spline is None:
-            spline = CubicSpline(part.u, part.q[:, free], axis=0)
-            if key >= 0:
-                self._starts[key] = spline
-        return spline
+        if id(part) not in self._starts:
+            self._starts[id(part)] = (part, CubicSpline(part.u, part.q[:, free], axis=0))
+        return self._starts[id(part)][1]
 
     def _exact_near(self, q_ref: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Exact IK at each u: the branch and turn nearest the reference joint values."""
@@ -219,7 +216,7 @@ def position_solve(robot: Robot, q: np.ndarray, targets_m: np.ndarray, joints: i
     (N, 3) [m]; the others stay.
 
     Damped Newton on the TCP position (:func:`~singplan.kinematics.ik.numeric.damped_solve_rows`,
-    the batched kinematics of :class:`~singplan.kinematics.robot.Robot`); the best found.
+    the batched kinematics of :class:`~singplan.kinematics.robot.Robot`); each row's last iterate.
     """
     def residual(rows: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         position, _, J = robot.tcp_kinematics(rows, 3)

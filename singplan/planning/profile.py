@@ -83,11 +83,12 @@ def _positions_at(grid: np.ndarray, sd: np.ndarray, t_node: np.ndarray,
 
 
 @jit
-def fewest_samples(grid: np.ndarray, sd: np.ndarray, period_s: float,
+def fewest_samples(grid: np.ndarray, sd: np.ndarray, period: float,
                    clock_step: float) -> int:  # pragma: no cover - compiled
     """Periods to the end of a path no faster than the profile sd (G,), each period as far as the
-    profile goes in ``period_s`` and at most ``clock_step`` of path parameter; 0 if the profile
-    stops the path.
+    profile goes in ``period`` and at most ``clock_step`` of path parameter; 0 if the profile
+    stops the path. ``period`` is in the time unit of ``sd`` (path parameter per unit): the
+    duration bound passes speeds in its own scaled time and the period in the same scale.
 
     Each step starts where the last one ended, at the least time the profile needs to get there
     (:func:`_time_at`): the reach of a step only grows with where it starts, so no path under the
@@ -102,7 +103,7 @@ def fewest_samples(grid: np.ndarray, sd: np.ndarray, period_s: float,
     while s < 1.0 - 1e-12:
         count += 1
         target = min(s + clock_step, 1.0)
-        t_next = t + period_s
+        t_next = t + period
         reach = 1.0 if t_next >= t_node[g - 1] else _position_at(grid, sd, t_node, _interval(t_node, t_next), t_next)
         if reach <= target:
             s, t = reach, t_next

@@ -83,8 +83,11 @@ class TimingError(PlanningError):
 
 Scale = tuple[float, float, float, float]  # factors on the joint speed, TCP speed, acceleration and torque limits
 # given the scales a failed pass tightened the limits to and that pass's own duration [s] (TOPP-RA's,
-# before rounding; the later passes, at tighter limits, take no less): a bound [s] that shows the
-# timing cannot win what it is compared with (auto's best so far), or None to go on
+# before rounding; the later passes, at tighter limits, take no less: on a fixed grid TOPP-RA's
+# profile is the greatest feasible one at every grid point (Pham and Pham 2018, "A new approach to
+# time-optimal path parameterization based on reachability analysis", IEEE T-RO), and
+# tighter limits only shrink the feasible set): a bound [s] that shows the timing cannot win what
+# it is compared with (auto's best so far), or None to go on
 GiveUp = Callable[[Scale, float], float | None]
 
 

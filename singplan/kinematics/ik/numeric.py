@@ -82,6 +82,8 @@ def damped_step(J: np.ndarray, err: np.ndarray, damping: float, rcond: float | N
     the normal equations would divide round-off by a vanishing damping.
     """
     if J.ndim == 3:
+        if stacked:
+            raise ValueError("damped_step: stacked solves one row; a batch takes the normal equations")
         return _damped_steps(J, err, damping, rcond)
     if damping == 0.0:
         return np.linalg.lstsq(J, err, rcond=rcond)[0]
@@ -93,10 +95,10 @@ def damped_step(J: np.ndarray, err: np.ndarray, damping: float, rcond: float | N
 
 def _damped_steps(J: np.ndarray, err: np.ndarray, damping: float, rcond: float | None) -> np.ndarray:
     """damped_step of a batch: J (N, m, n), err (N, m) -> steps (N, n) (numpy has no batched lstsq:
-    the minimum-norm step is the pseudo-inverse's)."""
+    the minimum-norm step is the pseudo-inverse's, with lstsq's default cut-off, eps * max(m, n))."""
     if damping == 0.0:
-        pinv = np.linalg.pinv(J) if rcond is None else np.linalg.pinv(J, rcond=rcond)
-        return np.einsum("kij,kj->ki", pinv, err)
+        cut = np.finfo(float).eps * max(J.shape[1:]) if rcond is None else rcond
+        return np.einsum("kij,kj->ki", np.linalg.pinv(J, rcond=cut), err)
     JJt = J @ J.transpose(0, 2, 1) + damping * np.eye(J.shape[1])
     return np.einsum("kji,kj->ki", J, np.linalg.solve(JJt, err[:, :, None])[:, :, 0])
 

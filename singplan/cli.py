@@ -17,6 +17,7 @@ import contextlib
 import dataclasses
 import gc
 import json
+import logging
 import math
 import os
 import signal
@@ -244,6 +245,21 @@ def _progress_printer(err: TextIO, quiet: bool) -> Callable[[int, int], None] | 
         err.flush()
 
     return show
+
+
+@contextlib.contextmanager
+def _replay_warnings(err: TextIO) -> Iterator[None]:
+    """The replay's warnings (visuals it cannot draw, a URDF with none) as the command's own: the
+    library logs them (singplan's loggers stay silent unless their user listens), a user of the
+    CLI must see them."""
+    handler = logging.StreamHandler(err)
+    handler.setFormatter(logging.Formatter("singplan: warning: %(message)s"))
+    log = logging.getLogger("singplan.outputs.scene")
+    log.addHandler(handler)
+    try:
+        yield
+    finally:
+        log.removeHandler(handler)
 
 
 @contextlib.contextmanager
@@ -498,7 +514,8 @@ def main(argv: Sequence[str] | None = None, out: TextIO | None = None, err: Text
     except SystemExit as exc:  # argparse already printed the usage error
         return int(exc.code or 0) if exc.code in (0, None) else 2
     try:
-        return int(args.func(args, out, err))
+        with _replay_warnings(err):
+            return int(args.func(args, out, err))
     except SingplanError as exc:
         err.write(f"singplan: error: {exc}\n")
         return exc.exit_code

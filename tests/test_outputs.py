@@ -353,3 +353,21 @@ def test_temporary_files_a_killed_writer_left_are_removed_and_nothing_else(tmp_p
     outputs.remove_temporary_files(tmp_path, OUTPUT_FILES)
     assert sorted(p.name for p in tmp_path.iterdir()) == [".summary.csv.x1y2.singplan-tmp", "mine.txt",
                                                          "trajectory.json"]
+
+
+def test_a_urdf_without_visuals_gets_a_replay_and_a_warning_that_says_so(tmp_path: Path) -> None:
+    """SCORBOT's URDF has no <visual>: the replay is written (paths only) and the CLI says why it
+    shows no robot, on stderr, instead of a page that looks broken."""
+    urdf = Path(__file__).parent / "data" / "five_scorbot_er4u.urdf"
+    task = tmp_path / "t.yaml"
+    task.write_text(yaml.safe_dump({"robot": str(urdf), "start": {"pose": {"xyz": [0.40, -0.10, 0.15],
+                                                                            "rpy_deg": [180, 0, 0]}},
+                                    "moves": [{"lin": {"to": {"xyz": [0.40, 0.0, 0.15]}, "speed": 0.1}}]}))
+    out, err = io.StringIO(), io.StringIO()
+    assert main(["plan", str(task), "-o", str(tmp_path / "o"), "--no-report", "--quiet"], out, err) == 0
+    assert f"singplan: warning: replay: {urdf} has no <visual> geometry" in err.getvalue()
+    assert (tmp_path / "o" / "replay.html").stat().st_size > 0
+    err = io.StringIO()  # a URDF with visuals: no such warning
+    demo = Path(__file__).parent.parent / "singplan" / "demo_task.yaml"
+    assert main(["plan", str(demo), "-o", str(tmp_path / "d"), "--no-report", "--quiet"], io.StringIO(), err) == 0
+    assert "warning" not in err.getvalue()

@@ -107,6 +107,9 @@ class RobotScene:
         except ValueError as exc:
             raise RobotModelError(str(robot.urdf_path),
                                   f"cannot load its visual geometry for the replay ({exc})") from None
+        if visual.ngeoms == 0:
+            logger.warning("replay: %s has no <visual> geometry; the replay shows the tool's paths only",
+                           robot.urdf_path)
         index = np.array([model.joints[model.getJointId(name)].idx_q for name in robot.joint_names])
         names = [g.name for g in visual.geometryObjects]
         return cls(model, model.createData(), visual, visual.createData(), names, index)

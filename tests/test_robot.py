@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import io
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
 import yaml
 
+from singplan.cli import main
 from singplan.errors import RobotModelError, UnknownNameError
 from singplan.kinematics.robot import MAX_URDF_BYTES, SUPPORTED_JOINT_COUNTS, bundled_robots, load_robot, robots_dir
 
@@ -173,6 +177,50 @@ def test_urdf_without_what_planning_needs_names_file_and_joint(tmp_path, capfd, 
     assert info.value.exit_code == 2
     captured = capfd.readouterr()
     assert captured.err == "" and captured.out == ""  # urdfdom's own lines go into the message, not the terminal
+
+
+def _six_axis_urdf(tmp_path: Path, kinds: dict[str, str]) -> Path:
+    """A small 6R arm ending in ``tool0`` (a user's file, as in the bug report); ``kinds`` retypes joints."""
+    axes = ["0 0 1", "0 1 0", "0 1 0", "1 0 0", "0 1 0", "1 0 0"]
+    origins = ["0 0 0.4", "0.15 0 0", "0 0 0.5", "0.2 0 0.08", "0.25 0 0", "0.08 0 0"]
+    links = ["base_link", *(f"link_{i}" for i in range(1, 7)), "tool0"]
+    joints = [f'<joint name="j{i}" type="{kinds.get(f"j{i}", "revolute")}"><parent link="{links[i - 1]}"/>'
+              f'<child link="{links[i]}"/><origin xyz="{origins[i - 1]}"/><axis xyz="{axes[i - 1]}"/>'
+              '<limit lower="-2" upper="2" velocity="3" effort="50"/></joint>' for i in range(1, 7)]
+    joints.append('<joint name="j6-tool0" type="fixed"><parent link="link_6"/><child link="tool0"/></joint>')
+    path = tmp_path / "myarm.urdf"
+    path.write_text('<robot name="myarm">' + "".join(f'<link name="{k}"/>' for k in links)
+                    + "".join(joints) + "</robot>")
+    return path
+
+
+def test_the_six_axis_test_urdf_loads_with_its_default_tip(tmp_path: Path) -> None:
+    robot = load_robot(_six_axis_urdf(tmp_path, {}))
+    assert robot.tip == "tool0" and robot.joint_names == tuple(f"j{i}" for i in range(1, 7))
+
+
+@pytest.mark.parametrize(("joint", "kind", "words"), [
+    ("j6", "continuous", "joint 'j6' is continuous; singplan needs position limits: declare it revolute"),
+    ("j6", "prismatic", "joint 'j6' is prismatic"),
+    ("j3", "continuous", "joint 'j3' is continuous"),
+])
+def test_an_unsupported_joint_on_the_default_chain_is_refused_not_skipped(tmp_path: Path, joint: str, kind: str,
+                                                                           words: str) -> None:
+    """Regression: the default tip once ended the chain at the deepest *revolute* joint, so a continuous
+    j6 was left off and the arm loaded as a 5-axis one (tip link_5); the joint must be named, exit 2."""
+    urdf = _six_axis_urdf(tmp_path, {joint: kind})
+    with pytest.raises(RobotModelError, match=re.escape(words)):
+        load_robot(urdf)
+    err = io.StringIO()
+    assert main(["info", str(urdf)], out=io.StringIO(), err=err) == 2
+    assert words in err.getvalue()
+    task = tmp_path / "task.yaml"  # no tip: the default one
+    task.write_text("robot: myarm.urdf\nstart: {joints_deg: [0, 10, 20, 0, 30, 0]}\n"
+                    "moves: [ptp: {to: {joints_deg: [0, 0, 0, 0, 45, 0]}}]\n")
+    err = io.StringIO()
+    assert main(["plan", str(task), "-o", str(tmp_path / "out")], out=io.StringIO(), err=err) == 2
+    assert words in err.getvalue() and "expected 5 joint values" not in err.getvalue()
+    assert not (tmp_path / "out").exists()
 
 
 def test_supported_joint_counts_is_the_one_place(tmp_path, monkeypatch) -> None:

@@ -70,6 +70,18 @@ def test_bad_field_is_named(tmp_path: Path, snippet: str, replacement: str, fiel
     assert info.value.exit_code == 2
 
 
+def test_a_missing_urdf_is_named_as_written_and_by_the_absolute_path_looked_at(tmp_path: Path) -> None:
+    """A relative path is taken from the task file's folder, not the working directory: say where."""
+    with pytest.raises(TaskError) as info:
+        load_task(write(tmp_path, GOOD.replace("robot: abb_irb2400", "robot: robots/nope.urdf", 1)))
+    assert info.value.field == "robot" and info.value.exit_code == 2
+    looked_at = tmp_path / "robots" / "nope.urdf"
+    assert f"URDF file robots/nope.urdf does not exist (looked for {looked_at})" in str(info.value)
+    with pytest.raises(TaskError) as info:  # given absolutely: named once
+        load_task(write(tmp_path, GOOD.replace("robot: abb_irb2400", f"robot: {looked_at}", 1)))
+    assert str(info.value).endswith(f"URDF file {looked_at} does not exist")
+
+
 @pytest.mark.parametrize(("text", "words"), [
     ("", "the task file is empty; it needs at least robot, start and moves"),
     ("- just\n- a list\n", r"the task must be a mapping of keys \(robot, start, moves, \.\.\.\), got list"),

@@ -391,28 +391,26 @@ def _urdfdom_reason(messages: str) -> str:
 
 
 TIP_NAMES = ("tool0", "flange", "tcp")  # in this order of preference, also with a prefix ("ur_tool0")
-END_EFFECTOR_JOINT_WORDS = ("gripper", "finger", "jaw")  # a revolute joint so named moves a gripper, not the arm
+END_EFFECTOR_JOINT_WORDS = ("gripper", "finger", "jaw")  # a joint so named moves a gripper, not the arm
 
 
 def default_tip(model: pin.Model) -> str:
     """The tip of a URDF given by path (DESIGN "Robots"): a link named ``tool0``, ``flange`` or
     ``tcp`` (or ending in ``_tool0`` ...) at the end of the chain, else the chain's last link.
 
-    The chain ends at its deepest revolute joint that is not an end effector's (a joint whose
-    name contains ``gripper``, ``finger`` or ``jaw``, e.g. the SO-100's revolute jaw); its end
-    links are those fixed to that joint (Pinocchio merges fixed joints into the body they hang
-    on), which leaves out fingers and other joints branching off. The last link is the one
-    most fixed joints away from that joint (the first in the file among equals). Links whose
-    name another frame carries too (a fixed joint named like its child link, e.g. the Unitree
-    Z1's ``gripperStator``) are passed over while another is left: outputs name the tip, and
-    other tools cannot look up a name that matches two frames.
+    The chain ends at its deepest movable joint that is not an end effector's (a joint whose
+    name contains ``gripper``, ``finger`` or ``jaw``, e.g. the SO-100's revolute jaw or the
+    Panda's prismatic fingers), whatever its type; its end links are those fixed to that joint
+    (Pinocchio merges fixed joints into the body they hang on), which leaves out fingers and
+    other joints branching off. The last link is the one most fixed joints away from that joint
+    (the first in the file among equals). Links whose name another frame carries too (a fixed
+    joint named like its child link, e.g. the Unitree Z1's ``gripperStator``) are passed over
+    while another is left: outputs name the tip, and other tools cannot look up a name that
+    matches two frames.
     """
-    revolute = [j for j in range(1, model.njoints) if model.joints[j].shortname().removeprefix("JointModel")
-                in ("RX", "RY", "RZ", "RevoluteUnaligned")
-                and not any(word in model.names[j].lower() for word in END_EFFECTOR_JOINT_WORDS)]
-    if not revolute:
+    end = _chain_end(model)
+    if end is None:
         return model.frames[len(model.frames) - 1].name
-    end = max(revolute, key=lambda j: len(model.supports[j]))
     links = [k for k, f in enumerate(model.frames) if f.type == pin.FrameType.BODY and f.parentJoint == end]
     names = [f.name for f in model.frames]
     links = [k for k in links if names.count(model.frames[k].name) == 1] or links
@@ -422,6 +420,18 @@ def default_tip(model: pin.Model) -> str:
         if named:
             return named[0]
     return model.frames[max(links, key=lambda k: _fixed_depth(model, k))].name
+
+
+def _chain_end(model: pin.Model) -> int | None:
+    """The deepest movable joint that is not an end effector's (None: the URDF has none).
+
+    Joints of every type count, not only the revolute ones singplan plans with: a continuous or
+    prismatic last axis must end the chain so that :func:`_check_chain` refuses it by name;
+    leaving it out would silently plan the arm without its last axis.
+    """
+    arm = [j for j in range(1, model.njoints)
+           if not any(word in model.names[j].lower() for word in END_EFFECTOR_JOINT_WORDS)]
+    return max(arm, key=lambda j: len(model.supports[j])) if arm else None
 
 
 def _fixed_depth(model: pin.Model, frame_id: int) -> int:

@@ -282,10 +282,17 @@ def _robot_ref(value: Any, base_dir: Path | None) -> str:
         if path.is_dir():
             raise TaskError("robot", f"{_path_text(str(path))} is a directory, not a URDF file")
         if not path.is_file():
-            raise TaskError("robot", f"URDF file {_path_text(str(path))} does not exist")
+            raise TaskError("robot", f"URDF file {_path_text(name)} does not exist{_looked_at(name, path)}")
         return str(path.resolve())
     except OSError as exc:  # e.g. a name too long for the file system
         raise TaskError("robot", f"URDF file {_path_text(str(path))} cannot be read ({exc.strerror})") from None
+
+
+def _looked_at(name: str, path: Path) -> str:
+    """Where a URDF path was looked for, unless the task gave exactly that: a relative path is
+    taken from the task file's folder, not the working directory, which users do not expect."""
+    looked = str(path.absolute())
+    return "" if looked == name else f" (looked for {_path_text(looked)})"
 
 
 def _pose(where: str, value: Any, need_rpy: bool = False) -> PoseSpec:

@@ -255,3 +255,13 @@ def test_every_bundled_arm_passes_the_checks() -> None:
         robot = load_robot(name)
         assert robot.n_joints in SUPPORTED_JOINT_COUNTS
         assert np.all(robot.velocity_rad_s > 0) and np.all(robot.lower_rad < robot.upper_rad)
+
+
+def test_a_tip_before_a_tools_joint_plans_the_arm_without_it(tmp_path: Path) -> None:
+    """The refusal's advice holds: a continuous last joint (a spindle, say) is left out by a tip
+    before it, and the arm before it loads with the joints up to that tip."""
+    urdf = _six_axis_urdf(tmp_path, {"j6": "continuous"})
+    with pytest.raises(RobotModelError, match="give the task a `tip` before it; the tip now is tool0"):
+        load_robot(urdf)
+    robot = load_robot(urdf, tip="link_5")
+    assert robot.tip == "link_5" and robot.joint_names == tuple(f"j{i}" for i in range(1, 6))

@@ -479,16 +479,20 @@ def _check_chain(model: pin.Model, chain: list[int], tip: str, urdf_path: Path) 
     Continuous joints are refused rather than given invented limits: Pinocchio represents them
     by (cos, sin) pairs, and planning needs a position range to choose among 2*pi variants.
     """
+    # a joint past the arm (a tool's spindle or slide) is left out by a tip before it
+    tool_hint = f" (a joint of a tool rather than the arm: give the task a `tip` before it; the tip now is {tip})"
     for j in chain:
         kind = model.joints[j].shortname().removeprefix("JointModel")
         name = model.names[j]
         if kind.startswith("RUB"):
             raise RobotModelError(str(urdf_path), f"joint {name!r} is continuous; singplan needs position limits: "
-                                                  "declare it revolute with <limit lower=... upper=...>")
+                                                  f"declare it revolute with <limit lower=... upper=...>{tool_hint}")
         if kind in ("PX", "PY", "PZ", "PrismaticUnaligned"):
-            raise RobotModelError(str(urdf_path), f"joint {name!r} is prismatic; singplan plans revolute arms")
+            raise RobotModelError(str(urdf_path),
+                                  f"joint {name!r} is prismatic; singplan plans revolute arms{tool_hint}")
         if kind not in ("RX", "RY", "RZ", "RevoluteUnaligned"):
-            raise RobotModelError(str(urdf_path), f"joint {name!r} is a {kind} joint; singplan needs revolute joints")
+            raise RobotModelError(str(urdf_path),
+                                  f"joint {name!r} is a {kind} joint; singplan needs revolute joints{tool_hint}")
     if len(chain) not in SUPPORTED_JOINT_COUNTS:
         counts = ", ".join(str(n) for n in SUPPORTED_JOINT_COUNTS[:-1]) + f" or {SUPPORTED_JOINT_COUNTS[-1]}"
         raise RobotModelError(str(urdf_path), f"{len(chain)} revolute joints from {_root_link(model)} to {tip}; "

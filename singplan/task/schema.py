@@ -242,9 +242,10 @@ class Task:
         own = move.velocity_scale if move is not None and move.kind == "ptp" else 1.0
         return self.limits.velocity_scale * own
 
-    def with_method(self, method: str) -> Task:
-        """The same task planned with another crossing method."""
-        _check_choice("singularity.method", method, method_names())
+    def with_method(self, method: str, given_as: str = "singularity.method") -> Task:
+        """The same task planned with another crossing method; ``given_as`` names where the name came
+        from in the message of an unknown one (e.g. ``--method``: the user did not write this field)."""
+        check_method_name(given_as, method)
         settings = SingularitySettings(method, self.singularity.orientation_tolerance_deg,
                                        self.singularity.position_tolerance_mm, self.singularity.zone)
         return Task(**{**self.__dict__, "singularity": settings})
@@ -438,6 +439,12 @@ def accept_method_name(name: str) -> None:
     """Let tasks name a crossing method registered by a user (the planning registry calls this)."""
     if name not in method_names():
         _ADDED_METHODS.append(name)
+
+
+def check_method_name(where: str, value: Any) -> str:
+    """A crossing method name (:func:`method_names`); else bad input naming ``where`` (the task's
+    field, a command-line option or an argument), with the valid names and the closest one."""
+    return _check_choice(where, value, method_names())
 
 
 def _check_choice(where: str, value: Any, choices: Sequence[str]) -> str:

@@ -363,8 +363,26 @@ def _check_keys(where: str, value: Mapping[str, Any], required: Sequence[str] = 
             hint = f"; did you mean {close[0]!r}?" if close else f"; allowed: {', '.join(allowed)}"
             raise TaskError(_join(where, _key_text(key)), f"unknown key{hint}")
     for key in required:
-        if key not in value or value[key] is None:
+        if key not in value:
             raise TaskError(_join(where, key), "missing (required)")
+        if value[key] is None:  # the key is there (`moves:` with nothing after it): say so, not "missing"
+            raise TaskError(_join(where, key), f"empty (null); give {_NULL_HINTS.get(key, 'a value')}")
+
+
+# what a required key takes, for the message when it is given empty
+_NULL_HINTS = {
+    "robot": "a bundled robot name (singplan robots) or the path of a .urdf",
+    "start": "a mapping with joints_deg or pose",
+    "moves": "a list of moves",
+    "to": "the target mapping",
+    "via": "a mapping with xyz",
+    "xyz": "3 numbers [m]",
+    "rpy_deg": "3 numbers [deg]",
+    "joints_deg": "one number per joint [deg]",
+    "amplitude_mm": "a length [mm]",
+    "wavelength_mm": "a length [mm]",
+    "joint": "a joint name",
+}
 
 
 def _describe(value: Any) -> str:

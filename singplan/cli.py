@@ -285,12 +285,15 @@ def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from singplan.outputs.plan_folder import plan_into
     from singplan.outputs.summary import summary
     from singplan.task.load import load_task
+    from singplan.task.schema import check_method_name
 
     def note_compiling() -> None:
         if not args.quiet and not kernels_cached():
             err.write("singplan: first run after an install: compiling the planner's kernels "
                       "(about 10 s on two cores; cached on disk afterwards)\n")
 
+    if args.method is not None:  # named as the user gave it: the option, not the task's field it overrides
+        check_method_name("--method", args.method)
     with _imports_frozen():  # the modules above stay alive until exit: no collection needs to look at them
         task = load_task(args.task)
         done = plan_into(task, args.output, method=args.method, report=not args.no_report,
@@ -376,7 +379,10 @@ def _serve(args: argparse.Namespace, out: TextIO) -> int:
 def cmd_batch(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     """Plan many tasks (singplan.batch): a line per finished task on stderr, the totals on stdout."""
     from singplan import batch
+    from singplan.task.schema import check_method_name
 
+    if args.method is not None:  # refused once, up front, rather than by every task
+        check_method_name("--method", args.method)
     if args.scheduler is None and not args.quiet:
         warning = batch.memory_warning(batch.local_workers(args.workers, len(args.tasks)))
         if warning:

@@ -100,3 +100,26 @@ def test_output_sample_cap_is_bad_input() -> None:
                limits={"velocity_scale": 1e-3}, output={"period": 0.0001})  # the smallest scales: 1e-6 in all
     with pytest.raises(TaskError, match="over the cap"):
         plan(parse_task(doc))
+
+
+@pytest.mark.parametrize(("command", "given", "words"), [
+    ("plan", "bogus", "--method: unknown value 'bogus'; valid: auto, wrist-joint, axis, null-space, exact"),
+    ("plan", "exatc", "--method: unknown value 'exatc' (did you mean 'exact'?); valid: auto, "),
+    ("batch", "exatc", "--method: unknown value 'exatc' (did you mean 'exact'?); valid: auto, "),
+])
+def test_an_unknown_method_option_names_the_option(tmp_path: Path, command: str, given: str, words: str) -> None:
+    import yaml
+
+    path = tmp_path / "task.yaml"
+    path.write_text(yaml.safe_dump(task(moves=[{"ptp": {"to": {"joints_deg": [0, -80, 100, 0, 40, 0]}}}])))
+    err = io.StringIO()
+    assert main([command, str(path), "-o", str(tmp_path / "out"), "--method", given], out=io.StringIO(), err=err) == 2
+    assert words in err.getvalue() and "singularity.method" not in err.getvalue()
+    assert "Traceback" not in err.getvalue() and not (tmp_path / "out").exists()
+
+
+def test_an_unknown_method_argument_names_the_argument() -> None:
+    doc = task(moves=[{"ptp": {"to": {"joints_deg": [0, -80, 100, 0, 40, 0]}}}])
+    with pytest.raises(TaskError, match=r"^method: unknown value 'exatc' \(did you mean 'exact'\?\)") as info:
+        plan(parse_task(doc), method="exatc")
+    assert info.value.field == "method" and info.value.exit_code == 2

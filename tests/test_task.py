@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import math
 import textwrap
 from dataclasses import replace
@@ -9,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from singplan.cli import main
 from singplan.errors import TaskError
 from singplan.kinematics.robot import VELOCITY_LIMIT_RAD_S
 from singplan.task.load import load_task, parse_task
@@ -91,6 +93,30 @@ def test_a_missing_urdf_is_named_as_written_and_by_the_absolute_path_looked_at(t
 def test_unusable_documents(tmp_path: Path, text: str, words: str) -> None:
     with pytest.raises(TaskError, match=words):
         load_task(write(tmp_path, text))
+
+
+@pytest.mark.parametrize(("text", "field", "words"), [
+    ("robot: abb_irb2400\nstart: {joints_deg: [0, 10, 20, 0, 30, 0]}\nmoves:\n", "moves",
+     "moves: empty (null); give a list of moves"),
+    ("robot: abb_irb2400\nstart:\nmoves: [ptp: {to: {joints_deg: [0, 0, 0, 0, 30, 0]}}]\n", "start",
+     "start: empty (null); give a mapping with joints_deg or pose"),
+    ("robot:\nstart: {joints_deg: [0, 10, 20, 0, 30, 0]}\nmoves: [ptp: {to: {joints_deg: [0, 0, 0, 0, 30, 0]}}]\n",
+     "robot", "robot: empty (null); give a bundled robot name"),
+    ("robot: abb_irb2400\nstart: {joints_deg: [0, 10, 20, 0, 30, 0]}\nmoves: [lin: {to: }]\n", "moves[0].lin.to",
+     "moves[0].lin.to: empty (null); give the target mapping"),
+    ("robot: abb_irb2400\nstart: {joints_deg: [0, 10, 20, 0, 30, 0]}\n", "moves", "moves: missing (required)"),
+])
+def test_a_required_key_given_empty_is_not_called_missing(tmp_path: Path, text: str, field: str, words: str) -> None:
+    with pytest.raises(TaskError) as info:
+        load_task(write(tmp_path, text))
+    assert info.value.field == field and str(info.value).startswith(words) and info.value.exit_code == 2
+
+
+def test_empty_moves_from_the_command_line_is_bad_input(tmp_path: Path) -> None:
+    err = io.StringIO()
+    path = write(tmp_path, "robot: abb_irb2400\nstart: {joints_deg: [0, 10, 20, 0, 30, 0]}\nmoves:\n")
+    assert main(["plan", str(path), "-o", str(tmp_path / "out")], out=io.StringIO(), err=err) == 2
+    assert err.getvalue() == "singplan: error: moves: empty (null); give a list of moves\n"
 
 
 def test_billion_laughs_is_refused_fast(tmp_path: Path) -> None:

@@ -22,7 +22,7 @@ from singplan.kinematics.dynamics import trajectory_torques
 from singplan.kinematics.robot import Robot
 from singplan.outputs.svgplot import Panel, envelope, figure_svg
 from singplan.outputs.timeline import SHADED_OPACITY, PageBasis, Stretch, page_basis
-from singplan.results.trajectory import Trajectory
+from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.schema import (
     DEFAULT_ORIENTATION_TOLERANCE_DEG,
     DEFAULT_POSITION_TOLERANCE_MM,
@@ -206,7 +206,7 @@ def _tables(traj: Trajectory) -> str:
         segs = by_move.get(i)
         moves.append([i, kind, f"{segs[0].t0:.3f}", f"{segs[-1].t1:.3f}", segs[0].config_before, segs[-1].config_after]
                      if segs else [i, kind, "-", "-", "-", "-"])
-    crossings = [[s.move, s.singularity, s.method, f"{s.t0:.3f} .. {s.t1:.3f}",
+    crossings = [[s.move, s.singularity, s.method, f"{s.t0:.3f} .. {s.t1:.3f}", _zone_cell(traj, s),
                   f"{s.config_before} -> {s.config_after}", f"{s.details.get('max_position_error_mm', 0.0):.4f}",
                   f"{s.details.get('max_orientation_error_deg', 0.0):.4f}", f"{s.details.get('time_lost_s', 0.0):.3f}"]
                  for s in traj.segments if s.kind == "crossing"]
@@ -221,10 +221,16 @@ def _tables(traj: Trajectory) -> str:
     if "torques" in m:
         metrics.append(["torques", str(m["torques"])])
     return ("<h2>Moves</h2>" + _table(["move", "kind", "t0 [s]", "t1 [s]", "config before", "config after"], moves)
-            + "<h2>Crossings</h2>" + (_table(["move", "singularity", "method", "time [s]", "configuration",
+            + "<h2>Crossings</h2>" + (_table(["move", "singularity", "method", "time [s]", "zone [s]", "configuration",
                                               "max pos dev [mm]", "max ori dev [deg]", "time lost [s]"], crossings)
                                       if crossings else "<p>No singular zone on the path.</p>")
             + "<h2>Metrics</h2>" + _table(["metric", "value"], metrics))
+
+
+def _zone_cell(traj: Trajectory, crossing: Segment) -> str:
+    """When the path is inside the crossing's zone (its events), "-" if the zone is a fly-by corner's."""
+    zone = traj.zone_times(crossing)
+    return f"{zone[0]:.3f} .. {zone[1]:.3f}" if zone is not None else "-"
 
 
 def report_html(traj: Trajectory, robot: Robot, basis: PageBasis | None = None) -> str:

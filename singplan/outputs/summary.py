@@ -23,7 +23,7 @@ def summary(traj: Trajectory, task: Task) -> str:
         lines.append(f"  move {i} {move.kind:4s} {t0:8.3f} .. {t1:8.3f} s  {what:16s} "
                      f"{segs[0].config_before} -> {segs[-1].config_after}")
         for s in segs:
-            lines.extend(_segment_lines(s))
+            lines.extend(_segment_lines(s, traj.zone_times(s) if s.kind == "crossing" else None))
     m = traj.metrics
     lines.append(f"metrics: position error {m.max_position_error_mm:.5f} mm, orientation error "
                  f"{m.max_orientation_error_deg:.5f} deg, joint speed x{m.max_joint_speed_ratio:.3f}, "
@@ -51,8 +51,9 @@ def _torque_line(traj: Trajectory, task: Task) -> str:
     return f"torques: peak x{torques.max_torque_ratio:.3f} of {limit} at {torques.max_torque_joint}"
 
 
-def _segment_lines(s: Segment) -> list[str]:
-    """The lines of a fly-by corner or a crossing (none for other segments)."""
+def _segment_lines(s: Segment, zone: tuple[float, float] | None) -> list[str]:
+    """The lines of a fly-by corner or a crossing (none for other segments); ``zone``: when the
+    path is inside a crossing's zone."""
     d = s.details
     if isinstance(d, BlendFigures):
         reduced = f" ({d.reduced})" if d.reduced else ""
@@ -64,12 +65,21 @@ def _segment_lines(s: Segment) -> list[str]:
     how = "changing branch" if d.changes_branch else "keeping the branch (joints swing, path slowed)"
     if d.pause_s is not None:  # null-space
         how = f"pausing {d.pause_s:.3f} s on the singular point while the aligned joints turn"
-    lines = [f"      {s.singularity} zone {s.t0:.3f} .. {s.t1:.3f} s: closest {unit_value}, "
+    lines = [f"      {s.singularity} {_span(s, zone)}: closest {unit_value}, "
              f"method {s.method} {how}, {s.config_before} -> {s.config_after}, "
              f"dev {d.max_position_error_mm:.4f} mm / {d.max_orientation_error_deg:.4f} deg, "
              f"time lost {d.time_lost_s:.3f} s"]
     choice = _choice(d.alternatives)
     return [*lines, f"        {choice}"] if choice else lines
+
+
+def _span(s: Segment, zone: tuple[float, float] | None) -> str:
+    """A crossing's times and, where the segment is wider (a method's window), its zone's."""
+    crossing = f"{s.t0:.3f} .. {s.t1:.3f} s"
+    if zone is None:
+        return f"crossing {crossing}"
+    inside = f"{zone[0]:.3f} .. {zone[1]:.3f} s"
+    return f"crossing = zone {crossing}" if inside == crossing else f"crossing {crossing} (zone {inside})"
 
 
 def _choice(alternatives: Sequence[Alternative]) -> str:

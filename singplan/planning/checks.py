@@ -109,7 +109,7 @@ def check_limits(robot: Robot, i: int, move: Move, piece: CartesianPiece, u: np.
         return
     k, j = np.argwhere(low | high)[0]
     lo, hi = robot.lower_rad[j], robot.upper_rad[j]
-    near = [z for z in zones if z.u_entry - 0.05 <= u[k] <= z.u_exit + 0.05]
+    near = [z for z in zones if z.span[0] - 0.05 <= u[k] <= z.span[1] + 0.05]  # a crossing's window counts as its zone
     why = (f"; the path passes {near[0].describe_distance()} from a {near[0].kind} singularity and keeping the "
            f"pose swings the joints" if near else "")
     kept = "the position and tool axis" if robot.n_joints == 5 else "the full pose"

@@ -6,7 +6,7 @@ method, the joint map stitched and its limits checked."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -128,25 +128,28 @@ def _first_crossing(method: CrossingMethod, ctx: MoveContext, found: tuple[Zone,
     """Ask the method about each new zone; record zones; return the first crossing it makes."""
     for zone in found:
         if zones and zone.u_entry <= u_from + 1e-12 and zones[-1].kind == zone.kind and u_from > 0:
-            zones[-1] = Zone(zone.kind, zones[-1].u_entry, zone.u_exit, zones[-1].u_closest,
-                             zones[-1].min_distance, zones[-1].threshold)  # the rest of a crossed zone
+            crossed = zones[-1]  # the rest of a crossed zone: it and its segment end where this exits
+            zones[-1] = replace(crossed, u_exit=zone.u_exit, window=(crossed.span[0], zone.u_exit))
             continue
         zones.append(zone)
         crossing = method.cross(ctx, zone)
         if crossing is not None:
-            zones[-1] = _spanning(crossing)
+            zones[-1] = _spanning(zone, crossing)
             return crossing
     return None
 
 
-def _spanning(crossing: Crossing) -> Zone:
-    """The crossing's zone widened to the joint-map part it replaced.
+def _spanning(zone: Zone, crossing: Crossing) -> Zone:
+    """The crossing's zone with the window of the joint-map part it replaced.
 
     A method may start its part before the detected entry (at the tracked sample below it) or end
-    it after the exit; every sample of that part is the crossing's, so its segment must cover it.
+    it after the exit, or cross a zone it widened (wrist-joint's blend window); every sample of
+    that part is the crossing's, so its segment covers the window. The entry and exit stay the
+    detected ``zone``'s, where the path itself is inside: the zone events report those.
     """
     z, u0, u1 = crossing.zone, crossing.parts[0].u0, crossing.parts[-1].u1
-    return Zone(z.kind, min(z.u_entry, u0), max(z.u_exit, u1), z.u_closest, z.min_distance, z.threshold)
+    window = (min(z.u_entry, zone.u_entry, u0), max(z.u_exit, zone.u_exit, u1))
+    return replace(z, u_entry=zone.u_entry, u_exit=zone.u_exit, window=window)
 
 
 class _ZoneTest:

@@ -35,6 +35,9 @@ class Zone:
         u_closest: where |distance| is smallest.
         min_distance: smallest |distance| [rad for wrist/elbow, m for shoulder].
         threshold: the detection threshold, same unit.
+        window: the stretch [u0, u1] the crossing's joint-map part replaced, where a method
+            crossed the zone (it may start before the entry or end after the exit, e.g. the
+            wrist-joint blend window); None where no crossing was made.
     """
 
     kind: str
@@ -43,6 +46,12 @@ class Zone:
     u_closest: float
     min_distance: float
     threshold: float
+    window: tuple[float, float] | None = None
+
+    @property
+    def span(self) -> tuple[float, float]:
+        """The stretch of u its crossing segment covers: the window, else the zone itself."""
+        return self.window if self.window is not None else (self.u_entry, self.u_exit)
 
     @property
     def unit(self) -> str:

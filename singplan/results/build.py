@@ -3,15 +3,17 @@ events and metrics (DESIGN.md's contract).
 
 Moves share their boundary sample (one ends at rest where the next starts). A LIN/CIRC with
 no zone is one ``path`` segment; with zones it is ``pre``, ``crossing`` (one per zone, merged
-where zones overlap), ``post``. Deviations are measured per sample against the programmed
-pose at the sample's own path parameter, an upper bound of the distance to the path.
+where zones overlap; it spans every sample its method replaced, and a blend window may be wider
+than the zone), ``post``. The zone events mark where the samples enter and leave the zone
+itself. Deviations are measured per sample against the programmed pose at the sample's own path
+parameter, an upper bound of the distance to the path.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -70,7 +72,7 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
         worst_ori = max(worst_ori, float(ori_err.max(initial=0.0)))
         segs = _move_segments(pm, tm, k0, k1, period, labels, pos_err, ori_err, flown.get(pm.index))
         segments.extend(segs)
-        events.extend(_move_events(pm, segs, k0, k1, period, labels))
+        events.extend(_move_events(pm, tm, k0, k1, period, labels))
         crossings.extend(CrossingReport(s.move, s.t0, s.t1, s.singularity, s.method, s.config_before, s.config_after,
                                         s.details) for s in segs if isinstance(s.details, CrossingFigures))
         k0 = k1
@@ -169,17 +171,23 @@ def _sample_at(u: np.ndarray, value: float) -> int:
     return min(len(u) - 1, int(np.searchsorted(u, value - 1e-12)))
 
 
+def _sample_span(u: np.ndarray, u0: float, u1: float, last: int) -> tuple[int, int]:
+    """The samples a stretch [u0, u1] of the path runs between: the first at or past u0 and the first
+    at or past u1 (where the path has left it), at least one step apart, within 0 .. ``last``."""
+    a = min(_sample_at(u, u0), last - 1)
+    return a, min(max(_sample_at(u, u1), a + 1), last)
+
+
 def _merged_spans(pm: PlannedMove, tm: TimedMove, last: int) -> list[tuple[int, int, list[Zone]]]:
-    """Sample spans (up to sample ``last``) of the zones, overlapping ones merged; at least one step long.
+    """Sample spans (up to sample ``last``) of the zones' crossings (a zone's window where a method
+    crossed it wider than the zone), overlapping ones merged; at least one step long.
 
     Zones wholly in a fly-by corner (before the move's first sample or after ``last``) are the corner's.
     """
     spans: list[tuple[int, int, list[Zone]]] = []
-    visible = [z for z in pm.zones if z.u_exit > tm.u[0] and z.u_entry < tm.u[last]]
-    for zone in sorted(visible, key=lambda z: z.u_entry):
-        a = _sample_at(tm.u, zone.u_entry)
-        b = max(_sample_at(tm.u, zone.u_exit), a + 1)
-        a, b = min(a, last - 1), min(b, last)
+    visible = [z for z in pm.zones if z.span[1] > tm.u[0] and z.span[0] < tm.u[last]]
+    for zone in sorted(visible, key=lambda z: z.span[0]):
+        a, b = _sample_span(tm.u, *zone.span, last)
         if spans and a <= spans[-1][1]:
             pa, pb, zs = spans[-1]
             spans[-1] = (pa, max(pb, b), [*zs, zone])
@@ -268,13 +276,31 @@ def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone
                            max(0, sum(waits)) * period if waits else None)
 
 
-def _move_events(pm: PlannedMove, segs: list[Segment], k0: int, k1: int, period: float,
+def _move_events(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float,
                  labels: _Labels) -> list[Event]:
-    events = []
-    for s in segs:
-        if s.kind == "crossing":
-            events.append(Event(s.t0, pm.index, "zone_entry", s.singularity))
-            events.append(Event(s.t1, pm.index, "zone_exit", s.singularity))
+    """The move's zone entries and exits, and its configuration changes."""
+    events = [Event((k0 + k) * period, pm.index, kind, zone.kind) for k, kind, zone in _zone_samples(pm, tm, k1 - k0)]
     for k in labels.changes(k0, k1).tolist():
         events.append(Event(k * period, pm.index, "config_change", config_from=labels[k - 1], config_to=labels[k]))
     return sorted(events, key=lambda e: e.t)
+
+
+ZoneEventKind = Literal["zone_entry", "zone_exit"]
+
+
+def _zone_samples(pm: PlannedMove, tm: TimedMove, end: int) -> list[tuple[int, ZoneEventKind, Zone]]:
+    """Where the move's samples enter and leave each zone (not its crossing's window, which may be
+    wider): the first sample at or past the zone's entry and the first at or past its exit, the
+    move's first / last sample for a zone open there, kept inside the zone's crossing segment."""
+    last = end if tm.blend_from is None else tm.blend_from  # a fly-by corner's samples are not the path's
+    if pm.kind == "ptp" or last == 0:
+        return []
+    out: list[tuple[int, ZoneEventKind, Zone]] = []
+    for a, b, zones in _merged_spans(pm, tm, last):
+        for zone in zones:
+            if zone.u_exit <= tm.u[0] or zone.u_entry >= tm.u[last]:
+                continue  # only the window reaches the move's own samples; the zone is the corner's
+            entry, exit_ = _sample_span(tm.u, zone.u_entry, zone.u_exit, last)
+            entry = min(max(entry, a), b)
+            out += [(entry, "zone_entry", zone), (min(max(exit_, entry), b), "zone_exit", zone)]
+    return out

@@ -59,7 +59,14 @@ class Segment:
 @dataclass(frozen=True)
 class Event:
     """Something that happens at one sample: a zone entered or left (``singularity`` says which
-    kind), or the configuration label changing (``config_from`` -> ``config_to``)."""
+    kind), or the configuration label changing (``config_from`` -> ``config_to``).
+
+    A zone's entry is the first sample at or past where the path enters it, its exit the first
+    sample at or past where the path leaves it (the move's first / last sample for a zone open
+    there, a fly-by corner's first sample for one that runs on into the corner), both inside
+    the zone's ``crossing`` segment, which may start earlier and end later (the segment covers
+    every sample its method replaced, e.g. a wrist-joint blend window).
+    """
 
     t: float
     move: int
@@ -150,6 +157,19 @@ class Trajectory:
         for seg in self.segments:
             out.setdefault(seg.move, []).append(seg)
         return out
+
+    def zone_times(self, crossing: Segment) -> tuple[float, float] | None:
+        """When the path is inside the singular zone(s) of a crossing segment, from its zone events
+        (the first entry, the last exit); None if it has none (its zone lies in a fly-by corner).
+
+        The segment may be wider: it spans the samples its method replaced (e.g. a blend window).
+        Crossing segments of one move never share an end (touching ones are merged), so the
+        events inside this one's span are its own.
+        """
+        inside = [e for e in self.events if e.move == crossing.move and crossing.t0 <= e.t <= crossing.t1]
+        entries = [e.t for e in inside if e.type == "zone_entry"]
+        exits = [e.t for e in inside if e.type == "zone_exit"]
+        return (min(entries), max(exits)) if entries and exits else None
 
     def to_json(self) -> dict[str, Any]:
         """The trajectory.json document as plain Python values."""

@@ -242,9 +242,10 @@ class Task:
         own = move.velocity_scale if move is not None and move.kind == "ptp" else 1.0
         return self.limits.velocity_scale * own
 
-    def with_method(self, method: str) -> Task:
-        """The same task planned with another crossing method."""
-        _check_choice("singularity.method", method, method_names())
+    def with_method(self, method: str, given_as: str = "singularity.method") -> Task:
+        """The same task planned with another crossing method; ``given_as`` names where the name came
+        from in the message of an unknown one (e.g. ``--method``: the user did not write this field)."""
+        check_method_name(given_as, method)
         settings = SingularitySettings(method, self.singularity.orientation_tolerance_deg,
                                        self.singularity.position_tolerance_mm, self.singularity.zone)
         return Task(**{**self.__dict__, "singularity": settings})
@@ -362,8 +363,26 @@ def _check_keys(where: str, value: Mapping[str, Any], required: Sequence[str] = 
             hint = f"; did you mean {close[0]!r}?" if close else f"; allowed: {', '.join(allowed)}"
             raise TaskError(_join(where, _key_text(key)), f"unknown key{hint}")
     for key in required:
-        if key not in value or value[key] is None:
+        if key not in value:
             raise TaskError(_join(where, key), "missing (required)")
+        if value[key] is None:  # the key is there (`moves:` with nothing after it): say so, not "missing"
+            raise TaskError(_join(where, key), f"empty (null); give {_NULL_HINTS.get(key, 'a value')}")
+
+
+# what a required key takes, for the message when it is given empty
+_NULL_HINTS = {
+    "robot": "a bundled robot name (singplan robots) or the path of a .urdf",
+    "start": "a mapping with joints_deg or pose",
+    "moves": "a list of moves",
+    "to": "the target mapping",
+    "via": "a mapping with xyz",
+    "xyz": "3 numbers [m]",
+    "rpy_deg": "3 numbers [deg]",
+    "joints_deg": "one number per joint [deg]",
+    "amplitude_mm": "a length [mm]",
+    "wavelength_mm": "a length [mm]",
+    "joint": "a joint name",
+}
 
 
 def _describe(value: Any) -> str:
@@ -438,6 +457,12 @@ def accept_method_name(name: str) -> None:
     """Let tasks name a crossing method registered by a user (the planning registry calls this)."""
     if name not in method_names():
         _ADDED_METHODS.append(name)
+
+
+def check_method_name(where: str, value: Any) -> str:
+    """A crossing method name (:func:`method_names`); else bad input naming ``where`` (the task's
+    field, a command-line option or an argument), with the valid names and the closest one."""
+    return _check_choice(where, value, method_names())
 
 
 def _check_choice(where: str, value: Any, choices: Sequence[str]) -> str:

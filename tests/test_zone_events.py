@@ -136,7 +136,7 @@ def test_the_summary_gives_the_crossing_and_the_zone(task: Task, wide: Trajector
     assert (f"wrist crossing 0.000 .. {crossing.t1:.3f} s (zone {a:.3f} .. {b:.3f} s): closest "
             in summary(wide, task))
     crossing = _crossing(exact)
-    assert f"wrist crossing = zone {crossing.t0:.3f} .. {crossing.t1:.3f} s: closest " in summary(exact, task)
+    assert f"wrist zone {crossing.t0:.3f} .. {crossing.t1:.3f} s: closest " in summary(exact, task)
 
 
 def test_the_report_gives_the_crossing_and_the_zone(wide: Trajectory, robot: Robot) -> None:
@@ -155,3 +155,12 @@ def test_a_zone_at_the_move_start_is_entered_at_the_start(robot: Robot) -> None:
     entry, exit_ = _zone_samples(traj)
     assert entry == 0 and crossing.t0 == 0.0 and exit_ * traj.period == crossing.t1
     assert abs(traj.q[exit_ - 1, 4]) < WRIST_THRESHOLD <= abs(traj.q[exit_, 4])
+
+
+def test_a_null_space_crossing_without_a_pause_says_it_went_as_exact(task: Task, exact: Trajectory) -> None:
+    """null-space pauses only where exact's way on leaves a joint limit; here it does not, so the
+    plan is exact's and the summary says so instead of implying a null-space motion."""
+    traj = plan(task, method="null-space")
+    np.testing.assert_array_equal(traj.q, exact.q)
+    assert "method null-space changing branch as exact does (no pause needed)" in summary(traj, task)
+    assert "as exact does" not in summary(exact, task)

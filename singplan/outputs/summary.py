@@ -65,6 +65,8 @@ def _segment_lines(s: Segment, zone: tuple[float, float] | None) -> list[str]:
     how = "changing branch" if d.changes_branch else "keeping the branch (joints swing, path slowed)"
     if d.pause_s is not None:  # null-space
         how = f"pausing {d.pause_s:.3f} s on the singular point while the aligned joints turn"
+    elif s.method == "null-space":  # it pauses only where exact's way on leaves a joint limit
+        how = f"{how} as exact does (no pause needed)"
     lines = [f"      {s.singularity} {_span(s, zone)}: closest {unit_value}, "
              f"method {s.method} {how}, {s.config_before} -> {s.config_after}, "
              f"dev {d.max_position_error_mm:.4f} mm / {d.max_orientation_error_deg:.4f} deg, "
@@ -79,7 +81,7 @@ def _span(s: Segment, zone: tuple[float, float] | None) -> str:
     if zone is None:
         return f"crossing {crossing}"
     inside = f"{zone[0]:.3f} .. {zone[1]:.3f} s"
-    return f"crossing = zone {crossing}" if inside == crossing else f"crossing {crossing} (zone {inside})"
+    return f"zone {crossing}" if inside == crossing else f"crossing {crossing} (zone {inside})"
 
 
 def _choice(alternatives: Sequence[Alternative]) -> str:

@@ -70,9 +70,10 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
         ori_all.append(ori_err[1:])
         worst_pos = max(worst_pos, float(pos_err.max(initial=0.0)))
         worst_ori = max(worst_ori, float(ori_err.max(initial=0.0)))
-        segs = _move_segments(pm, tm, k0, k1, period, labels, pos_err, ori_err, flown.get(pm.index))
+        spans = _own_spans(pm, tm, k1 - k0)  # once for the move's segments and its zone events
+        segs = _move_segments(pm, tm, k0, k1, period, labels, pos_err, ori_err, flown.get(pm.index), spans)
         segments.extend(segs)
-        events.extend(_move_events(pm, tm, k0, k1, period, labels))
+        events.extend(_move_events(pm, tm, k0, k1, period, labels, spans))
         crossings.extend(CrossingReport(s.move, s.t0, s.t1, s.singularity, s.method, s.config_before, s.config_after,
                                         s.details) for s in segs if isinstance(s.details, CrossingFigures))
         k0 = k1
@@ -178,13 +179,13 @@ def _sample_span(u: np.ndarray, u0: float, u1: float, last: int) -> tuple[int, i
     return a, min(max(_sample_at(u, u1), a + 1), last)
 
 
-def _merged_spans(pm: PlannedMove, tm: TimedMove, last: int) -> list[tuple[int, int, list[Zone]]]:
+def _merged_spans(pm: PlannedMove, tm: TimedMove, last: int) -> Spans:
     """Sample spans (up to sample ``last``) of the zones' crossings (a zone's window where a method
     crossed it wider than the zone), overlapping ones merged; at least one step long.
 
     Zones wholly in a fly-by corner (before the move's first sample or after ``last``) are the corner's.
     """
-    spans: list[tuple[int, int, list[Zone]]] = []
+    spans: Spans = []
     visible = [z for z in pm.zones if z.span[1] > tm.u[0] and z.span[0] < tm.u[last]]
     for zone in sorted(visible, key=lambda z: z.span[0]):
         a, b = _sample_span(tm.u, *zone.span, last)
@@ -215,15 +216,25 @@ def _blend_reports(blends: tuple[Blend, ...]) -> tuple[BlendReport, ...]:
                  for b in blends)
 
 
+Spans = list[tuple[int, int, list[Zone]]]  # (first sample, last sample, the zones crossed there), merged
+
+
+def _own_spans(pm: PlannedMove, tm: TimedMove, end: int) -> Spans:
+    """The crossings' sample spans on the move's own path (samples 0 .. ``end``, a fly-by corner's
+    left out): :func:`_merged_spans`; none for a PTP or a move that is all corner."""
+    last = end if tm.blend_from is None else tm.blend_from
+    return [] if pm.kind == "ptp" or last == 0 else _merged_spans(pm, tm, last)
+
+
 def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float, labels: _Labels,
-                   pos_err: np.ndarray, ori_err: np.ndarray, blend: Blend | None) -> list[Segment]:
+                   pos_err: np.ndarray, ori_err: np.ndarray, blend: Blend | None, spans: Spans) -> list[Segment]:
     def seg(kind: SegmentKind, a: int, b: int, **extra: Any) -> Segment:
         return Segment(pm.index, kind, (k0 + a) * period, (k0 + b) * period, labels[k0 + a], labels[k0 + b], **extra)
 
     if tm.blend_from is None:
-        return _path_segments(pm, tm, k1 - k0, seg, period, pos_err, ori_err)
+        return _path_segments(pm, tm, k1 - k0, seg, period, pos_err, ori_err, spans)
     assert blend is not None
-    own = _path_segments(pm, tm, tm.blend_from, seg, period, pos_err, ori_err) if tm.blend_from > 0 else []
+    own = _path_segments(pm, tm, tm.blend_from, seg, period, pos_err, ori_err, spans) if tm.blend_from > 0 else []
     return [*own, seg("blend", tm.blend_from, k1 - k0,
                       details=BlendFigures(blend.radius_m * 1e3, blend.requested_m * 1e3, blend.note, blend.ramp))]
 
@@ -232,11 +243,10 @@ SegmentMaker = Callable[..., Segment]
 
 
 def _path_segments(pm: PlannedMove, tm: TimedMove, last: int, seg: SegmentMaker, period: float,
-                   pos_err: np.ndarray, ori_err: np.ndarray) -> list[Segment]:
-    """The segments of the move's samples 0 .. last on its own path."""
+                   pos_err: np.ndarray, ori_err: np.ndarray, spans: Spans) -> list[Segment]:
+    """The segments of the move's samples 0 .. last on its own path, its crossings at ``spans``."""
     if pm.kind == "ptp":
         return [seg("ptp", 0, last)]
-    spans = _merged_spans(pm, tm, last)
     if not spans:
         return [seg("path", 0, last)]
     out: list[Segment] = []
@@ -277,9 +287,10 @@ def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone
 
 
 def _move_events(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float,
-                 labels: _Labels) -> list[Event]:
-    """The move's zone entries and exits, and its configuration changes."""
-    events = [Event((k0 + k) * period, pm.index, kind, zone.kind) for k, kind, zone in _zone_samples(pm, tm, k1 - k0)]
+                 labels: _Labels, spans: Spans) -> list[Event]:
+    """The move's zone entries and exits (its crossings at ``spans``), and its configuration changes."""
+    events = [Event((k0 + k) * period, pm.index, kind, zone.kind)
+              for k, kind, zone in _zone_samples(tm, k1 - k0, spans)]
     for k in labels.changes(k0, k1).tolist():
         events.append(Event(k * period, pm.index, "config_change", config_from=labels[k - 1], config_to=labels[k]))
     return sorted(events, key=lambda e: e.t)
@@ -288,15 +299,13 @@ def _move_events(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float
 ZoneEventKind = Literal["zone_entry", "zone_exit"]
 
 
-def _zone_samples(pm: PlannedMove, tm: TimedMove, end: int) -> list[tuple[int, ZoneEventKind, Zone]]:
+def _zone_samples(tm: TimedMove, end: int, spans: Spans) -> list[tuple[int, ZoneEventKind, Zone]]:
     """Where the move's samples enter and leave each zone (not its crossing's window, which may be
     wider): the first sample at or past the zone's entry and the first at or past its exit, the
     move's first / last sample for a zone open there, kept inside the zone's crossing segment."""
     last = end if tm.blend_from is None else tm.blend_from  # a fly-by corner's samples are not the path's
-    if pm.kind == "ptp" or last == 0:
-        return []
     out: list[tuple[int, ZoneEventKind, Zone]] = []
-    for a, b, zones in _merged_spans(pm, tm, last):
+    for a, b, zones in spans:
         for zone in zones:
             if zone.u_exit <= tm.u[0] or zone.u_entry >= tm.u[last]:
                 continue  # only the window reaches the move's own samples; the zone is the corner's

@@ -13,6 +13,7 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Literal, TextIO
 
@@ -166,10 +167,20 @@ class Trajectory:
         Crossing segments of one move never share an end (touching ones are merged), so the
         events inside this one's span are its own.
         """
-        inside = [e for e in self.events if e.move == crossing.move and crossing.t0 <= e.t <= crossing.t1]
+        inside = [e for e in self._zone_events_by_move.get(crossing.move, ()) if crossing.t0 <= e.t <= crossing.t1]
         entries = [e.t for e in inside if e.type == "zone_entry"]
         exits = [e.t for e in inside if e.type == "zone_exit"]
         return (min(entries), max(exits)) if entries and exits else None
+
+    @cached_property
+    def _zone_events_by_move(self) -> dict[int, list[Event]]:
+        """Zone events by move, gathered once: the summary and the report ask per crossing, and a
+        long program has thousands of crossings and events."""
+        out: dict[int, list[Event]] = {}
+        for e in self.events:
+            if e.type != "config_change":
+                out.setdefault(e.move, []).append(e)
+        return out
 
     def to_json(self) -> dict[str, Any]:
         """The trajectory.json document as plain Python values."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -179,10 +179,26 @@ def _read_text(p: Path) -> str:
 
 
 def _scan(text: str, name: str) -> None:
-    """Refuse what the YAML event stream shows is unsafe or ambiguous (see :func:`load_task`)."""
+    """Refuse what the YAML event stream shows is unsafe or ambiguous (see :func:`load_task`).
+
+    libyaml reads ahead of the events it hands out and, since PyYAML 6.0.4, stops deep flow
+    nesting with its own error before this scan sees the level that passes :data:`MAX_DEPTH`.
+    So a document libyaml refuses is scanned again with PyYAML's own parser, which reads ahead
+    by one token only: the guard's message (which names the limit) comes first whatever the
+    release, and a document that is really malformed still raises the parser's error.
+    """
+    try:
+        _scan_events(yaml.parse(text, Loader=_Loader), name)
+    except yaml.YAMLError:
+        if _SafeLoader is yaml.SafeLoader:  # PyYAML without libyaml: the error is already the Python parser's
+            raise
+        _scan_events(yaml.parse(text, Loader=yaml.SafeLoader), name)
+
+
+def _scan_events(events: Iterator[Any], name: str) -> None:
     stack: list[_Open] = []
     documents = nodes = 0
-    for event in yaml.parse(text, Loader=_Loader):
+    for event in events:
         line = event.start_mark.line + 1 if event.start_mark is not None else 0  # the parser always marks
         if isinstance(event, yaml.DocumentStartEvent):
             documents += 1

@@ -1,0 +1,185 @@
+"""The plan's samples a controller program moves through, chosen so that moving between them in
+straight joint-space lines keeps the TCP within a tolerance of the plan.
+
+A controller program holds far fewer points than the plan has samples (one per controller period).
+Between two consecutive program points ``q_i`` and ``q_j`` the controller interpolates the joints
+(KRL PTP spline segments, RAPID ``MoveAbsJ``, FANUC ``J`` moves); the model here is the straight
+line ``q_i + sigma (q_j - q_i)``. The plan's samples ``k`` in between are matched to the line by
+their joint-space arc length, ``sigma_k = s_k / s_j`` (``s`` the length of the plan's joint path
+from ``q_i``), which follows the plan at rest (sigma stands still where the plan stands still) and
+through a null-space pause (where only the joints move). A segment is accepted when, for every
+sample between its ends,
+
+    |p(q_i + sigma_k (q_j - q_i)) - p(q_k)| <= T         (TCP position, T [m])
+    angle(R(q_i + sigma_k (q_j - q_i)), R(q_k)) <= Theta (TCP orientation, Theta [rad])
+
+so the straight joint segment's TCP stays within ``T`` of every planned TCP sample matched to it.
+That is the chord error of the joint path seen through the forward kinematics: for a joint path of
+curvature kappa (joint space) and a lever L [m] it grows as L kappa h^2 / 8 with the segment length
+h, so halving T takes about 1.4 times the points.
+
+Points are chosen greedily: from each point the farthest sample the criterion accepts becomes the
+next point (found by doubling the step, then bisecting between the last accepted and the first
+refused length). The criterion is not strictly monotone in the length (a longer chord can fit where
+a shorter one does not), so bisection may stop short of the farthest acceptable sample, never
+beyond an accepted one: every segment returned is one the criterion accepted. Greedy farthest
+reach gives the fewest points when acceptance is monotone (any shorter segment inside an accepted
+one is accepted), which holds to within the round-off of this test.
+
+Points are forced at every segment boundary of the trajectory and wherever the plan stops (see
+:func:`stop_samples`); no segment is longer than a format's longest segment (e.g. FANUC's 32 s).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from singplan.kinematics.geometry import rotation_angles
+from singplan.kinematics.robot import Robot
+from singplan.outputs.timeline import pause_window, sample_range
+from singplan.results.trajectory import Trajectory
+
+_STILL_M = 1e-7  # a TCP step below this counts as standing still (as the report's pause window)
+
+
+@dataclass(frozen=True)
+class PointTolerance:
+    """How far the straight joint segments between program points may take the TCP from the plan.
+
+    Attributes:
+        position_m: TCP position [m].
+        orientation_rad: TCP orientation [rad].
+        max_segment_s: the longest time between two points a format can express [s] (inf: no limit).
+    """
+
+    position_m: float
+    orientation_rad: float
+    max_segment_s: float = math.inf
+
+
+@dataclass(frozen=True)
+class ProgramPoints:
+    """The samples a program moves through.
+
+    Attributes:
+        index: sample indices (P,) into the trajectory, increasing, first 0 and last K - 1.
+        stop: (P,) True where the robot stops (an exact stop: the plan is at rest there).
+        max_position_error_m: the largest TCP position deviation [m] of the straight joint segments
+            from the plan's samples (the criterion's left side, over every segment).
+        max_orientation_error_rad: the same for orientation [rad].
+    """
+
+    index: np.ndarray
+    stop: np.ndarray
+    max_position_error_m: float
+    max_orientation_error_rad: float
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What the search reads: the robot, the joint samples, the plan's TCP frames, the joint arc length."""
+
+    robot: Robot
+    q: np.ndarray  # (K, n) [rad]
+    t: np.ndarray  # (K,) [s]
+    p: np.ndarray  # (K, 3) [m]
+    R: np.ndarray  # (K, 3, 3)
+    arc: np.ndarray  # (K,) joint-space arc length from the first sample [rad]
+
+
+def stop_samples(traj: Trajectory, tcp_step_m: np.ndarray) -> np.ndarray:
+    """Samples where the plan is at rest: the first and the last, the end of every move that is not
+    blended into the next (DESIGN: such a move ends at rest on a sample), and both ends of every
+    null-space pause (the TCP stands still while the aligned joints turn; the joint path turns a
+    corner there and the timing comes to rest at it). Sorted, unique."""
+    last = len(traj.t) - 1
+    stops = {0, last}
+    by_move = traj.segments_by_move()
+    for segments in by_move.values():
+        if segments[-1].kind != "blend":
+            stops.add(sample_range(traj, segments[-1])[1])
+        for seg in segments:
+            if "pause_s" in seg.details:
+                k0, k1 = sample_range(traj, seg)
+                window = pause_window(tcp_step_m, k0, k1)
+                if window is not None:
+                    stops.update(window)
+    return np.array(sorted(stops), dtype=int)
+
+
+def boundary_samples(traj: Trajectory) -> np.ndarray:
+    """The first and last sample of every segment, sorted and unique."""
+    return np.unique([k for seg in traj.segments for k in sample_range(traj, seg)] + [0, len(traj.t) - 1])
+
+
+def choose_points(traj: Trajectory, robot: Robot, tolerance: PointTolerance) -> ProgramPoints:
+    """The program points of a trajectory (see the module's docstring for the criterion and the search)."""
+    p, R = robot.tcp_frames(traj.q)
+    step = np.linalg.norm(np.diff(traj.q, axis=0), axis=1)
+    plan = _Plan(robot, np.asarray(traj.q), np.asarray(traj.t), p, R, np.concatenate([[0.0], np.cumsum(step)]))
+    tcp_step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    stops = stop_samples(traj, tcp_step)
+    forced = np.union1d(boundary_samples(traj), stops)
+    chosen = [0]
+    worst_p = worst_r = 0.0
+    for a, b in zip(forced[:-1].tolist(), forced[1:].tolist(), strict=True):
+        i = a
+        while i < b:
+            j, err_p, err_r = _farthest(plan, i, b, tolerance)
+            chosen.append(j)
+            worst_p, worst_r = max(worst_p, err_p), max(worst_r, err_r)
+            i = j
+    index = np.array(chosen, dtype=int)
+    return ProgramPoints(index, np.isin(index, stops), worst_p, worst_r)
+
+
+def _farthest(plan: _Plan, i: int, end: int, tol: PointTolerance) -> tuple[int, float, float]:
+    """The farthest sample j in (i, end] whose segment from i is accepted, with its deviations."""
+    limit = int(np.searchsorted(plan.t, plan.t[i] + tol.max_segment_s * (1 + 1e-12), side="right")) - 1
+    end = max(i + 1, min(end, limit))
+    best = (i + 1, *_deviation(plan, i, i + 1))  # no sample between: always accepted
+    step = 2
+    refused = end + 1
+    while i + step <= end:  # double the length until refused or at the end
+        err = _deviation(plan, i, i + step)
+        if not _accepts(err, tol):
+            refused = i + step
+            break
+        best = (i + step, *err)
+        step *= 2
+    else:
+        if best[0] < end:
+            err = _deviation(plan, i, end)
+            if _accepts(err, tol):
+                return (end, *err)
+            refused = end
+    lo, hi = best[0], refused  # lo accepted, hi refused: bisect between them
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        err = _deviation(plan, i, mid)
+        if _accepts(err, tol):
+            lo, best = mid, (mid, *err)
+        else:
+            hi = mid
+    return best
+
+
+def _accepts(err: tuple[float, float], tol: PointTolerance) -> bool:
+    return err[0] <= tol.position_m and err[1] <= tol.orientation_rad
+
+
+def _deviation(plan: _Plan, i: int, j: int) -> tuple[float, float]:
+    """Largest TCP position [m] and orientation [rad] deviation of the straight joint segment i -> j
+    from the plan's samples strictly between i and j, matched by joint-space arc length."""
+    if j - i < 2:
+        return 0.0, 0.0
+    length = plan.arc[j] - plan.arc[i]
+    sigma = (plan.arc[i + 1:j] - plan.arc[i]) / length if length > 0.0 else np.zeros(j - i - 1)
+    q_line = plan.q[i] + sigma[:, None] * (plan.q[j] - plan.q[i])
+    p_line, R_line = plan.robot.tcp_frames(q_line)
+    err_p = float(np.max(np.linalg.norm(p_line - plan.p[i + 1:j], axis=1)))
+    err_r = float(np.max(rotation_angles(R_line, plan.R[i + 1:j])))
+    return err_p, err_r

@@ -40,7 +40,10 @@ import numpy as np
 from singplan.kinematics.geometry import rotation_angles
 from singplan.kinematics.robot import Robot
 from singplan.outputs.timeline import pause_window, sample_range
+from singplan.planning.pieces import move_piece
+from singplan.planning.weave import WovenPiece
 from singplan.results.trajectory import Trajectory
+from singplan.task.schema import Move
 
 _STILL_M = 1e-7  # a TCP step below this counts as standing still (as the report's pause window)
 
@@ -58,6 +61,35 @@ class PointTolerance:
     position_m: float
     orientation_rad: float
     max_segment_s: float = math.inf
+
+
+def weave_scale(traj: Trajectory, robot: Robot) -> np.ndarray:
+    """Per sample (K,), the share of the position tolerance a chord may use: 1, and on a woven move
+    ``1 / sqrt(1 + s^2)``, s the weave's steepest slope against its base path.
+
+    A weave's error is measured across its base path at the same base position (DESIGN: the offset
+    at arc length s along the base path; the checker measures it so, and so does a welder). A chord
+    within d of the woven curve can be up to d sqrt(1 + s^2) from it measured that way, where the
+    curve climbs at slope s = a (2 pi P / L) max|f'| (amplitude a, P periods over the base length L,
+    f' = cos for a sine, 2 / pi for the triangle).
+    """
+    scale = np.ones(len(traj.t))
+    by_move = traj.segments_by_move()
+    for i, mapping in enumerate(traj.task.get("moves", [])):
+        segs = by_move.get(i)
+        if not segs:
+            continue
+        k0, k1 = sample_range(traj, segs[0])[0], sample_range(traj, segs[-1])[1]
+        move = Move.from_mapping(mapping)
+        if move.kind == "ptp" or move.weave is None:
+            continue
+        piece = move_piece(i, move, robot.fk(traj.q[k0]))  # the base path from where the move started
+        if not isinstance(piece, WovenPiece) or piece.length_m <= 0.0:
+            continue
+        steepest = 1.0 if move.weave.pattern == "sine" else 2.0 / math.pi
+        slope = piece.amplitude_m * 2.0 * math.pi * piece.periods / piece.length_m * steepest
+        scale[k0:k1 + 1] = 1.0 / math.sqrt(1.0 + slope**2)
+    return scale
 
 
 @dataclass(frozen=True)
@@ -83,6 +115,7 @@ class _Plan:
     """What the search reads: the robot, the joint samples, the plan's TCP frames, the joint arc length."""
 
     robot: Robot
+    position_tol_m: np.ndarray  # (K,) [m]: the position tolerance at each sample
     q: np.ndarray  # (K, n) [rad]
     t: np.ndarray  # (K,) [s]
     p: np.ndarray  # (K, 3) [m]
@@ -119,7 +152,8 @@ def choose_points(traj: Trajectory, robot: Robot, tolerance: PointTolerance) -> 
     """The program points of a trajectory (see the module's docstring for the criterion and the search)."""
     p, R = robot.tcp_frames(traj.q)
     step = np.linalg.norm(np.diff(traj.q, axis=0), axis=1)
-    plan = _Plan(robot, np.asarray(traj.q), np.asarray(traj.t), p, R, np.concatenate([[0.0], np.cumsum(step)]))
+    plan = _Plan(robot, tolerance.position_m * weave_scale(traj, robot), np.asarray(traj.q), np.asarray(traj.t),
+                 p, R, np.concatenate([[0.0], np.cumsum(step)]))
     tcp_step = np.linalg.norm(np.diff(p, axis=0), axis=1)
     stops = stop_samples(traj, tcp_step)
     forced = np.union1d(boundary_samples(traj), stops)
@@ -128,7 +162,7 @@ def choose_points(traj: Trajectory, robot: Robot, tolerance: PointTolerance) -> 
     for a, b in zip(forced[:-1].tolist(), forced[1:].tolist(), strict=True):
         i = a
         while i < b:
-            j, err_p, err_r = _farthest(plan, i, b, tolerance)
+            j, err_p, err_r, _ = _farthest(plan, i, b, tolerance)
             chosen.append(j)
             worst_p, worst_r = max(worst_p, err_p), max(worst_r, err_r)
             i = j
@@ -136,7 +170,7 @@ def choose_points(traj: Trajectory, robot: Robot, tolerance: PointTolerance) -> 
     return ProgramPoints(index, np.isin(index, stops), worst_p, worst_r)
 
 
-def _farthest(plan: _Plan, i: int, end: int, tol: PointTolerance) -> tuple[int, float, float]:
+def _farthest(plan: _Plan, i: int, end: int, tol: PointTolerance) -> tuple[int, float, float, float]:
     """The farthest sample j in (i, end] whose segment from i is accepted, with its deviations."""
     limit = int(np.searchsorted(plan.t, plan.t[i] + tol.max_segment_s * (1 + 1e-12), side="right")) - 1
     end = max(i + 1, min(end, limit))
@@ -167,19 +201,20 @@ def _farthest(plan: _Plan, i: int, end: int, tol: PointTolerance) -> tuple[int, 
     return best
 
 
-def _accepts(err: tuple[float, float], tol: PointTolerance) -> bool:
-    return err[0] <= tol.position_m and err[1] <= tol.orientation_rad
+def _accepts(err: tuple[float, float, float], tol: PointTolerance) -> bool:
+    return err[2] <= 1.0 and err[1] <= tol.orientation_rad
 
 
-def _deviation(plan: _Plan, i: int, j: int) -> tuple[float, float]:
+def _deviation(plan: _Plan, i: int, j: int) -> tuple[float, float, float]:
     """Largest TCP position [m] and orientation [rad] deviation of the straight joint segment i -> j
-    from the plan's samples strictly between i and j, matched by joint-space arc length."""
+    from the plan's samples strictly between i and j, matched by joint-space arc length, and the
+    largest position deviation as a share of the tolerance there."""
     if j - i < 2:
-        return 0.0, 0.0
+        return 0.0, 0.0, 0.0
     length = plan.arc[j] - plan.arc[i]
     sigma = (plan.arc[i + 1:j] - plan.arc[i]) / length if length > 0.0 else np.zeros(j - i - 1)
     q_line = plan.q[i] + sigma[:, None] * (plan.q[j] - plan.q[i])
     p_line, R_line = plan.robot.tcp_frames(q_line)
-    err_p = float(np.max(np.linalg.norm(p_line - plan.p[i + 1:j], axis=1)))
+    dist = np.linalg.norm(p_line - plan.p[i + 1:j], axis=1)
     err_r = float(np.max(rotation_angles(R_line, plan.R[i + 1:j])))
-    return err_p, err_r
+    return float(np.max(dist)), err_r, float(np.max(dist / plan.position_tol_m[i + 1:j]))

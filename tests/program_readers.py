@@ -32,20 +32,20 @@ ROBOTS_YAML = Path(__file__).resolve().parents[1] / "robots" / "urdf" / "robots.
 
 @dataclass
 class Reading:
-    """Timed points of a program: t [s] (P,), controller axes [deg] (P, 6), stop (P,), and which
-    points' times come from a speed rather than a time (``speed_timed``)."""
+    """Timed points of a program: t [s] (P,), controller axes [deg] (P, 6), stop (P,), and for a point
+    reached by a motion timed by speed rather than time, that speed (``speed_percent``, else None)."""
 
     t: list[float] = field(default_factory=list)
     axes_deg: list[list[float]] = field(default_factory=list)
     stop: list[bool] = field(default_factory=list)
-    speed_timed: list[bool] = field(default_factory=list)
+    speed_percent: list[float | None] = field(default_factory=list)
     files: list[Path] = field(default_factory=list)
 
-    def add(self, t: float, axes: list[float], stop: bool, speed_timed: bool = False) -> None:
+    def add(self, t: float, axes: list[float], stop: bool, speed_percent: float | None = None) -> None:
         self.t.append(t)
         self.axes_deg.append([float(np.float32(a)) for a in axes])  # the controller's single precision
         self.stop.append(stop)
-        self.speed_timed.append(speed_timed)
+        self.speed_percent.append(speed_percent)
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return np.array(self.t), np.array(self.axes_deg), np.array(self.stop)
@@ -68,7 +68,7 @@ def read_program(path: Path, axis_speed_deg_s: list[float] | None = None) -> Rea
 
 # --- KRL -----------------------------------------------------------------------------------------
 
-_KRL_AXES = re.compile(r"\{\s*A1\s+(\S+?),\s*A2\s+(\S+?),\s*A3\s+(\S+?),\s*A4\s+(\S+?),\s*A5\s+(\S+?),\s*A6\s+(\S+?)\s*\}")
+_KRL_AXES = re.compile(r"\{\s*" + r",\s*".join(rf"A{i}\s+(\S+?)" for i in range(1, 7)) + r"\s*\}")
 
 
 class _Krl:
@@ -131,7 +131,7 @@ class _Krl:
             if kind == "speed":
                 before = np.array(self.reading.axes_deg[-1])
                 step = np.abs(np.array(axes) - before) / (np.array(self.speed) * value / 100.0)  # type: ignore[arg-type]
-                self.reading.add(self.reading.t[-1] + float(step.max()), axes, stop and last, speed_timed=True)
+                self.reading.add(self.reading.t[-1] + float(step.max()), axes, stop and last, speed_percent=value)
             else:
                 self.reading.add(self.reading.t[-1] + value * scale, axes, stop and last)
 

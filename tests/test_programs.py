@@ -38,11 +38,12 @@ from singplan.outputs import programs
 from singplan.outputs.programs import ProgramOptions, program_texts, write_program
 from singplan.outputs.programs.model import printed_times
 from singplan.outputs.programs.points import PointTolerance, choose_points, weave_scale
+from singplan.outputs.timeline import robot_of
 from singplan.results.plan import plan
 from singplan.results.trajectory import Trajectory, save
 from singplan.task.load import load_task
 from tests.program_readers import convention, read_program, urdf_joints_deg
-from tests.shared import PROGRAMS, SCENARIOS, SHARED, require, run_checker
+from tests.shared import SHARED, require, run_checker
 
 FORMAT_OF_VENDOR = {"kuka": "krl", "abb": "rapid", "fanuc": "fanuc-ls"}
 EXTENSION = {"krl": ".src", "rapid": ".mod", "fanuc-ls": ".ls"}
@@ -204,7 +205,7 @@ def test_a_public_scenario_reads_back_as_planned(name: str, tmp_path: Path) -> N
     assert result.max_position_error_mm <= TOLERANCE_MM
 
 
-def checker_task(task: dict, traj: Trajectory, start_deg: np.ndarray, tolerance_mm: float) -> dict:
+def checker_task(task: dict, traj: Trajectory, t: np.ndarray, q_deg: np.ndarray, tolerance_mm: float) -> dict:
     """The task as the checker should judge the reconstructed motion: the straight joint segments
     between program points stand in for the controller's own interpolation (spline, zones, CNT),
     which rounds their corners, so what only that rounding provides is lifted:
@@ -213,7 +214,9 @@ def checker_task(task: dict, traj: Trajectory, start_deg: np.ndarray, tolerance_
       checker's rest test is the same bound), jerk and torque: ``limits`` lifted;
     * the TCP speed (constant joint speed along a segment swings the TCP speed around its mean by a
       few percent near the crossings): every programmed ``speed`` lifted;
-    * position: the plan's tolerance plus the program's T; the start joints: the program's start point.
+    * position: the plan's tolerance plus the program's T; joint targets (the start, PTP ``to``
+      joints): the program's own points there, as printed (FANUC's 0.001 deg moves them by up to
+      0.0005 deg, which the checker's exact joint-target test would take for a miss).
     Kept: path position and orientation (0.01 deg outside crossings), blend spheres, joint limits
     and speeds, the moves' targets, crossings near a singularity, timing.
     """
@@ -229,7 +232,12 @@ def checker_task(task: dict, traj: Trajectory, start_deg: np.ndarray, tolerance_
         if isinstance(spec, dict) and "speed" in spec:
             spec["speed"] = 1e9
     if "joints_deg" in task["start"]:
-        task["start"]["joints_deg"] = [float(v) for v in start_deg]
+        task["start"]["joints_deg"] = [float(v) for v in q_deg[0]]
+    point_at = {int(k): n for n, k in enumerate(np.rint(t / traj.period).astype(int))}
+    for m, segs in traj.segments_by_move().items():
+        to = task["moves"][m].get("ptp", {}).get("to", {})
+        if "joints_deg" in to and segs[-1].kind != "blend":  # a blended move's target is not a point
+            to["joints_deg"] = [float(v) for v in q_deg[point_at[round(segs[-1].t1 / traj.period)]]]
     return task
 
 
@@ -253,7 +261,7 @@ def assert_checker_passes(name: str, tmp_path: Path) -> None:
     result = export(traj, tmp_path, fmt)
     t, q_deg, _ = read_back(traj, result.files[0])
     folder, stem = name.split("/")
-    task = checker_task(yaml.safe_load((SHARED / folder / f"{stem}.yaml").read_text()), traj, q_deg[0],
+    task = checker_task(yaml.safe_load((SHARED / folder / f"{stem}.yaml").read_text()), traj, t, q_deg,
                         TOLERANCE_MM)
     task_file = tmp_path / "task.yaml"
     task_file.write_text(yaml.safe_dump(task))
@@ -278,3 +286,268 @@ def test_the_reconstructed_motion_passes_the_checker(name: str, tmp_path: Path) 
 @pytest.mark.parametrize("name", [n for n in SCENARIO_NAMES if n not in CHECKED_BY_DEFAULT])
 def test_the_reconstructed_motion_passes_the_checker_on_every_scenario(name: str, tmp_path: Path) -> None:
     assert_checker_passes(name, tmp_path)
+
+
+# --- robots without a convention, names, options ---------------------------------------------------
+
+def run_cli(*args: str) -> tuple[int, str, str]:
+    import io
+
+    out, err = io.StringIO(), io.StringIO()
+    code = main(list(args), out=out, err=err)
+    return code, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def kuka_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A planned KUKA LIN through a wrist singularity (the demo task), saved."""
+    task = Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml"
+    return save(plan(load_task(task)), tmp_path_factory.mktemp("kuka"))
+
+
+@pytest.fixture(scope="module")
+def ur5_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    task = Path(__file__).resolve().parents[1] / "examples" / "ur5_wrist_auto.yaml"
+    return save(plan(load_task(task)), tmp_path_factory.mktemp("ur5"))
+
+
+@pytest.mark.parametrize("fmt", ["krl", "rapid", "fanuc-ls"])
+def test_a_robot_without_a_vendor_convention_is_refused_by_name(fmt: str, ur5_folder: Path) -> None:
+    before = sorted(p.name for p in ur5_folder.iterdir())
+    code, _, err = run_cli("export", str(ur5_folder), "--format", fmt)
+    assert code == 2
+    assert "robot 'ur5' has no controller convention" in err and "robots.yaml records none" in err
+    assert sorted(p.name for p in ur5_folder.iterdir()) == before
+
+
+def test_a_robot_of_another_vendor_is_refused_with_its_format(kuka_folder: Path) -> None:
+    code, _, err = run_cli("export", str(kuka_folder), "--format", "rapid")
+    assert code == 2 and "controller convention of KUKA, not ABB (use --format krl)" in err
+
+
+def _user_copy(traj: Trajectory, folder: Path) -> Trajectory:
+    """The trajectory of a user's URDF: the bundled file copied, under another robot name."""
+    from dataclasses import replace
+
+    urdf = folder / "my_arm.urdf"
+    shutil.copy(traj.urdf, urdf)
+    return replace(traj, robot="my_arm", urdf=str(urdf))
+
+
+def test_a_user_urdf_needs_its_sidecar_and_then_writes_the_same_program(kuka_folder: Path, tmp_path: Path) -> None:
+    from singplan.results.trajectory import load
+
+    traj = load(kuka_folder)
+    user = _user_copy(traj, tmp_path)
+    with pytest.raises(InputError, match=r"robot 'my_arm' has no controller convention.*add .*my_arm.controller.yaml"):
+        program_texts(user, "krl")
+    spec = yaml.safe_load((robots_dir() / "robots.yaml").read_text())["robots"][traj.robot]["controller"]
+    (tmp_path / "my_arm.controller.yaml").write_text(yaml.safe_dump({"controller": spec}))
+    mine, bundled = program_texts(user, "krl")["singplan.src"], program_texts(traj, "krl")["singplan.src"]
+    body = [line for line in mine.splitlines() if "robot:" not in line]
+    assert body == [line for line in bundled.splitlines() if "robot:" not in line]
+
+
+def test_a_sidecar_convention_is_undone_by_the_reader(kuka_folder: Path, tmp_path: Path) -> None:
+    """A made-up convention (offsets, a flipped sign, a coupling) round-trips through the reader."""
+    from singplan.results.trajectory import load
+
+    traj = _user_copy(load(kuka_folder), tmp_path)
+    convention_spec = {"vendor": "kuka", "axis_signs": [1, -1, 1, 1, -1, 1],
+                       "axis_offsets_deg": [0, 90, -90, 0, 0, 180], "couplings": [{"axis": 3, "joint": 2, "factor": 1}]}
+    (tmp_path / "my_arm.controller.yaml").write_text(yaml.safe_dump({"controller": convention_spec}))
+    result = export(traj, tmp_path, "krl")
+    t, q_deg, _ = read_back(traj, result.files[0])
+    k = np.rint(t / traj.period).astype(int)
+    assert np.abs(q_deg - np.degrees(np.asarray(traj.q)[k])).max() <= PRINTED_DEG["krl"] + FLOAT32_DEG
+    header = result.files[0].read_text().replace("\n; ", " ")  # comment lines joined
+    assert "a2 = -q2 + 90; a3 = q3 + q2 - 90; a5 = -q5; a6 = q6 + 180" in header
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (("--name", "9lives"), "--name: '9lives' is not a valid KUKA KRL program name"),
+    (("--name", "a" * 25), "at most 24 characters"),
+    (("--name", "weld", "-o", "{out}/seam.src"), "a KRL program is named after its file"),
+    (("-o", "{out}/my-prog.src"), "is not a valid KUKA KRL program name"),
+    (("--tolerance-mm", "0"), "--tolerance-mm: expected a positive number"),
+    (("--tolerance-deg", "nan"), "--tolerance-deg: expected a positive number"),
+    (("--vendor-config",), "--vendor-config: only the csv-deg format"),
+])
+def test_bad_program_options_exit_2_naming_the_option(args: tuple[str, ...], message: str, kuka_folder: Path) -> None:
+    before = sorted(p.name for p in kuka_folder.iterdir())
+    code, _, err = run_cli("export", str(kuka_folder), "--format", "krl", *(a.format(out=kuka_folder) for a in args))
+    assert code == 2 and message in err
+    assert sorted(p.name for p in kuka_folder.iterdir()) == before
+
+
+def test_program_options_are_refused_for_other_formats(kuka_folder: Path) -> None:
+    code, _, err = run_cli("export", str(kuka_folder), "--format", "ros2", "--tolerance-mm", "0.5")
+    assert code == 2 and "--tolerance-mm: only for the controller programs" in err
+
+
+def test_the_cli_names_the_file_after_the_program_and_prints_the_figures(kuka_folder: Path, tmp_path: Path) -> None:
+    code, out, _ = run_cli("export", str(kuka_folder), "--format", "krl", "--name", "Seam_1")
+    assert code == 0 and (kuka_folder / "Seam_1.src").is_file()
+    assert "DEF Seam_1( )" in (kuka_folder / "Seam_1.src").read_text()
+    # two moves, neither blended: three exact stops
+    assert re.search(r"wrote .*Seam_1.src: KUKA KRL program Seam_1, \d+ points \(3 exact stops\)", out)
+    assert re.search(r"the TCP keeps within 0\.\d{4} mm / 0\.\d{4} deg of the plan \(tolerance 0\.1 mm", out)
+    code, out, _ = run_cli("export", str(kuka_folder / "trajectory.json"), "--format", "krl", "-o",
+                           str(tmp_path / "other" / "prog.src"), "--tolerance-mm", "0.5")
+    assert code == 0 and "DEF prog( )" in (tmp_path / "other" / "prog.src").read_text()
+
+
+def test_a_looser_tolerance_takes_fewer_points(kuka_folder: Path, tmp_path: Path) -> None:
+    from singplan.results.trajectory import load
+
+    traj = load(kuka_folder)
+    counts = [export(traj, tmp_path / str(t), tolerance_mm=t).points for t in (0.01, 0.1, 1.0)]
+    assert counts[0] > counts[1] > counts[2] >= 3
+
+
+# --- the output file rules ----------------------------------------------------------------------
+
+def test_an_unusable_path_is_bad_input_and_nothing_is_written(kuka_folder: Path, tmp_path: Path) -> None:
+    (tmp_path / "a_folder.src").mkdir()
+    (tmp_path / "a_file").write_text("x")
+    for target in (tmp_path / "a_folder.src", tmp_path / "a_file" / "prog.src"):
+        code, _, err = run_cli("export", str(kuka_folder), "--format", "krl", "-o", str(target))
+        assert code == 2 and str(target) in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file", "a_folder.src"]
+
+
+def test_a_failure_while_writing_parts_leaves_nothing(kuka_folder: Path, tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    from singplan.results.trajectory import load
+
+    dialect = programs.DIALECTS["krl"]
+    monkeypatch.setattr(dialect, "max_part_lines", 20)
+
+    def broken(stream: object, model: object, part: programs.model.Part) -> None:
+        if part.name.endswith("_P2"):
+            raise RuntimeError("disk gone")
+        type(dialect).write_part(dialect, stream, model, part)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(dialect, "write_part", broken)
+    (tmp_path / "keep.txt").write_text("mine")
+    with pytest.raises(RuntimeError, match="disk gone"):
+        write_program(load(kuka_folder), "krl", tmp_path / "prog.src")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.txt"]
+
+
+# --- controller limits: parts and blocks --------------------------------------------------------
+
+@pytest.mark.parametrize("fmt", ["krl", "rapid", "fanuc-ls"])
+def test_a_long_program_is_split_into_parts_that_read_back_as_one(fmt: str, tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    name = {"krl": "scenarios_programs/kuka_kr6_r900_2__nullspace_wrist_exact_hit",
+            "rapid": "scenarios_programs/abb_irb2400__flyby_pick_place",
+            "fanuc-ls": "scenarios_programs/fanuc_lrmate200id__flyby_seam_lin_circ_lin"}[fmt]
+    traj = planned(name)
+    monkeypatch.setattr(programs.DIALECTS[fmt], "max_part_lines", 30)
+    result = export(traj, tmp_path, fmt)
+    assert result.parts >= 2 and [p.name for p in result.files[1:]] == \
+        [f"{programs.DIALECTS[fmt].program_name('prog')}_P{n}{EXTENSION[fmt]}" for n in range(1, result.parts + 1)]
+    assert f"split into {result.parts} parts" in result.message()
+    for part in result.files[1:]:  # each within the limit: its motion and note lines (FANUC: all of /MN)
+        text = part.read_text()
+        if fmt == "fanuc-ls":
+            assert int(re.search(r"LINE_COUNT\t= (\d+);", text).group(1)) <= 30  # type: ignore[union-attr]
+        else:
+            assert len(text.splitlines()) <= 30 + 12  # + the file's own opening and closing lines
+    t, q_deg, stop = read_back(traj, result.files[0])
+    whole = export(traj, tmp_path / "whole", fmt)
+    t1, q1, stop1 = read_back(traj, whole.files[0])
+    assert np.array_equal(t, t1) and np.array_equal(q_deg, q1) and np.array_equal(stop, stop1)
+
+
+def test_a_krl_stretch_longer_than_a_spline_block_continues_in_flight(tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    traj = planned("scenarios_programs/kuka_kr6_r900_2__weave_lin_sine")
+    monkeypatch.setattr(programs.DIALECTS["krl"], "block_segments", 10)
+    result = export(traj, tmp_path, "krl")
+    text = result.files[0].read_text()
+    assert text.count("ENDSPLINE C_SPL") >= 5 and any("continue in flight" in n for n in result.notes)
+    speeds = np.degrees(load_robot(traj.urdf, tip=traj.tip).velocity_rad_s).tolist()
+    reading = read_program(result.files[0], speeds)
+    t, axes, _ = reading.arrays()
+    matrix, offsets = convention(traj.robot, traj.urdf)
+    q_deg = urdf_joints_deg(axes, matrix, offsets)
+    whole = read_back(traj, export(traj, tmp_path / "whole", "krl").files[0])
+    assert np.array_equal(q_deg, whole[1])  # the same points
+    planned_d, read_d = np.diff(whole[0]), np.diff(t)
+    for n, percent in enumerate(reading.speed_percent[1:]):
+        if percent is None:
+            assert read_d[n] == pytest.approx(planned_d[n], abs=1e-9)
+        else:  # the leading axis at the nearest whole percent: within half a percent of the planned time
+            assert abs(read_d[n] / planned_d[n] - 1.0) <= 0.5 / percent + 1e-6
+
+
+def test_fanuc_segments_never_exceed_32000_msec(tmp_path: Path) -> None:
+    traj = planned("scenarios_programs/kuka_kr6_r900_2__nullspace_wrist_exact_hit")
+    points = choose_points(traj, robot_of(traj), PointTolerance(1.0, 1.0, max_segment_s=0.1))  # only the cap binds
+    assert np.diff(np.asarray(traj.t)[points.index]).max() <= 0.1 + 1e-12
+    assert programs.DIALECTS["fanuc-ls"].max_segment_s == 32.0
+
+
+# --- the numbers a program prints ---------------------------------------------------------------
+
+def test_coupled_axes_are_rounded_so_the_joints_they_stand_for_are_nearest(rng: np.random.Generator) -> None:
+    robot = load_robot("fanuc_lrmate200id")
+    conv = convention_for(robot)
+    assert conv is not None
+    q = rng.uniform(robot.lower_rad, robot.upper_rad, (5000, 6))
+    axes = printed_axes_deg(conv, q, 3)
+    assert np.allclose(axes * 1000, np.round(axes * 1000), atol=1e-6)
+    decoded = np.degrees(conv.joints_rad(np.radians(axes)))
+    assert np.abs(decoded - np.degrees(q)).max() <= 0.0005 + 1e-9
+    naive = np.round(np.degrees(conv.axes_rad(q)), 3)
+    assert np.abs(np.degrees(conv.joints_rad(np.radians(naive))) - np.degrees(q)).max() > 0.0006  # what it avoids
+    plain = convention_for(load_robot("kuka_kr6_r900_2"))
+    assert plain is not None
+    assert np.array_equal(printed_axes_deg(plain, q, 4), np.round(np.degrees(plain.axes_rad(q)), 4))
+
+
+def test_printed_times_round_from_the_start_and_always_advance() -> None:
+    t = np.arange(0, 2000) * 0.0037 + 0.1
+    printed = printed_times(t, 1e-3)
+    assert printed[0] == 0.0 and np.all(np.diff(printed) > 0)
+    assert np.abs(printed - (t - t[0])).max() <= 0.0005 + 1e-12  # rounding never adds up
+    tight = printed_times(np.arange(10) * 2e-4, 1e-3)  # periods under the step: a step each
+    assert np.allclose(np.diff(tight), 1e-3)
+
+
+def test_a_woven_move_takes_the_slope_share_of_the_tolerance() -> None:
+    traj = planned("scenarios_programs/kuka_kr6_r900_2__weave_lin_sine")
+    robot = robot_of(traj)  # with the task's tool
+    scale = weave_scale(traj, robot)
+    (spec,) = [next(iter(m.values())) for m in traj.task["moves"] if "weave" in next(iter(m.values()))]
+    p = robot.tcp_positions(np.asarray(traj.q)[[0, -1]])
+    length = float(np.linalg.norm(p[1] - p[0]))  # the LIN's base length (the weave starts and ends on it)
+    periods = max(1, round(length / (spec["weave"]["wavelength_mm"] / 1e3)))
+    slope = spec["weave"]["amplitude_mm"] / 1e3 * 2 * math.pi * periods / length
+    assert scale.max() == pytest.approx(1 / math.sqrt(1 + slope**2), rel=1e-6)
+    assert scale.min() == scale.max()  # the task is the one woven move
+    flyby = planned("scenarios_programs/abb_irb2400__flyby_pick_place")
+    assert np.all(weave_scale(flyby, robot_of(flyby)) == 1.0)
+
+
+def test_the_points_keep_every_segment_boundary_and_stop(kuka_folder: Path) -> None:
+    from singplan.results.trajectory import load
+
+    traj = load(kuka_folder)
+    points = choose_points(traj, robot_of(traj), PointTolerance(1e-4, math.radians(0.005)))
+    k = set(points.index.tolist())
+    assert {round(x / traj.period) for s in traj.segments for x in (s.t0, s.t1)} <= k
+    assert set(points.index[points.stop].tolist()) == required_stops(traj) == {0, round(traj.moves[0].t1 / traj.period),
+                                                                              len(traj.t) - 1}
+    assert points.max_position_error_m <= 1e-4 and points.max_orientation_error_rad <= math.radians(0.005)
+
+
+def test_errors_are_input_errors(kuka_folder: Path) -> None:
+    from singplan.results.trajectory import load
+
+    with pytest.raises(InputError, match="not a controller program format"):
+        program_texts(load(kuka_folder), "urscript")
+    with pytest.raises(OutputPathError):
+        write_program(load(kuka_folder), "krl", kuka_folder / "trajectory.json" / "prog.src")

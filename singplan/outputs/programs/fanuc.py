@@ -71,6 +71,11 @@ class FanucLs(Dialect):
     def program_name(self, name: str) -> str:
         return name.upper()
 
+    def overhead_lines(self, header: tuple[str, ...], main: bool) -> int:
+        if main:  # the header's remarks, then a remark and the first motion
+            return sum(len(wrap(line, self.comment_width)) for line in header) + 2
+        return len(wrap(_part_remark(99999, 99999, "X" * self.name_max), self.comment_width))
+
     def write_main(self, stream: TextIO, model: ProgramModel) -> None:
         lines = [_remark(text, self.comment_width) for line in model.header
                  for text in wrap(line, self.comment_width)]
@@ -85,8 +90,7 @@ class FanucLs(Dialect):
     def write_part(self, stream: TextIO, model: ProgramModel, part: Part) -> None:
         number_ = model.parts.index(part) + 1
         lines = [_remark(text, self.comment_width)
-                 for text in wrap(f"part {number_} of {len(model.parts)} of {model.name}; run {model.name}",
-                                  self.comment_width)]
+                 for text in wrap(_part_remark(number_, len(model.parts), model.name), self.comment_width)]
         positions = self._body(lines, part, first=1)
         _write(stream, part.name, f"part {number_} of {len(model.parts)}"[:16], lines, positions)
 
@@ -100,6 +104,10 @@ class FanucLs(Dialect):
                 lines.append(f"J P[{first + len(positions)}] {msec}msec {'FINE' if item.stop else 'CNT100'}    ")
                 positions.append(item)
         return positions
+
+
+def _part_remark(number: int, parts: int, name: str) -> str:
+    return f"part {number} of {parts} of {name}, run {name}"
 
 
 def _remark(text: str, width: int) -> str:

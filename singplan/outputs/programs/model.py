@@ -145,6 +145,11 @@ class Dialect:
         """An upper bound of the lines one motion takes in a program body."""
         return 1
 
+    def overhead_lines(self, header: tuple[str, ...], main: bool) -> int:
+        """Lines of a program file that count against :attr:`max_part_lines` besides its motions and
+        notes: the main program's header and first motion (``main``), or a part's opening remark."""
+        return 0
+
     def notes(self, model: ProgramModel) -> list[str]:
         """What the summary should say about how this program carries the plan, beyond the figures."""
         return []
@@ -215,10 +220,10 @@ def build_model(traj: Trajectory, robot: Robot, conv: ControllerConvention, poin
     motions = [Motion(p, int(k), tuple(a.tolist()), float(t), float(d), bool(s))
                for p, (k, a, t, d, s) in enumerate(zip(points.index, axes, times, durations, points.stop, strict=True))]
     items = _with_notes(traj, robot, motions)
-    parts = _split(items, motions[0], dialect, name)
+    header = tuple(_header(traj, conv, points, dialect, motions, tolerance_mm, tolerance_deg, source))
+    parts = _split(items, motions[0], dialect, name, header)
     speed = np.degrees(np.abs(np.diag(np.asarray(conv.matrix))) * robot.velocity_rad_s)
-    return ProgramModel(name, tuple(_header(traj, conv, points, dialect, motions, tolerance_mm, tolerance_deg, source)),
-                        motions[0], tuple(parts), tuple(speed.tolist()), tolerance_mm, tolerance_deg)
+    return ProgramModel(name, header, motions[0], tuple(parts), tuple(speed.tolist()), tolerance_mm, tolerance_deg)
 
 
 def _header(traj: Trajectory, conv: ControllerConvention, points: ProgramPoints, dialect: Dialect,
@@ -298,9 +303,10 @@ def _has_pause(traj: Trajectory) -> bool:
     return any("pause_s" in seg.details for seg in traj.segments)
 
 
-def _split(items: list[Item], start: Motion, dialect: Dialect, name: str) -> list[Part]:
-    """Items cut into parts of at most ``dialect.max_part_lines`` lines: at the last exact stop in a
-    part's second half, else where the limit falls. A motion keeps the notes above it."""
+def _split(items: list[Item], start: Motion, dialect: Dialect, name: str, header: tuple[str, ...]) -> list[Part]:
+    """Items cut into parts of at most ``dialect.max_part_lines`` lines (their own lines counted): at
+    the last exact stop in a part's second half, else where the limit falls. A motion keeps the notes
+    above it. One part (the main program's body) when everything fits there."""
     units: list[list[Item]] = [[]]  # each: notes, then the motion they stand above
     for item in items:
         units[-1].append(item)
@@ -308,10 +314,13 @@ def _split(items: list[Item], start: Motion, dialect: Dialect, name: str) -> lis
             units.append([])
     units = [u for u in units if u]
     cost = [cost_of(u, dialect) for u in units]
+    if sum(cost) <= dialect.max_part_lines - dialect.overhead_lines(header, main=True):
+        return [Part(name, tuple(items), start)]
+    budget = dialect.max_part_lines - dialect.overhead_lines(header, main=False)
     chunks: list[list[list[Item]]] = [[]]
     lines = 0
     for unit, c in zip(units, cost, strict=True):
-        if lines + c > dialect.max_part_lines and chunks[-1]:
+        if lines + c > budget and chunks[-1]:
             current = chunks[-1]
             stops = [n for n, u in enumerate(current) if isinstance(u[-1], Motion) and u[-1].stop]
             cut = stops[-1] + 1 if stops and stops[-1] + 1 >= len(current) / 2 else len(current)
@@ -321,8 +330,6 @@ def _split(items: list[Item], start: Motion, dialect: Dialect, name: str) -> lis
         chunks[-1].append(unit)
         lines += c
     flat = [[i for u in chunk for i in u] for chunk in chunks]
-    if len(flat) == 1:
-        return [Part(name, tuple(flat[0]), start)]
     parts, before = [], start
     for n, chunk in enumerate(flat, start=1):
         parts.append(Part(part_name(name, n), tuple(chunk), before))

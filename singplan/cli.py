@@ -438,7 +438,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if program:
         from singplan.outputs import programs
 
-        options = programs.ProgramOptions(
+        program_options = programs.ProgramOptions(
             args.name, DEFAULT_TOLERANCE_MM if args.tolerance_mm is None else args.tolerance_mm,
             DEFAULT_TOLERANCE_DEG if args.tolerance_deg is None else args.tolerance_deg,
             source=str(folder / "trajectory.json" if Path(args.out).is_dir() else args.out))
@@ -446,7 +446,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             raise InputError("--vendor-config: only the csv-deg format carries a vendor configuration per sample; "
                              "a controller program notes each move's configuration in a comment")
         target = args.file if args.file is not None else programs.program_path(folder, fmt, args.name)
-        out.write(programs.write_program(traj, fmt, target, options).message() + "\n")
+        out.write(programs.write_program(traj, fmt, target, program_options).message() + "\n")
         return 0
     target = args.file if args.file is not None else exports.default_path(folder, fmt)
     options = exports.UrScriptOptions(controller=args.ur_controller, lookahead_time_s=args.lookahead_time,

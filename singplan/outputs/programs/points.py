@@ -32,8 +32,9 @@ Points are forced at every segment boundary of the trajectory and wherever the p
 
 from __future__ import annotations
 
+import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -41,7 +42,7 @@ from singplan.kinematics.geometry import rotation_angles
 from singplan.kinematics.robot import Robot
 from singplan.outputs.timeline import pause_window, sample_range
 from singplan.planning.pieces import move_piece
-from singplan.planning.weave import WovenPiece
+from singplan.planning.weave import whole_periods
 from singplan.results.trajectory import Trajectory
 from singplan.task.schema import Move
 
@@ -83,11 +84,12 @@ def weave_scale(traj: Trajectory, robot: Robot) -> np.ndarray:
         move = Move.from_mapping(mapping)
         if move.kind == "ptp" or move.weave is None:
             continue
-        piece = move_piece(i, move, robot.fk(traj.q[k0]))  # the base path from where the move started
-        if not isinstance(piece, WovenPiece) or piece.length_m <= 0.0:
+        base = move_piece(i, replace(move, weave=None), robot.fk(traj.q[k0]))  # from where the move started
+        if base.length_m <= 0.0:
             continue
+        periods = whole_periods(base.length_m, move.weave.wavelength_mm / 1e3)
         steepest = 1.0 if move.weave.pattern == "sine" else 2.0 / math.pi
-        slope = piece.amplitude_m * 2.0 * math.pi * piece.periods / piece.length_m * steepest
+        slope = move.weave.amplitude_mm / 1e3 * 2.0 * math.pi * periods / base.length_m * steepest
         scale[k0:k1 + 1] = 1.0 / math.sqrt(1.0 + slope**2)
     return scale
 
@@ -158,47 +160,77 @@ def choose_points(traj: Trajectory, robot: Robot, tolerance: PointTolerance) -> 
     stops = stop_samples(traj, tcp_step)
     forced = np.union1d(boundary_samples(traj), stops)
     chosen = [0]
-    worst_p = worst_r = 0.0
+    errors: list[tuple[float, float, float]] = []
     for a, b in zip(forced[:-1].tolist(), forced[1:].tolist(), strict=True):
-        i = a
-        while i < b:
-            j, err_p, err_r, _ = _farthest(plan, i, b, tolerance)
-            chosen.append(j)
-            worst_p, worst_r = max(worst_p, err_p), max(worst_r, err_r)
-            i = j
+        stretch, stretch_errors = _stretch(plan, a, b, tolerance)
+        chosen += stretch[1:]
+        errors += stretch_errors
     index = np.array(chosen, dtype=int)
-    return ProgramPoints(index, np.isin(index, stops), worst_p, worst_r)
+    worst = np.max(np.array(errors), axis=0) if errors else np.zeros(3)
+    return ProgramPoints(index, np.isin(index, stops), float(worst[0]), float(worst[1]))
 
 
-def _farthest(plan: _Plan, i: int, end: int, tol: PointTolerance) -> tuple[int, float, float, float]:
-    """The farthest sample j in (i, end] whose segment from i is accepted, with its deviations."""
-    limit = int(np.searchsorted(plan.t, plan.t[i] + tol.max_segment_s * (1 + 1e-12), side="right")) - 1
-    end = max(i + 1, min(end, limit))
-    best = (i + 1, *_deviation(plan, i, i + 1))  # no sample between: always accepted
-    step = 2
-    refused = end + 1
-    while i + step <= end:  # double the length until refused or at the end
-        err = _deviation(plan, i, i + step)
-        if not _accepts(err, tol):
-            refused = i + step
-            break
-        best = (i + step, *err)
-        step *= 2
+def _stretch(plan: _Plan, a: int, b: int, tol: PointTolerance) -> tuple[list[int], list[tuple[float, float, float]]]:
+    """The points from forced point a to forced point b, and each segment's deviations.
+
+    Greedy reach forward gives the fewest points, each as late as it can be (f_k); greedy reach
+    backward from b gives, for the same count, each as early as it can be (g_k). Forward alone leaves
+    whatever remains before b to the last segment, often a sample or two, which no controller can
+    time; each point is therefore placed half-way between g_k and f_k, and that set is kept when the
+    criterion accepts all its segments (it does where acceptance is monotone), else the forward one.
+    """
+    forward, errors = [a], []
+    while forward[-1] < b:
+        j, err = _reach(plan, forward[-1], b, tol, +1)
+        forward.append(j)
+        errors.append(err)
+    backward = [b]
+    while backward[-1] > a and len(backward) <= len(forward):
+        backward.append(_reach(plan, backward[-1], a, tol, -1)[0])
+    if len(forward) < 3 or len(backward) != len(forward) or backward[-1] != a:
+        return forward, errors
+    middle = [a] + [(f + g + 1) // 2 for f, g in zip(forward[1:-1], backward[::-1][1:-1], strict=True)] + [b]
+    middle_errors = [_deviation(plan, i, j) for i, j in itertools.pairwise(middle)]
+    if all(i < j for i, j in itertools.pairwise(middle)) and all(_accepts(e, tol) for e in middle_errors):
+        return middle, middle_errors
+    return forward, errors
+
+
+def _reach(plan: _Plan, i: int, end: int, tol: PointTolerance,
+           direction: int) -> tuple[int, tuple[float, float, float]]:
+    """The sample j farthest from i towards ``end`` (``direction`` +1: later, -1: earlier) whose
+    segment with i is accepted, with its deviations: the length doubled until refused, then bisected."""
+    def deviation(j: int) -> tuple[float, float, float]:
+        return _deviation(plan, min(i, j), max(i, j))
+
+    longest = tol.max_segment_s * (1 + 1e-12)  # the format's longest segment
+    if direction > 0:
+        last = int(np.searchsorted(plan.t, plan.t[i] + longest, side="right")) - 1
     else:
-        if best[0] < end:
-            err = _deviation(plan, i, end)
+        last = int(np.searchsorted(plan.t, plan.t[i] - longest, side="left"))
+    span = max(1, min(abs(end - i), abs(last - i)))
+    best, best_err, refused = 1, deviation(i + direction), span + 1  # a neighbour: always accepted
+    step = 2
+    while step < span:
+        err = deviation(i + direction * step)
+        if not _accepts(err, tol):
+            refused = step
+            break
+        best, best_err, step = step, err, step * 2
+    else:
+        if best < span:
+            err = deviation(i + direction * span)
             if _accepts(err, tol):
-                return (end, *err)
-            refused = end
-    lo, hi = best[0], refused  # lo accepted, hi refused: bisect between them
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        err = _deviation(plan, i, mid)
+                return i + direction * span, err
+            refused = span
+    while refused - best > 1:  # best accepted, refused not: bisect between them
+        mid = (best + refused) // 2
+        err = deviation(i + direction * mid)
         if _accepts(err, tol):
-            lo, best = mid, (mid, *err)
+            best, best_err = mid, err
         else:
-            hi = mid
-    return best
+            refused = mid
+    return i + direction * best, best_err
 
 
 def _accepts(err: tuple[float, float, float], tol: PointTolerance) -> bool:

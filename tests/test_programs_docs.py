@@ -70,19 +70,32 @@ def test_the_page_s_commands_and_python_run(tmp_path: Path, monkeypatch: pytest.
     text = PAGE.read_text()
     lines = commands(text)
     assert len(lines) >= 6
+    printed = []
     for argv in lines:
         out, err = io.StringIO(), io.StringIO()
         assert main(argv[1:], out=out, err=err) == 0, (argv, err.getvalue())
+        printed.append(out.getvalue())
+    shown = re.search(r"What `export` prints, for the first one:\n\n```text\n(.*?)```", text, re.S)
+    assert shown is not None and shown.group(1) == printed[1]
     python = [body for lang, body in _BLOCK.findall(text) if lang == "python"]
     assert python
     for body in python:
-        exec(compile(body, str(PAGE), "exec"), {"__name__": "__docs__"})  # noqa: S102 (the page's own code)
+        exec(compile(body, str(PAGE), "exec"), {"__name__": "__docs__"})  # the page's own code
 
 
-def test_the_readme_shows_the_program_export() -> None:
-    lines = [argv for argv in commands(README.read_text()) if "--format" in argv and
-             argv[argv.index("--format") + 1] in ("krl", "rapid", "fanuc-ls")]
-    assert lines, "README's command list names the controller programs"
+def test_the_readme_s_program_export_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """README's command list: the plan into ``out``, then the controller program of it."""
+    (tmp_path / "examples").symlink_to(ROOT / "examples")
+    monkeypatch.chdir(tmp_path)
+    lines = commands(README.read_text())
+    programs = [argv for argv in lines if "--format" in argv and argv[argv.index("--format") + 1] in
+                ("krl", "rapid", "fanuc-ls")]
+    plans = [argv for argv in lines if argv[1] == "plan" and argv[argv.index("-o") + 1] == programs[0][2]]
+    assert programs and plans
+    for argv in (plans[0], *programs):
+        out, err = io.StringIO(), io.StringIO()
+        assert main([*argv[1:], *(["--no-report", "--no-replay"] if argv[1] == "plan" else [])],
+                    out=out, err=err) == 0, (argv, err.getvalue())
 
 
 def write() -> None:

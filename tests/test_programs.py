@@ -190,17 +190,16 @@ ROUND_TRIP_BY_DEFAULT = ("scenarios/kuka_kr6_r900_2__wrist_exact_lin", "scenario
 
 @pytest.mark.parametrize("name", ROUND_TRIP_BY_DEFAULT)
 def test_a_public_scenario_reads_back_as_planned(name: str, tmp_path: Path) -> None:
-    assert_reads_back(name, tmp_path)
+    assert_reads_back(planned(name), tmp_path)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", [n for n in SCENARIO_NAMES if n not in ROUND_TRIP_BY_DEFAULT])
 def test_every_public_scenario_reads_back_as_planned(name: str, tmp_path: Path) -> None:
-    assert_reads_back(name, tmp_path)
+    assert_reads_back(planned(name), tmp_path)
 
 
-def assert_reads_back(name: str, tmp_path: Path) -> None:
-    traj = planned(name)
+def assert_reads_back(traj: Trajectory, tmp_path: Path) -> None:
     fmt = fmt_of(traj)
     result = export(traj, tmp_path, fmt)
     t, q_deg, stop = read_back(traj, result.files[0])
@@ -261,9 +260,13 @@ def checker_task(task: dict, traj: Trajectory, t: np.ndarray, q_deg: np.ndarray,
 
 
 def reconstructed(traj: Trajectory, t: np.ndarray, q_deg: np.ndarray, out: Path) -> Path:
-    """trajectory.json of the program's points interpolated linearly in time at the plan's period."""
+    """trajectory.json of the program's points interpolated linearly in time at the plan's period:
+    each point at the controller cycle its time falls on (the round trip holds every time within
+    half a cycle), the cycles between them on the straight joint segment."""
     doc = traj.to_json()
-    q = np.stack([np.interp(np.asarray(traj.t), t, np.radians(q_deg[:, j])) for j in range(q_deg.shape[1])], axis=1)
+    k = np.rint(t / traj.period)
+    samples = np.arange(len(traj.t))
+    q = np.stack([np.interp(samples, k, np.radians(q_deg[:, j])) for j in range(q_deg.shape[1])], axis=1)
     doc.update(q=q.tolist(), qd=np.zeros_like(q).tolist(), qdd=np.zeros_like(q).tolist())
     out.mkdir()
     (out / "trajectory.json").write_text(json.dumps(doc))
@@ -274,14 +277,16 @@ def reconstructed(traj: Trajectory, t: np.ndarray, q_deg: np.ndarray, out: Path)
 _PRINTED_TARGET = re.compile(r"move \d+ \((lin|circ)\) is (\S+) mm / (\S+) deg from its target")
 
 
-def assert_checker_passes(name: str, tmp_path: Path) -> None:
-    traj = planned(name)
+def scenario_task(name: str) -> dict:
+    folder, stem = name.split("/")
+    return yaml.safe_load((SHARED / folder / f"{stem}.yaml").read_text())
+
+
+def assert_checker_passes(traj: Trajectory, task_doc: dict, tmp_path: Path) -> None:
     fmt = fmt_of(traj)
     result = export(traj, tmp_path, fmt)
     t, q_deg, _ = read_back(traj, result.files[0])
-    folder, stem = name.split("/")
-    task = checker_task(yaml.safe_load((SHARED / folder / f"{stem}.yaml").read_text()), traj, t, q_deg,
-                        TOLERANCE_MM)
+    task = checker_task(task_doc, traj, t, q_deg, TOLERANCE_MM)
     task_file = tmp_path / "task.yaml"
     task_file.write_text(yaml.safe_dump(task))
     proc = run_checker(task_file, reconstructed(traj, t, q_deg, tmp_path / "rec"), "--json")
@@ -298,13 +303,41 @@ CHECKED_BY_DEFAULT = ("scenarios_programs/kuka_kr6_r900_2__nullspace_wrist_exact
 
 @pytest.mark.parametrize("name", CHECKED_BY_DEFAULT)
 def test_the_reconstructed_motion_passes_the_checker(name: str, tmp_path: Path) -> None:
-    assert_checker_passes(name, tmp_path)
+    assert_checker_passes(planned(name), scenario_task(name), tmp_path)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", [n for n in SCENARIO_NAMES if n not in CHECKED_BY_DEFAULT])
 def test_the_reconstructed_motion_passes_the_checker_on_every_scenario(name: str, tmp_path: Path) -> None:
-    assert_checker_passes(name, tmp_path)
+    assert_checker_passes(planned(name), scenario_task(name), tmp_path)
+
+
+# Random valid tasks (tests/task_strategies.py) of the bundled KUKA, ABB and FANUC arms that plan:
+# other arms (M-10iA, R-2000iB, KR 6 R700, KR 120, IRB 6700), random periods (1-20 ms), tolerances,
+# tools, speeds and methods. Seeds found by planning seeds 0-30 and keeping those that plan.
+GENERATED_SEEDS = (4, 11, 13, 14, 15, 16, 17, 18, 21, 22, 29, 30)
+
+
+@cache
+def generated(seed: int) -> tuple[Trajectory, dict]:
+    from singplan.task.load import parse_task
+    from tests.task_strategies import seeded_task
+
+    task = seeded_task(seed)
+    return plan(parse_task(task)), task
+
+
+@pytest.mark.parametrize("seed", GENERATED_SEEDS[:3])
+def test_a_generated_task_reads_back_as_planned(seed: int, tmp_path: Path) -> None:
+    assert_reads_back(generated(seed)[0], tmp_path)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", GENERATED_SEEDS)
+def test_a_generated_task_reads_back_and_passes_the_checker(seed: int, tmp_path: Path) -> None:
+    traj, task = generated(seed)
+    assert_reads_back(traj, tmp_path / "read")
+    assert_checker_passes(traj, task, tmp_path / "checked")
 
 
 # --- robots without a convention, names, options ---------------------------------------------------

@@ -12,9 +12,9 @@ KRL accepts wherever a point is expected, so there is nothing to declare)::
         SPTP {..}                          ; where the robot stands (a segment of length 0)
         TIME_BLOCK START
         SPTP {..}
-        TIME_BLOCK PART = 0.0480           ; the planned time of the segment before it [s]
+        TIME_BLOCK PART = 0.048            ; the planned time of the segment before it [s]
         ...
-        TIME_BLOCK END = 1.2340            ; the block's planned time [s]
+        TIME_BLOCK END = 1.234             ; the block's planned time [s]
       ENDSPLINE                            ; the block ends in an exact stop
     END
 
@@ -42,7 +42,17 @@ from dataclasses import dataclass
 from typing import TextIO
 
 from singplan.kinematics.vendor_config import Vendor
-from singplan.outputs.programs.model import APPROACH_PERCENT, Dialect, Motion, Note, Part, ProgramModel, number, wrap
+from singplan.outputs.programs.model import (
+    APPROACH_PERCENT,
+    Dialect,
+    Motion,
+    Note,
+    Part,
+    ProgramModel,
+    number,
+    seconds,
+    wrap,
+)
 
 _AXES = 6
 
@@ -56,7 +66,7 @@ class Krl(Dialect):
     name_pattern = re.compile(r"[A-Za-z_$][A-Za-z0-9_$]*")
     name_rule = "letters, digits, _ and $, not starting with a digit"
     axis_decimals = 4
-    time_step_s = 1e-4
+    time_step_s = 1e-6  # printed to the microsecond: a period that is not whole milliseconds keeps its times
     max_part_lines = 4800  # below 5000 lines per .src with the block lines the count leaves out
     comment_width = 76
     block_segments = 500
@@ -114,18 +124,18 @@ class Krl(Dialect):
                     first = event.first
                     percent = speed_percent(event.before, first, model.axis_speed_deg_s)
                     with_ = ", ".join(f"$VEL_AXIS[{i}] = {percent}" for i in range(1, _AXES + 1))
-                    w(f"    ; continued in flight: this segment is timed by axis speed ({first.duration_s:.4f} s)\n"
+                    w(f"    ; continued in flight: timed by axis speed (planned {seconds(first.duration_s)} s)\n"
                       f"    SPTP {_axes(first)} WITH {with_}\n")
             elif isinstance(event, _End):
                 if timing:
-                    w(f"    TIME_BLOCK END = {number(total_s, 4)}\n")
+                    w(f"    TIME_BLOCK END = {seconds(total_s)}\n")
                 w("  ENDSPLINE\n" if event.stop else "  ENDSPLINE C_SPL\n")
                 timing = False
             else:
                 if not timing:
                     w("    TIME_BLOCK START\n")
                     timing = True
-                w(f"    SPTP {_axes(event)}\n    TIME_BLOCK PART = {number(event.duration_s, 4)}\n")
+                w(f"    SPTP {_axes(event)}\n    TIME_BLOCK PART = {seconds(event.duration_s)}\n")
                 total_s += event.duration_s
 
 

@@ -202,6 +202,11 @@ def number(value: float, decimals: int) -> str:
     return text[1:] if text.startswith("-") and float(text) == 0.0 else text
 
 
+def seconds(value: float) -> str:
+    """A time [s] to the microsecond, without trailing zeros (``0.048``, ``1.124``, ``0.000037``)."""
+    return number(value, 6).rstrip("0").rstrip(".") if value else "0"
+
+
 def printed_times(t_s: np.ndarray, step_s: float) -> np.ndarray:
     """Times [s] rounded to ``step_s`` from the start, each later than the one before by a step at least."""
     steps = np.round((t_s - t_s[0]) / step_s).astype(np.int64)

@@ -6,8 +6,8 @@ The module::
       LOCAL CONST zonedata zSingplan := [FALSE, 0.1, 0.1, 0.1, 0.005, 0.1, 0.005];
       PROC name()
         MoveAbsJ [[a1, .., a6], [9E+09, ..]], v100, fine, tool0;             ! to the start point
-        MoveAbsJ [[..], [9E+09, ..]], v1000\\T:=0.0480, zSingplan, tool0;   ! fly by
-        MoveAbsJ [[..], [9E+09, ..]], v1000\\T:=0.0520, fine, tool0;        ! exact stop
+        MoveAbsJ [[..], [9E+09, ..]], v1000\\T:=0.048, zSingplan, tool0;   ! fly by
+        MoveAbsJ [[..], [9E+09, ..]], v1000\\T:=0.052, fine, tool0;        ! exact stop
       ENDPROC
     ENDMODULE
 
@@ -26,7 +26,7 @@ import re
 from typing import TextIO
 
 from singplan.kinematics.vendor_config import Vendor
-from singplan.outputs.programs.model import Dialect, Motion, Note, Part, ProgramModel, number, wrap
+from singplan.outputs.programs.model import Dialect, Motion, Note, Part, ProgramModel, number, seconds, wrap
 
 ZONE = "zSingplan"
 _NO_AXIS = "9E+09"
@@ -41,7 +41,7 @@ class Rapid(Dialect):
     name_pattern = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
     name_rule = "letters, digits and _, starting with a letter"
     axis_decimals = 4
-    time_step_s = 1e-4
+    time_step_s = 1e-6  # printed to the microsecond: a period that is not whole milliseconds keeps its times
     max_part_lines = 5000
     comment_width = 76
     manual = "ABB RAPID reference: MoveAbsJ (argument \\T), jointtarget, zonedata, speeddata"
@@ -79,7 +79,7 @@ class Rapid(Dialect):
                 stream.write("".join(f"    ! {text}\n" for text in wrap(item.text, self.comment_width)))
             else:
                 zone = "fine" if item.stop else ZONE
-                stream.write(f"    MoveAbsJ {_joints(item)}, v1000\\T:={number(item.duration_s, 4)}, {zone}, tool0;\n")
+                stream.write(f"    MoveAbsJ {_joints(item)}, v1000\\T:={seconds(item.duration_s)}, {zone}, tool0;\n")
 
 
 def _joints(motion: Motion) -> str:

@@ -98,6 +98,19 @@ def test_the_readme_s_program_export_runs(tmp_path: Path, monkeypatch: pytest.Mo
                     out=out, err=err) == 0, (argv, err.getvalue())
 
 
+def test_the_example_script_writes_its_robot_s_program(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    import runpy
+
+    task = ROOT / "examples" / "abb_near_miss_auto.yaml"
+    monkeypatch.setattr(sys, "argv", ["controller_program.py", str(task), str(tmp_path / "out"), "0.2"])
+    with pytest.raises(SystemExit) as done:
+        runpy.run_path(str(ROOT / "examples" / "controller_program.py"), run_name="__main__")
+    assert done.value.code == 0
+    assert (tmp_path / "out" / "singplan.mod").read_text().startswith("MODULE MOD_singplan")
+    assert "ABB RAPID program singplan" in capsys.readouterr().out
+
+
 def write() -> None:
     """Rewrite the example blocks of the page from what singplan writes now."""
     text = PAGE.read_text()

@@ -176,14 +176,17 @@ def _stretch(plan: _Plan, a: int, b: int, tol: PointTolerance) -> tuple[list[int
     Greedy reach forward gives the fewest points, each as late as it can be (f_k); greedy reach
     backward from b gives, for the same count, each as early as it can be (g_k). Forward alone leaves
     whatever remains before b to the last segment, often a sample or two, which no controller can
-    time; each point is therefore placed half-way between g_k and f_k, and that set is kept when the
-    criterion accepts all its segments (it does where acceptance is monotone), else the forward one.
+    time; when that segment is shorter than half the stretch's mean, each point is placed half-way
+    between g_k and f_k, and that set is kept when the criterion accepts all its segments (it does
+    where acceptance is monotone), else the forward one.
     """
     forward, errors = [a], []
     while forward[-1] < b:
         j, err = _reach(plan, forward[-1], b, tol, +1)
         forward.append(j)
         errors.append(err)
+    if (b - forward[-2]) * (len(forward) - 1) >= (b - a) / 2:  # the last segment is not short: keep them
+        return forward, errors
     backward = [b]
     while backward[-1] > a and len(backward) <= len(forward):
         backward.append(_reach(plan, backward[-1], a, tol, -1)[0])

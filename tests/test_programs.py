@@ -419,7 +419,7 @@ def test_a_sidecar_convention_is_undone_by_the_reader(kuka_folder: Path, tmp_pat
 @pytest.mark.parametrize(("args", "message"), [
     (("--name", "9lives"), "--name: '9lives' is not a valid KUKA KRL program name"),
     (("--name", "a" * 25), "at most 24 characters"),
-    (("--name", "weld", "-o", "{out}/seam.src"), "a KRL program is named after its file"),
+    (("--name", "weld", "-o", "{out}/seam.src"), "a KUKA KRL program is named after its file"),
     (("-o", "{out}/my-prog.src"), "is not a valid KUKA KRL program name"),
     (("--tolerance-mm", "0"), "--tolerance-mm: expected a positive number"),
     (("--tolerance-deg", "nan"), "--tolerance-deg: expected a positive number"),

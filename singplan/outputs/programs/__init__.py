@@ -226,9 +226,9 @@ def _program_name(dialect: Dialect, name: str | None, main: Path | None) -> str:
     stem = main.stem if main is not None else None
     if name is not None:
         checked = dialect.check_name(name, "--name")
-        if dialect.fmt == "krl" and stem is not None and stem.lower() != name.lower():
-            raise InputError(f"--name: a KRL program is named after its file; -o {main} makes it {stem!r}, "
-                             f"not {name!r} (give one of them, or the same name)")
+        if dialect.named_after_file and stem is not None and stem.lower() != name.lower():
+            raise InputError(f"--name: a {dialect.title} program is named after its file; -o {main} makes it "
+                             f"{stem!r}, not {name!r} (give one of them, or the same name)")
         return checked
     if stem is not None:
         return dialect.check_name(stem, f"-o {main} (the program is named after its file; give --name)")

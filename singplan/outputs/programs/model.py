@@ -130,6 +130,7 @@ class Dialect:
     name_max: int  # the longest program name the controller takes
     name_pattern: re.Pattern[str]
     name_rule: str  # the pattern in words, for the error message
+    named_after_file = True  # the controller takes the program's name from its file's (KRL DEF, FANUC /PROG)
     axis_decimals: int
     time_step_s: float  # the printed time's resolution
     max_segment_s: float = math.inf  # the longest time between two points the format can express

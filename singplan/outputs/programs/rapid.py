@@ -40,6 +40,7 @@ class Rapid(Dialect):
     name_max = 28  # RAPID identifiers hold 32 characters; the module is named MOD_<name>
     name_pattern = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
     name_rule = "letters, digits and _, starting with a letter"
+    named_after_file = False  # a module file may hold any module
     axis_decimals = 4
     time_step_s = 1e-6  # printed to the microsecond: a period that is not whole milliseconds keeps its times
     max_part_lines = 5000

@@ -35,7 +35,7 @@ from singplan.kinematics.vendor_config import (
     vendor_configs,
 )
 from singplan.outputs.programs.points import ProgramPoints
-from singplan.outputs.timeline import pause_window, sample_range
+from singplan.outputs.timeline import sample_range
 from singplan.results.trajectory import Trajectory
 
 _SAFE = re.compile(r"[^A-Za-z0-9 _.,:;=+\-/()\[\]%<>#@$*\\]")  # what any of the three comment forms carries
@@ -225,7 +225,7 @@ def build_model(traj: Trajectory, robot: Robot, conv: ControllerConvention, poin
     durations = np.diff(times, prepend=times[0])
     motions = [Motion(p, int(k), tuple(a.tolist()), float(t), float(d), bool(s))
                for p, (k, a, t, d, s) in enumerate(zip(points.index, axes, times, durations, points.stop, strict=True))]
-    items = _with_notes(traj, robot, motions)
+    items = _with_notes(traj, robot, points, motions)
     header = tuple(_header(traj, conv, points, dialect, motions, tolerance_mm, tolerance_deg, source))
     parts = _split(items, motions[0], dialect, name, header)
     speed = np.degrees(np.abs(np.diag(np.asarray(conv.matrix))) * robot.velocity_rad_s)
@@ -275,7 +275,7 @@ def _convention_text(conv: ControllerConvention) -> str:
     return "controller axes a1..a6 = URDF joints q1..q6" + (", except " + "; ".join(terms) if terms else "")
 
 
-def _with_notes(traj: Trajectory, robot: Robot, motions: list[Motion]) -> list[Item]:
+def _with_notes(traj: Trajectory, robot: Robot, points: ProgramPoints, motions: list[Motion]) -> list[Item]:
     """The motions after the start, each move's first one preceded by a note of the move (its time and
     the configuration it ends in, in the vendor's form) and each null-space pause's by a note of it."""
     sample_point = {m.sample: m.point for m in motions}
@@ -283,7 +283,6 @@ def _with_notes(traj: Trajectory, robot: Robot, motions: list[Motion]) -> list[I
     by_move = traj.segments_by_move()
     ends = [sample_range(traj, segs[-1])[1] for segs in by_move.values()]
     configs = vendor_configs(robot, traj.q[ends]) if ends else []
-    tcp_step = np.linalg.norm(np.diff(robot.tcp_positions(traj.q), axis=0), axis=1) if _has_pause(traj) else None
     kinds = [next(iter(m)) if isinstance(m, dict) and m else "move" for m in traj.task.get("moves", [])]
     for (move, segs), config in zip(by_move.items(), configs, strict=True):
         first = sample_range(traj, segs[0])[0]
@@ -291,22 +290,15 @@ def _with_notes(traj: Trajectory, robot: Robot, motions: list[Motion]) -> list[I
         ending = format_vendor_config(config)
         notes.setdefault(sample_point[first], []).append(
             f"move {move} ({kind}) {segs[0].t0:.3f} .. {segs[-1].t1:.3f} s" + (f", ends in {ending}" if ending else ""))
-        for seg in segs:
-            if tcp_step is not None and "pause_s" in seg.details:
-                window = pause_window(tcp_step, *sample_range(traj, seg))
-                if window is not None and window[0] in sample_point:
-                    notes.setdefault(sample_point[window[0]], []).append(
-                        f"null-space pause {traj.t[window[0]]:.3f} .. {traj.t[window[1]]:.3f} s: "
-                        "the TCP stands still while the aligned joints turn")
+    for k0, k1 in points.pauses:  # both ends are points (exact stops)
+        notes.setdefault(sample_point[k0], []).append(
+            f"null-space pause {traj.t[k0]:.3f} .. {traj.t[k1]:.3f} s: "
+            "the TCP stands still while the aligned joints turn")
     items: list[Item] = []
     for m in motions[1:]:
         items += [Note(text) for text in notes.get(m.point - 1, [])]
         items.append(m)
     return items
-
-
-def _has_pause(traj: Trajectory) -> bool:
-    return any("pause_s" in seg.details for seg in traj.segments)
 
 
 def _split(items: list[Item], start: Motion, dialect: Dialect, name: str, header: tuple[str, ...]) -> list[Part]:

@@ -104,12 +104,14 @@ class ProgramPoints:
         max_position_error_m: the largest TCP position deviation [m] of the straight joint segments
             from the plan's samples (the criterion's left side, over every segment).
         max_orientation_error_rad: the same for orientation [rad].
+        pauses: the null-space pauses, each (first, last) sample at which the TCP stands still.
     """
 
     index: np.ndarray
     stop: np.ndarray
     max_position_error_m: float
     max_orientation_error_rad: float
+    pauses: tuple[tuple[int, int], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -125,23 +127,22 @@ class _Plan:
     arc: np.ndarray  # (K,) joint-space arc length from the first sample [rad]
 
 
-def stop_samples(traj: Trajectory, tcp_step_m: np.ndarray) -> np.ndarray:
+def null_space_pauses(traj: Trajectory, tcp_step_m: np.ndarray) -> tuple[tuple[int, int], ...]:
+    """The (first, last) sample of each null-space pause: in a crossing that paused (``pause_s``), the
+    longest run of samples at which the TCP stands still (:func:`~singplan.outputs.timeline.pause_window`)."""
+    windows = (pause_window(tcp_step_m, *sample_range(traj, seg)) for seg in traj.segments if "pause_s" in seg.details)
+    return tuple(w for w in windows if w is not None)
+
+
+def stop_samples(traj: Trajectory, pauses: tuple[tuple[int, int], ...]) -> np.ndarray:
     """Samples where the plan is at rest: the first and the last, the end of every move that is not
     blended into the next (DESIGN: such a move ends at rest on a sample), and both ends of every
     null-space pause (the TCP stands still while the aligned joints turn; the joint path turns a
     corner there and the timing comes to rest at it). Sorted, unique."""
-    last = len(traj.t) - 1
-    stops = {0, last}
-    by_move = traj.segments_by_move()
-    for segments in by_move.values():
+    stops = {0, len(traj.t) - 1, *(k for window in pauses for k in window)}
+    for segments in traj.segments_by_move().values():
         if segments[-1].kind != "blend":
             stops.add(sample_range(traj, segments[-1])[1])
-        for seg in segments:
-            if "pause_s" in seg.details:
-                k0, k1 = sample_range(traj, seg)
-                window = pause_window(tcp_step_m, k0, k1)
-                if window is not None:
-                    stops.update(window)
     return np.array(sorted(stops), dtype=int)
 
 
@@ -156,8 +157,8 @@ def choose_points(traj: Trajectory, robot: Robot, tolerance: PointTolerance) -> 
     step = np.linalg.norm(np.diff(traj.q, axis=0), axis=1)
     plan = _Plan(robot, tolerance.position_m * weave_scale(traj, robot), np.asarray(traj.q), np.asarray(traj.t),
                  p, R, np.concatenate([[0.0], np.cumsum(step)]))
-    tcp_step = np.linalg.norm(np.diff(p, axis=0), axis=1)
-    stops = stop_samples(traj, tcp_step)
+    pauses = null_space_pauses(traj, np.linalg.norm(np.diff(p, axis=0), axis=1))
+    stops = stop_samples(traj, pauses)
     forced = np.union1d(boundary_samples(traj), stops)
     chosen = [0]
     errors: list[tuple[float, float, float]] = []
@@ -167,7 +168,7 @@ def choose_points(traj: Trajectory, robot: Robot, tolerance: PointTolerance) -> 
         errors += stretch_errors
     index = np.array(chosen, dtype=int)
     worst = np.max(np.array(errors), axis=0) if errors else np.zeros(3)
-    return ProgramPoints(index, np.isin(index, stops), float(worst[0]), float(worst[1]))
+    return ProgramPoints(index, np.isin(index, stops), float(worst[0]), float(worst[1]), pauses)
 
 
 def _stretch(plan: _Plan, a: int, b: int, tol: PointTolerance) -> tuple[list[int], list[tuple[float, float, float]]]:

@@ -24,10 +24,12 @@ refused length). The criterion is not strictly monotone in the length (a longer 
 a shorter one does not), so bisection may stop short of the farthest acceptable sample, never
 beyond an accepted one: every segment returned is one the criterion accepted. Greedy farthest
 reach gives the fewest points when acceptance is monotone (any shorter segment inside an accepted
-one is accepted), which holds to within the round-off of this test.
+one is accepted), the usual case, as a chord's sag grows with its length, but not a guarantee.
+A second, backward pass evens out a stretch whose last segment came out short (:func:`_stretch`).
 
 Points are forced at every segment boundary of the trajectory and wherever the plan stops (see
 :func:`stop_samples`); no segment is longer than a format's longest segment (e.g. FANUC's 32 s).
+On woven moves the position tolerance shrinks by the weave's slope (:func:`weave_scale`).
 """
 
 from __future__ import annotations
@@ -45,8 +47,6 @@ from singplan.planning.pieces import move_piece
 from singplan.planning.weave import whole_periods
 from singplan.results.trajectory import Trajectory
 from singplan.task.schema import Move
-
-_STILL_M = 1e-7  # a TCP step below this counts as standing still (as the report's pause window)
 
 
 @dataclass(frozen=True)

@@ -603,3 +603,10 @@ def test_errors_are_input_errors(kuka_folder: Path) -> None:
         program_texts(load(kuka_folder), "urscript")
     with pytest.raises(OutputPathError):
         write_program(load(kuka_folder), "krl", kuka_folder / "trajectory.json" / "prog.src")
+
+
+def test_an_arm_without_six_axes_is_refused() -> None:
+    from singplan.kinematics.vendor_config import require_convention
+
+    with pytest.raises(InputError, match="robot 'panda' has 7 joints; controller programs are written for 6-axis arms"):
+        require_convention(load_robot("panda"), "kuka", "--format krl (KUKA KRL)")

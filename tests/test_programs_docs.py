@@ -75,7 +75,7 @@ def test_the_page_s_commands_and_python_run(tmp_path: Path, monkeypatch: pytest.
         out, err = io.StringIO(), io.StringIO()
         assert main(argv[1:], out=out, err=err) == 0, (argv, err.getvalue())
         printed.append(out.getvalue())
-    shown = re.search(r"What `export` prints, for the first one:\n\n```text\n(.*?)```", text, re.S)
+    shown = re.search(r"prints, for the first one:\n\n```text\n(.*?)```", text, re.S)
     assert shown is not None and shown.group(1) == printed[1]
     python = [body for lang, body in _BLOCK.findall(text) if lang == "python"]
     assert python

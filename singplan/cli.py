@@ -29,7 +29,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TextIO, TypedDict
 
 from singplan.errors import InputError, SingplanError
-from singplan.outputs.choices import DEFAULT_FILE_NAMES, DEFAULT_HOST, FORMATS, UR_STEP_S
+from singplan.outputs.choices import (
+    DEFAULT_FILE_NAMES,
+    DEFAULT_HOST,
+    DEFAULT_TOLERANCE_DEG,
+    DEFAULT_TOLERANCE_MM,
+    FORMATS,
+    PROGRAM_FORMATS,
+    UR_STEP_S,
+)
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -420,8 +428,27 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if fmt not in FORMATS:
         raise InputError(f"--format: unknown format {fmt!r}; valid formats: {', '.join(FORMATS)}")
     folder = Path(args.out).parent if Path(args.out).is_file() else Path(args.out)  # a trajectory.json: its folder
-    target = args.file if args.file is not None else exports.default_path(folder, fmt)
+    program = fmt in PROGRAM_FORMATS
+    given = [flag for flag, value in (("--name", args.name), ("--tolerance-mm", args.tolerance_mm),
+                                      ("--tolerance-deg", args.tolerance_deg)) if value is not None]
+    if given and not program:
+        raise InputError(f"{', '.join(given)}: only for the controller programs ({', '.join(PROGRAM_FORMATS)}), "
+                         f"not --format {fmt}")
     traj = load(args.out)
+    if program:
+        from singplan.outputs import programs
+
+        program_options = programs.ProgramOptions(
+            args.name, DEFAULT_TOLERANCE_MM if args.tolerance_mm is None else args.tolerance_mm,
+            DEFAULT_TOLERANCE_DEG if args.tolerance_deg is None else args.tolerance_deg,
+            source=str(folder / "trajectory.json" if Path(args.out).is_dir() else args.out))
+        if args.vendor_config:
+            raise InputError("--vendor-config: only the csv-deg format carries a vendor configuration per sample; "
+                             "a controller program notes each move's configuration in a comment")
+        target = args.file if args.file is not None else programs.program_path(folder, fmt, args.name)
+        out.write(programs.write_program(traj, fmt, target, program_options).message() + "\n")
+        return 0
+    target = args.file if args.file is not None else exports.default_path(folder, fmt)
     options = exports.UrScriptOptions(controller=args.ur_controller, lookahead_time_s=args.lookahead_time,
                                       gain=args.gain)
     if fmt == "urscript" and not exports.is_ur_robot(traj):
@@ -481,7 +508,8 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="plan the bundled demo task into ./singplan-demo")
     demo.add_argument("-o", "--output", default="singplan-demo", help="output folder (default: singplan-demo)")
     demo.set_defaults(func=cmd_demo)
-    exp = sub.add_parser("export", help="write a planned trajectory as ROS 2, URScript or degree CSV")
+    exp = sub.add_parser("export", help="write a planned trajectory as ROS 2, URScript, degree CSV or a KUKA, ABB "
+                                        "or FANUC controller program")
     exp.add_argument("out", help="output folder of `singplan plan` (or its trajectory.json)")
     exp.add_argument("--format", required=True, help=f"one of {', '.join(FORMATS)}")
     exp.add_argument("-o", "--output", dest="file", default=None,
@@ -493,6 +521,14 @@ def build_parser() -> argparse.ArgumentParser:
                      help="urscript: controller generation, its servo step (e-series 0.002 s, cb3 0.008 s)")
     exp.add_argument("--lookahead-time", type=float, default=0.1, help="urscript: servoj lookahead_time, 0.03-0.2 s")
     exp.add_argument("--gain", type=float, default=300.0, help="urscript: servoj gain, 100-2000")
+    exp.add_argument("--name", default=None,
+                     help="krl, rapid, fanuc-ls: the program name (default: the -o file's name, else singplan)")
+    exp.add_argument("--tolerance-mm", type=float, default=None,
+                     help=f"krl, rapid, fanuc-ls: the most the TCP may leave the plan between program points "
+                          f"(default {DEFAULT_TOLERANCE_MM:g} mm)")
+    exp.add_argument("--tolerance-deg", type=float, default=None,
+                     help=f"krl, rapid, fanuc-ls: the same for the TCP orientation "
+                          f"(default {DEFAULT_TOLERANCE_DEG:g} deg)")
     exp.set_defaults(func=cmd_export)
     bat = sub.add_parser("batch", help="plan many tasks, one output folder each, plus summary.csv / summary.json")
     bat.add_argument("tasks", nargs="+", help="task files (YAML v1); each one's folder is named after its file")

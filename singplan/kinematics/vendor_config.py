@@ -41,7 +41,7 @@ from typing import Any, Literal, NamedTuple, cast
 import numpy as np
 import yaml
 
-from singplan.errors import RobotModelError
+from singplan.errors import InputError, RobotModelError
 from singplan.kinematics.angles import wrap_deg
 from singplan.kinematics.configuration import distances_batch
 from singplan.kinematics.robot import Robot, registry_specs, robots_dir
@@ -207,6 +207,62 @@ def convention_for(robot: Robot) -> ControllerConvention | None:
     if robot.n_joints != _N_AXES:
         return None
     return _convention_of_file(str(Path(robot.urdf_path).resolve()))
+
+
+def require_convention(robot: Robot, vendor: Vendor, what: str,
+                       hint: Mapping[str, str] | None = None) -> ControllerConvention:
+    """The robot's convention, which must be ``vendor``'s; else InputError naming what is missing.
+
+    ``what`` names the output that needs it (e.g. ``"--format krl (KUKA KRL)"``); ``hint`` adds to the
+    message of a robot of another vendor (vendor -> text, e.g. ``" (use --format rapid)"``).
+    """
+    hint = hint or {}
+    if robot.n_joints != _N_AXES:
+        raise InputError(f"{what}: robot {robot.name!r} has {robot.n_joints} joints; controller programs are "
+                         f"written for {_N_AXES}-axis arms")
+    conv = convention_for(robot)
+    if conv is None:
+        bundled = robot.entry is not None or str(Path(robot.urdf_path).resolve()) in _registry_conventions()
+        where = ("robots.yaml records none for this bundled arm" if bundled else
+                 f"add {sidecar_path(robot.urdf_path)} with a 'controller:' mapping "
+                 "(vendor, axis_signs, axis_offsets_deg, couplings; docs/controller-programs.md)")
+        raise InputError(f"{what}: robot {robot.name!r} has no controller convention (the {vendor.upper()} "
+                         f"controller's axis offsets, signs and couplings); {where}")
+    if conv.vendor != vendor:
+        raise InputError(f"{what}: robot {robot.name!r} has the controller convention of {conv.vendor.upper()}, "
+                         f"not {vendor.upper()}{hint.get(conv.vendor, '')}")
+    return conv
+
+
+def printed_axes_deg(conv: ControllerConvention, q: np.ndarray, decimals: int) -> np.ndarray:
+    """Controller axis values [deg] (N, 6) of URDF joint values q (N, 6) [rad], rounded to ``decimals``
+    so that the joint values they stand for are as near q as that many decimals allow.
+
+    Rounding each axis on its own is not enough where axes are coupled: a FANUC J3 printed with
+    3 decimals stands for ``joint_3 = J3 + J2``, whose error is the sum of both roundings (up to a
+    whole unit, 0.001 deg). Each axis is rounded down or up, and of the 2^6 choices the one whose
+    decoded joints (:meth:`ControllerConvention.joints_rad`) are nearest q (largest error over the
+    joints) is kept: with one coupling that is within half a unit per joint, as uncoupled axes are.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    scale = 10.0**decimals
+    exact = np.degrees(conv.axes_rad(q)) * scale  # in units of the last printed digit
+    matrix = np.asarray(conv.matrix)
+    if np.count_nonzero(matrix - np.diag(np.diag(matrix))) == 0:
+        return np.round(exact) / scale
+    low = np.floor(exact)
+    choices = (np.arange(2**_N_AXES)[:, None] >> np.arange(_N_AXES)) & 1  # (64, 6) of 0 / 1
+    out = np.empty_like(exact)
+    for c in range(0, len(q), _ROUNDING_CHUNK):
+        candidates = low[None, c:c + _ROUNDING_CHUNK] + choices[:, None, :]  # (64, m, 6)
+        decoded = conv.joints_rad(np.radians(candidates / scale).reshape(-1, _N_AXES)).reshape(candidates.shape)
+        error = np.max(np.abs(decoded - q[None, c:c + _ROUNDING_CHUNK]), axis=2)  # (64, m)
+        best = np.argmin(error, axis=0)
+        out[c:c + _ROUNDING_CHUNK] = candidates[best, np.arange(len(best))]
+    return out / scale
+
+
+_ROUNDING_CHUNK = 4096  # samples rounded at once (64 candidates each: a few MB)
 
 
 # --- per robot and joint values ------------------------------------------------------------------

@@ -7,9 +7,15 @@ from __future__ import annotations
 
 from typing import Literal
 
-ExportFormat = Literal["ros2", "ros2-json", "urscript", "csv-deg"]
-FORMATS: tuple[ExportFormat, ...] = ("ros2", "ros2-json", "urscript", "csv-deg")
+ExportFormat = Literal["ros2", "ros2-json", "urscript", "csv-deg", "krl", "rapid", "fanuc-ls"]
+FORMATS: tuple[ExportFormat, ...] = ("ros2", "ros2-json", "urscript", "csv-deg", "krl", "rapid", "fanuc-ls")
+PROGRAM_FORMATS: tuple[ExportFormat, ...] = ("krl", "rapid", "fanuc-ls")  # controller programs (outputs.programs)
+PROGRAM_EXTENSIONS = {"krl": ".src", "rapid": ".mod", "fanuc-ls": ".ls"}
+DEFAULT_PROGRAM_NAME = "singplan"
 DEFAULT_FILE_NAMES: dict[str, str] = {"ros2": "trajectory.ros2.yaml", "ros2-json": "trajectory.ros2.json",
-                                      "urscript": "trajectory.script", "csv-deg": "trajectory_deg.csv"}
+                                      "urscript": "trajectory.script", "csv-deg": "trajectory_deg.csv",
+                                      **{f: DEFAULT_PROGRAM_NAME + ext for f, ext in PROGRAM_EXTENSIONS.items()}}
+DEFAULT_TOLERANCE_MM = 0.1  # controller programs: TCP position between program points and the plan
+DEFAULT_TOLERANCE_DEG = 0.005  # ... and TCP orientation (the checker holds 0.01 deg outside crossings)
 UR_STEP_S = {"e-series": 0.002, "cb3": 0.008}  # servo loop of the controller generations
 DEFAULT_HOST = "127.0.0.1"  # the live server is for this machine unless asked otherwise

@@ -10,6 +10,7 @@
   whole number of steps, at least one.
 * ``csv-deg``: header ``t [s],<joint> [deg]...,<joint> [deg/s]...``, one row per sample;
   optionally a ``vendor_config`` column (:mod:`singplan.kinematics.vendor_config`) per sample.
+* ``krl``, ``rapid``, ``fanuc-ls``: controller programs, written by :mod:`singplan.outputs.programs`.
 
 Every writer streams a chunk of samples at a time. Files are written by the rules of
 :mod:`singplan.results.files` (temporary name, renamed when complete, nothing else touched).
@@ -33,7 +34,9 @@ import numpy as np
 from singplan.errors import InputError
 from singplan.kinematics.robot import load_robot
 from singplan.kinematics.vendor_config import format_vendor_config, vendor_configs
-from singplan.outputs.choices import DEFAULT_FILE_NAMES, FORMATS, UR_STEP_S
+from singplan.outputs.checks import check_trajectory
+from singplan.outputs.choices import DEFAULT_FILE_NAMES, FORMATS, PROGRAM_FORMATS, UR_STEP_S
+from singplan.outputs.programs import ProgramOptions, write_program
 from singplan.results.files import Writer, check_output_file, write_file
 from singplan.results.trajectory import Trajectory
 
@@ -56,31 +59,6 @@ class UrScriptOptions:
     gain: float = 300.0
     movej_speed_rad_s: float = 0.5  # to the first sample, before streaming
     movej_accel_rad_s2: float = 1.0
-
-
-# --- input checks -------------------------------------------------------------------------------
-
-def check_trajectory(traj: Trajectory) -> None:
-    """Refuse (InputError naming the field) a trajectory no controller format can carry."""
-    names = traj.joint_names
-    if not names or len(set(names)) != len(names) or not all(isinstance(n, str) and n for n in names):
-        raise InputError(f"joint_names: expected distinct non-empty names, got {list(names)!r}")
-    if not (math.isfinite(traj.period) and traj.period > 0):
-        raise InputError(f"period: expected a positive number of seconds, got {traj.period!r}")
-    k, n = len(traj.t), len(names)
-    if traj.t.ndim != 1 or k == 0:
-        raise InputError(f"t: expected a non-empty list of times, got shape {traj.t.shape}")
-    for field in ("q", "qd", "qdd"):
-        a = getattr(traj, field)
-        if a.shape != (k, n):
-            raise InputError(f"{field}: expected {k} rows of {n} values (one per joint name), got shape {a.shape}")
-    for field in ("t", "q", "qd", "qdd"):
-        bad = np.argwhere(~np.isfinite(getattr(traj, field)))
-        if len(bad):
-            raise InputError(f"{field}{''.join(f'[{i}]' for i in bad[0])}: not a finite number")
-    if np.any(np.diff(traj.t) <= 0):
-        i = int(np.argmax(np.diff(traj.t) <= 0)) + 1
-        raise InputError(f"t[{i}]: times must increase, got {traj.t[i - 1]!r} then {traj.t[i]!r}")
 
 
 # --- ROS 2 --------------------------------------------------------------------------------------
@@ -299,8 +277,21 @@ def to_csv_deg(traj: Trajectory, vendor_config: bool = False) -> str:
 
 
 def export(traj: Trajectory, fmt: str, path: str | os.PathLike[str], urscript: UrScriptOptions | None = None,
-           vendor_config: bool = False) -> Path:
-    """Write ``traj`` in format ``fmt`` to the file ``path`` (temporary name, renamed when complete)."""
+           vendor_config: bool = False, program: ProgramOptions | None = None) -> Path:
+    """Write ``traj`` in format ``fmt`` to the file ``path`` (temporary name, renamed when complete).
+
+    The controller programs (``krl``, ``rapid``, ``fanuc-ls``; ``program`` their options) go through
+    :func:`singplan.outputs.programs.write_program`, which may add numbered part files beside ``path``
+    and returns what it wrote; this returns the main program's file.
+    """
+    if fmt in PROGRAM_FORMATS:
+        if vendor_config:
+            raise InputError("--vendor-config: only the csv-deg format carries a vendor configuration per sample; "
+                             "a controller program notes each move's configuration in a comment")
+        return write_program(traj, fmt, path, program).files[0]
+    if program is not None:
+        raise InputError(f"--name, --tolerance-mm, --tolerance-deg: only for the controller programs "
+                         f"({', '.join(PROGRAM_FORMATS)}), not --format {fmt}")
     write = _writer(fmt, traj, urscript, vendor_config)
     check_trajectory(traj)  # before the file is touched: bad input never leaves a file behind
     check_output_file(path)

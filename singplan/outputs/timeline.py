@@ -13,10 +13,13 @@ which the TCP stands still as "pause". No plotting or viewer module is imported 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 
-from singplan.kinematics.robot import Robot
+from singplan.kinematics.geometry import rpy_deg_to_rotation
+from singplan.kinematics.robot import Robot, bundled_robots, load_robot
 from singplan.planning.weave import woven_moves
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.schema import DEFAULT_VELOCITY_SCALE
@@ -159,3 +162,17 @@ def pause_window(step_m: np.ndarray, k0: int, k1: int) -> tuple[int, int] | None
     starts, ends = edges[0::2], edges[1::2]
     i = int(np.argmax(ends - starts))
     return k0 + int(starts[i]), k0 + int(ends[i])
+
+
+def robot_of(traj: Trajectory) -> Robot:
+    """The robot a trajectory was planned for, with its tool: its URDF, or the bundled arm of that
+    name when it was planned from the bundled URDF (or that file is gone, e.g. another install).
+
+    A user's URDF whose file name matches a bundled arm is drawn as itself, not as the bundled arm.
+    """
+    rpy = np.asarray(traj.tool.get("rpy_deg", [0, 0, 0]), dtype=float)
+    tool = pin.SE3(rpy_deg_to_rotation(rpy), np.asarray(traj.tool.get("xyz", [0, 0, 0]), dtype=float))
+    entry = bundled_robots().get(traj.robot)
+    bundled = entry is not None and (str(entry.urdf_path()) == traj.urdf or not Path(traj.urdf).is_file())
+    source = traj.robot if bundled else traj.urdf
+    return load_robot(source, tip=traj.tip, tool=tool)

@@ -34,12 +34,10 @@ import meshcat
 import meshcat.geometry as mg
 import meshcat.transformations as mtf
 import numpy as np
-import pinocchio as pin
 import umsgpack
 
 from singplan.errors import InputError
-from singplan.kinematics.geometry import rpy_deg_to_rotation
-from singplan.kinematics.robot import Robot, bundled_robots, load_robot
+from singplan.kinematics.robot import Robot
 from singplan.outputs.choices import DEFAULT_HOST
 from singplan.outputs.scene import ROOT, AnimationCommand, RobotScene
 from singplan.outputs.svgplot import LIMIT_COLOUR, PALETTE
@@ -52,6 +50,7 @@ from singplan.outputs.timeline import (
     display_kind,
     kind_colour,
     page_basis,
+    robot_of,
     sample_range,
     tcp_track,
     timeline,
@@ -328,20 +327,6 @@ def _describe(seg: Segment, pause: Stretch | None = None) -> tuple[str, str]:
         at = f" at t {pause.t0:.3f}-{pause.t1:.3f} s" if pause is not None else ""
         detail += f"; TCP paused {float(d['pause_s']):.3f} s{at} while the aligned joints turn"
     return title, detail
-
-
-def robot_of(traj: Trajectory) -> Robot:
-    """The robot a trajectory was planned for, with its tool: its URDF, or the bundled arm of that
-    name when it was planned from the bundled URDF (or that file is gone, e.g. another install).
-
-    A user's URDF whose file name matches a bundled arm is drawn as itself, not as the bundled arm.
-    """
-    rpy = np.asarray(traj.tool.get("rpy_deg", [0, 0, 0]), dtype=float)
-    tool = pin.SE3(rpy_deg_to_rotation(rpy), np.asarray(traj.tool.get("xyz", [0, 0, 0]), dtype=float))
-    entry = bundled_robots().get(traj.robot)
-    bundled = entry is not None and (str(entry.urdf_path()) == traj.urdf or not Path(traj.urdf).is_file())
-    source = traj.robot if bundled else traj.urdf
-    return load_robot(source, tip=traj.tip, tool=tool)
 
 
 @dataclass

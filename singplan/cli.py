@@ -486,7 +486,7 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
-COMPILE_NOTE = "about 10 s on two cores"  # measured: docs/kinematics.md, "Speed: compiled kernels"
+COMPILE_NOTE = "about 6 s of CPU: 10 s on two cores, 25 s when they are busy"  # docs/kinematics.md, measured
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -4,13 +4,15 @@ pytest collects the Markdown files through sybil (the root conftest.py, ``testpa
 pyproject.toml); each fenced block is one test item. What a block is, by its language:
 
 - ``bash``: each command is run (``\\`` continues a line, ``&&`` chains, ``#`` starts a comment,
-  ``*`` globs expand, a final ``> FILE`` takes stdout): ``singplan ...`` through :func:`singplan.cli.main` in this process,
-  ``python ...`` as a subprocess; each must exit 0. Anything else must be marked not-run.
+  ``*`` globs expand, a final ``> FILE`` takes stdout): ``singplan ...`` through
+  :func:`singplan.cli.main` in this process, ``python ...`` as a subprocess; each must exit 0.
+  Anything else must be marked not-run.
 - ``python``: executed in the document's namespace (blocks of one page share it, in order);
   a block with an ``if __name__ == "__main__":`` guard is a script, run as a file in a subprocess.
 - ``yaml``: a task (``robot``, ``start``, ``moves``) is planned and must exit 0 (its summary is
   what it prints); a controller
   sidecar (``controller:``) is read as singplan reads one; anything else must be an excerpt.
+- ``json``: a document of singplan's ``--json`` output, valid against the schema of its format.
 - ``output``: what the block right before it prints (stdout and stderr together, as a terminal
   shows them), compared after normalisation: trailing spaces dropped, the one-time note of the
   kernels' compilation left out, ``...`` inside a line matches any text on that line (paths,
@@ -35,6 +37,7 @@ from __future__ import annotations
 import contextlib
 import glob
 import io
+import json
 import os
 import re
 import shlex
@@ -51,7 +54,7 @@ from sybil import Document, Example, Region, Sybil
 from sybil.parsers.markdown.lexers import DirectiveInHTMLCommentLexer, FencedCodeBlockLexer
 
 ROOT = Path(__file__).resolve().parent.parent
-RUN = ("bash", "python", "yaml")
+RUN = ("bash", "python", "yaml", "json")
 NOT_RUN: dict[str, tuple[str, str]] = {  # kind -> (a pattern every line of the block holds, why)
     "install": (r"\bpip install\b", "installs packages; the test suite runs inside an installation"),
     "test-suite": (r"\bpython -m pytest\b", "runs the test suite, which runs this block"),
@@ -105,8 +108,8 @@ def parse_blocks(document: Document) -> list[Region]:
             previous = None
             continue
         if language not in (*RUN, "text"):
-            raise ValueError(f"{document.path}:{line}: a block needs a language ({', '.join((*RUN, 'text', 'output'))}),"
-                             f" got {language!r}")
+            kinds = ", ".join((*RUN, "text", "output"))
+            raise ValueError(f"{document.path}:{line}: a block needs a language ({kinds}), got {language!r}")
         if language == "text":
             if pending is not None:
                 raise ValueError(f"{document.path}:{line}: a directive before a text block")
@@ -144,10 +147,11 @@ def evaluate(example: Example) -> str | None:
         check_not_run(block, where)
         return None
     _plan_placeholders(block.source)
-    run = {"bash": run_bash, "python": run_python, "yaml": run_yaml}[block.language]
+    run = {"bash": run_bash, "python": run_python, "yaml": run_yaml, "json": run_json}[block.language]
     printed = run(block, example.namespace, example.path)
     if block.expected is not None and not output_matches(block.expected, printed):
-        return f"{where}: the block printed\n{printed}\nwhich does not match the output the page shows:\n{block.expected}"
+        return (f"{where}: the block printed\n{printed}\nwhich does not match the output the page shows:\n"
+                f"{block.expected}")
     return None
 
 
@@ -157,11 +161,12 @@ def commands(source: str) -> list[list[str]]:
     out: list[list[str]] = []
     for line in text.splitlines():
         words = shlex.split(line, comments=True)
-        while words:
-            head, sep, words = (words[: words.index("&&")], "&&", words[words.index("&&") + 1:]) if "&&" in words \
-                else (words, "", [])
-            if head:
-                out.append(head)
+        while "&&" in words:
+            cut = words.index("&&")
+            out.append(words[:cut])
+            words = words[cut + 1:]
+        if words:
+            out.append(words)
     return out
 
 
@@ -232,8 +237,22 @@ def run_yaml(block: Block, namespace: dict[str, Any], page: str) -> str:
                          "or marked <!-- excerpt-of: examples/FILE.yaml -->")
 
 
+def run_json(block: Block, namespace: dict[str, Any], page: str) -> str:
+    """A JSON document of singplan's (``format`` ``singplan.<command>/<n>``): valid against its schema."""
+    import jsonschema
+
+    from singplan.outputs import documents
+
+    value = json.loads(block.source)
+    command = re.fullmatch(r"singplan\.(\w+)/\d+", str(value.get("format", "")) if isinstance(value, dict) else "")
+    assert command is not None and command.group(1) in documents.COMMANDS, "a JSON block is a document of singplan's"
+    jsonschema.validate(value, documents.schema(command.group(1)))
+    return ""
+
+
 def contains(whole: Any, part: Any) -> bool:
-    """``part`` is found in ``whole``: a sub-mapping, a run of list items, or a value, at any depth."""
+    """``part`` is found in ``whole``: a sub-mapping, a run of a list's mappings (moves), or a value, at
+    any depth."""
     if _within(whole, part):
         return True
     children = whole.values() if isinstance(whole, dict) else whole if isinstance(whole, list) else ()
@@ -244,7 +263,9 @@ def _within(whole: Any, part: Any) -> bool:
     if isinstance(part, dict) and isinstance(whole, dict):
         return all(k in whole and _within(whole[k], v) for k, v in part.items())
     if isinstance(part, list) and isinstance(whole, list):
-        return any(all(_within(w, p) for w, p in zip(whole[i:i + len(part)], part, strict=True))
+        if not all(isinstance(p, dict) for p in part):  # numbers (xyz, joints): the whole list
+            return len(part) == len(whole) and all(_within(w, p) for w, p in zip(whole, part, strict=True))
+        return any(all(_within(w, p) for w, p in zip(whole[i:i + len(part)], part, strict=True))  # moves: a run
                    for i in range(len(whole) - len(part) + 1))
     return bool(whole == part)
 

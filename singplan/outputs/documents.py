@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Sequence
 from importlib import resources
 from typing import TYPE_CHECKING, Any
@@ -37,9 +38,15 @@ def schema(command: str) -> dict[str, Any]:
     return dict(json.loads(text))
 
 
+_NUMBER = r"(?:-?\d[\d.eE+-]*|null)"
+_NUMBER_LIST = re.compile(rf"\[\s*({_NUMBER}(?:,\s*{_NUMBER})*)\s*\]")
+
+
 def dumps(document: dict[str, Any]) -> str:
-    """The document as indented JSON text with a final newline (NaN and infinities as null)."""
-    return json.dumps(_finite(document), indent=2, allow_nan=False) + "\n"
+    """The document as indented JSON text with a final newline (NaN and infinities as null); a
+    list of numbers stays on one line (``"xyz": [0.0, 0.0, 0.12]``)."""
+    text = json.dumps(_finite(document), indent=2, allow_nan=False)
+    return _NUMBER_LIST.sub(lambda m: "[" + re.sub(r",\s+", ", ", m.group(1)) + "]", text) + "\n"
 
 
 def failure(command: str, exit_code: int, message: str) -> dict[str, Any]:

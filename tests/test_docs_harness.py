@@ -3,11 +3,13 @@ what it cannot check, compares output as documented, and a not-run marking must 
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
 
 import pytest
 from sybil import Document
 
+from singplan.results.trajectory import load
 from tests.docs_harness import (
     DOCS,
     NOT_RUN,
@@ -123,3 +125,14 @@ def test_the_docs_folder_holds_no_stray_code(tmp_path: Path) -> None:
             previous = lines[n - 1] if n else ""
             if not fenced and line.startswith("    ") and not previous.strip() and line.strip():
                 raise AssertionError(f"{page.name}:{n + 1}: an indented code block; fence it with a language")
+
+
+def test_the_readme_picture_is_of_the_demo_as_it_plans_now(planned_kuka: Path) -> None:
+    """docs/screenshot.py stamps the demo's duration into the PNG; a plan that changes needs a new picture."""
+    spec = importlib.util.spec_from_file_location("screenshot", ROOT / "docs" / "screenshot.py")
+    assert spec is not None and spec.loader is not None
+    screenshot = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(screenshot)
+    stamped = screenshot.png_text((ROOT / "docs" / "img" / "replay.png").read_bytes())
+    assert stamped[screenshot.DURATION_KEY] == f"{load(planned_kuka).duration_s:.3f}", (
+        "docs/img/replay.png shows another plan than the demo's: run python docs/screenshot.py")

@@ -19,7 +19,7 @@ from singplan.outputs.progress import FINISHING
 from singplan.outputs.summary import LISTED_MOVES, NOTABLE_SHOWN, summary
 from singplan.results.plan import plan
 from singplan.results.trajectory import load
-from singplan.task.load import load_task, parse_task
+from singplan.task.load import load_task
 
 DEMO = Path(__file__).resolve().parent.parent / "singplan" / "demo_task.yaml"
 
@@ -138,12 +138,7 @@ def test_progress_is_drawn_on_a_terminal_only_and_not_when_quiet(tmp_path: Path)
 @pytest.fixture(scope="module")
 def long_program() -> tuple[singplan.Trajectory, singplan.Task]:
     """22 moves: 11 times a LIN exactly through a wrist singularity (the demo's) and a PTP back."""
-    start = [34.466047735, -69.193961827, 100.109975431, 68.691762951, -14.064499937, -11.872434380]
-    lin = {"lin": {"to": {"xyz": [0.703837, -0.107362, 0.658022], "rpy_deg": [-121.32977, 35.631042, -129.525465]},
-                   "speed": 0.25}}
-    task = parse_task({"robot": "kuka_kr6_r900_2", "tool": {"xyz": [0, 0, 0.1]}, "start": {"joints_deg": start},
-                       "moves": [lin, {"ptp": {"to": {"joints_deg": start}}}] * 11,
-                       "singularity": {"method": "exact", "orientation_tolerance_deg": 1.0}})
+    task = load_task(Path(__file__).resolve().parent.parent / "examples" / "kuka_long_program.yaml")
     return plan(task), task
 
 

@@ -32,7 +32,7 @@ from singplan import __version__
 from singplan.errors import InputError, SingplanError, UnreachableError
 from singplan.outputs.choices import DEFAULT_FILE_NAMES, DEFAULT_HOST, FORMATS, UR_STEP_S
 from singplan.outputs.completion import SHELLS
-from singplan.outputs.suggest import SuggestingParser
+from singplan.outputs.suggest import SuggestingParser, closest
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -437,7 +437,9 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     fmt = args.format
     if fmt not in FORMATS:
-        raise InputError(f"--format: unknown format {fmt!r}; valid formats: {', '.join(FORMATS)}")
+        near = closest(fmt, FORMATS)
+        raise InputError(f"--format: unknown format {fmt!r}{f' (did you mean {near}?)' if near else ''}; "
+                         f"valid formats: {', '.join(FORMATS)}")
     folder = Path(args.out).parent if Path(args.out).is_file() else Path(args.out)  # a trajectory.json: its folder
     target = args.file if args.file is not None else exports.default_path(folder, fmt)
     traj = load(args.out)

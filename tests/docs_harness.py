@@ -27,8 +27,8 @@ Directives, an HTML comment right before a block:
 - ``<!-- excerpt-of: examples/FILE.yaml -->``: a YAML fragment cut from that example, which
   must contain it (the fragment cannot drift from a file that is planned elsewhere).
 
-Each page runs in a fresh temporary folder holding links to the project's top-level entries
-(``examples/``, ``bench/``, ...) and the placeholder files the docs name (:data:`PLACEHOLDERS`),
+Each page runs in a fresh temporary folder holding links to the project's folders the pages name
+(:data:`LINKED`: ``examples/``, ``bench/``, ...) and the placeholder files (:data:`PLACEHOLDERS`),
 so commands write their outputs there and nothing in the project changes.
 """
 
@@ -62,6 +62,9 @@ NOT_RUN: dict[str, tuple[str, str]] = {  # kind -> (a pattern every line of the 
     "server": (r"(--serve\b|serve=True)", "starts a server that runs until it is stopped"),
     "benchmark": (r"^python bench/\S+\.py\b", "a benchmark of minutes on 2 cores; bench/ is run by hand"),
 }
+# the project's folders the pages' commands name; not the package (a process started here would import
+# singplan from the link, and a batch's long-lived worker server would lose it with the folder)
+LINKED = ("examples", "bench", "docs", "robots")
 PLACEHOLDERS = {  # names the docs use for the reader's own files -> the example that stands in for them
     "task.yaml": "examples/kuka_program.yaml",
     "cell/weld_a.yaml": "examples/abb_near_miss_auto.yaml",
@@ -321,9 +324,8 @@ def setup(namespace: dict[str, Any]) -> None:
     from singplan.task import schema
 
     folder = Path(tempfile.mkdtemp(prefix="singplan-docs-"))
-    for entry in ROOT.iterdir():
-        if not entry.name.startswith("."):
-            (folder / entry.name).symlink_to(entry)
+    for name in LINKED:
+        (folder / name).symlink_to(ROOT / name)
     for name, source in PLACEHOLDERS.items():
         (folder / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(ROOT / source, folder / name)

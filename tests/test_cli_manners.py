@@ -70,6 +70,11 @@ def test_a_mistyped_option_is_named_before_a_missing_one() -> None:
     assert code == 2 and "unrecognized option '--banana'" in err and "did you mean" not in err
 
 
+def test_a_mistyped_export_format_gets_the_nearest_one(planned_kuka: Path) -> None:
+    code, _, err = run("export", str(planned_kuka), "--format", "ros3")
+    assert code == 2 and "--format: unknown format 'ros3' (did you mean ros2?); valid formats: ros2" in err
+
+
 def test_valid_spellings_still_parse(planned_kuka: Path, tmp_path: Path) -> None:
     parser = build_parser()
     assert parser.parse_args(["plan", "t.yaml", "-oDIR"]).output == "DIR"  # a short option's value attached

@@ -38,6 +38,8 @@ def completion_script(parser: argparse.ArgumentParser, shell: str, robot_names: 
 
 
 def _all_actions(parser: argparse.ArgumentParser) -> list[argparse.Action]:
+    """Every argument of the parser and its commands' parsers (argparse has no public walk of them;
+    shtab reads the same attributes)."""
     actions = list(parser._actions)
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):

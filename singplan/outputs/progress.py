@@ -31,7 +31,7 @@ class PlanBar:
         self._bar: tqdm | None = None
 
     def start(self) -> None:
-        from tqdm import tqdm
+        from tqdm import tqdm  # here, not at the top: only a plan watched on a terminal pays its import
 
         if self._bar is None:
             self._bar = tqdm(total=None, desc="planning", unit="move", file=self._stream, leave=False,

@@ -60,6 +60,7 @@ class SuggestingParser(argparse.ArgumentParser):
                 return
 
     def _commands(self) -> dict[str, Any] | None:
+        """The command names of a parser with commands (argparse keeps them on a private action class)."""
         for action in self._actions:
             if isinstance(action, argparse._SubParsersAction):
                 return dict(action.choices)

@@ -9,11 +9,11 @@ browser is downloaded.
 from __future__ import annotations
 
 import argparse
+import struct
 import sys
 import tempfile
+import zlib
 from pathlib import Path
-
-from playwright.sync_api import sync_playwright
 
 from singplan.cli import main as singplan_main
 from singplan.results.trajectory import load
@@ -33,6 +33,8 @@ def main(argv: list[str] | None = None) -> int:
         if singplan_main(["demo", "-o", str(out)]) != 0:
             return 1
         crossing = next(s for s in load(out).segments if s.kind == "crossing")
+        from playwright.sync_api import sync_playwright  # the test extra's; png_text needs none of it
+
         with sync_playwright() as p:
             browser = p.chromium.launch(executable_path=args.chromium, headless=True, args=FLAGS)
             page = browser.new_page(viewport={"width": 1200, "height": 760})
@@ -41,10 +43,35 @@ def main(argv: list[str] | None = None) -> int:
             page.evaluate("(t) => window.singplan.seek(t)", 0.5 * (crossing.t0 + crossing.t1))
             page.wait_for_timeout(500)
             args.out.parent.mkdir(parents=True, exist_ok=True)
-            page.screenshot(path=str(args.out))
+            png = page.screenshot()
             browser.close()
+        duration_s = load(out).duration_s
+    args.out.write_bytes(with_text(png, DURATION_KEY, f"{duration_s:.3f}"))
     print(f"wrote {args.out}")
     return 0
+
+
+DURATION_KEY = "singplan demo duration_s"  # tests/test_docs_harness.py compares it with the demo planned now
+
+
+def with_text(png: bytes, key: str, value: str) -> bytes:
+    """The PNG with a tEXt chunk ``key``: ``value`` after its header chunk (PNG 1.2, section 11.3.4.3)."""
+    data = key.encode("latin-1") + b"\0" + value.encode("latin-1")
+    chunk = struct.pack(">I", len(data)) + b"tEXt" + data + struct.pack(">I", zlib.crc32(b"tEXt" + data))
+    end_of_header = 8 + 4 + 4 + 13 + 4  # signature, IHDR length, type, data, CRC
+    return png[:end_of_header] + chunk + png[end_of_header:]
+
+
+def png_text(png: bytes) -> dict[str, str]:
+    """The tEXt chunks of a PNG."""
+    out, at = {}, 8
+    while at < len(png):
+        length, kind = struct.unpack(">I4s", png[at:at + 8])
+        if kind == b"tEXt":
+            key, _, value = png[at + 8:at + 8 + length].partition(b"\0")
+            out[key.decode("latin-1")] = value.decode("latin-1")
+        at += 12 + length
+    return out
 
 
 if __name__ == "__main__":

@@ -24,11 +24,12 @@ import signal
 import sys
 import time
 import traceback
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO, TypedDict
 
-from singplan.errors import InputError, SingplanError
+from singplan import __version__
+from singplan.errors import InputError, SingplanError, UnreachableError
 from singplan.outputs.choices import (
     DEFAULT_FILE_NAMES,
     DEFAULT_HOST,
@@ -38,6 +39,8 @@ from singplan.outputs.choices import (
     PROGRAM_FORMATS,
     UR_STEP_S,
 )
+from singplan.outputs.completion import SHELLS
+from singplan.outputs.suggest import SuggestingParser, closest
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -224,35 +227,33 @@ def cmd_ik(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     target = _pose(args.xyz, args.rpy_deg)
     sols = solve_all(robot, target, seed=seed)
     if len(sols) == 0:
-        out.write(f"no solution inside the joint limits for xyz={list(args.xyz)} rpy_deg={list(args.rpy_deg)}\n")
-        return 3
+        raise UnreachableError(f"no solution inside the joint limits for xyz={list(args.xyz)} "
+                               f"rpy_deg={list(args.rpy_deg)}")
+    rows = []
+    for q, label in zip(sols.q, sols.labels, strict=True):
+        d = singularity_distances(robot, q)
+        rows.append({"config": label, "joints_deg": np.degrees(held.expand(q) if held is not None else q).tolist(),
+                     "wrist_deg": math.degrees(d.wrist_rad), "shoulder_mm": d.shoulder_m * 1e3,
+                     "elbow_deg": math.degrees(d.elbow_rad), "sigma_min": float(d.sigma_min)})
+    if args.json:
+        from singplan.outputs import documents
+
+        pose = {"xyz": list(args.xyz), "rpy_deg": list(args.rpy_deg)}
+        tool = {"xyz": list(args.tool_xyz), "rpy_deg": list(args.tool_rpy_deg)}
+        hold = {"joint": held.joint, "value_deg": math.degrees(held.value_rad)} if held is not None else None
+        out.write(documents.dumps(documents.ik_document(full.name, str(full.urdf_path), full.tip, full.joint_names,
+                                                        pose, tool, hold, rows)))
+        return 0
     names = " ".join(f"{n[:9]:>9s}" for n in full.joint_names)
     held_note = f", {held.joint} held at {math.degrees(held.value_rad):g} deg" if held is not None else ""
     out.write(f"{len(sols)} solution(s) of {robot.name} (joint values in deg{held_note})\n")
     out.write(f"{'config':7s} {names}  wrist[deg] shoulder[mm] elbow[deg] sigma_min\n")
-    for q, label in zip(sols.q, sols.labels, strict=True):
-        d = singularity_distances(robot, q)
-        joints = " ".join(f"{v:9.3f}" for v in np.degrees(held.expand(q) if held is not None else q))
-        out.write(f"{label:7s} {joints}  {_column(math.degrees(d.wrist_rad), 10, 3)} "
-                  f"{_column(d.shoulder_m * 1e3, 12, 2)} {_column(math.degrees(d.elbow_rad), 10, 3)} "
-                  f"{d.sigma_min:9.4f}\n")
+    for row in rows:
+        joints = " ".join(f"{v:9.3f}" for v in row["joints_deg"])
+        out.write(f"{row['config']:7s} {joints}  {_column(row['wrist_deg'], 10, 3)} "
+                  f"{_column(row['shoulder_mm'], 12, 2)} {_column(row['elbow_deg'], 10, 3)} "
+                  f"{row['sigma_min']:9.4f}\n")
     return 0
-
-
-def _progress_printer(err: TextIO, quiet: bool) -> Callable[[int, int], None] | None:
-    """A one-line progress bar on a terminal (none when quiet or not a terminal)."""
-    if quiet or not err.isatty():
-        return None
-
-    def show(done: int, total: int) -> None:
-        width = 30
-        filled = width * done // total
-        err.write(f"\rplanning [{'#' * filled}{'.' * (width - filled)}] move {done}/{total}")
-        if done == total:
-            err.write("\n")
-        err.flush()
-
-    return show
 
 
 @contextlib.contextmanager
@@ -291,29 +292,42 @@ def _imports_frozen() -> Iterator[None]:
 def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from singplan.kinematics.ik.opw import kernels_cached
     from singplan.outputs.plan_folder import plan_into
+    from singplan.outputs.progress import plan_bar
     from singplan.outputs.summary import summary
     from singplan.task.load import load_task
     from singplan.task.schema import check_method_name
 
     def note_compiling() -> None:
         if not args.quiet and not kernels_cached():
-            err.write("singplan: first run after an install: compiling the planner's kernels "
-                      "(about 10 s on two cores; cached on disk afterwards)\n")
+            err.write(f"singplan: first run after an install: compiling the planner's kernels ({COMPILE_NOTE}; "
+                      "cached on disk afterwards)\n")
 
     if args.method is not None:  # named as the user gave it: the option, not the task's field it overrides
         check_method_name("--method", args.method)
-    with _imports_frozen():  # the modules above stay alive until exit: no collection needs to look at them
+    with _imports_frozen(), plan_bar(err, args.quiet) as bar:  # imports stay alive until exit: no collection
         task = load_task(args.task)
+
+        def start() -> None:
+            note_compiling()
+            if bar is not None:
+                bar.start()
+
         done = plan_into(task, args.output, method=args.method, report=not args.no_report,
-                         replay=not args.no_replay, progress=_progress_printer(err, args.quiet),
-                         before_planning=note_compiling)
+                         replay=not args.no_replay, progress=bar.progress if bar is not None else None,
+                         before_planning=start)
+        if bar is not None:
+            bar.close()
         for name, reason in done.skipped.items():
             err.write(f"singplan: warning: {name} not written (the plan succeeded): {reason}\n")
-        if args.quiet:
+        if args.json:
+            from singplan.outputs import documents
+
+            out.write(documents.dumps(documents.plan_document(str(args.task), done)))
+        elif args.quiet:
             out.write(f"planned {args.task}: {done.traj.duration_s:.3f} s, {len(done.traj.t)} samples -> "
                       f"{done.folder}\n")
         else:
-            out.write(summary(done.traj, task))
+            out.write(summary(done.traj, task, full=args.full))
             out.write(f"wrote {', '.join(str(done.folder / name) for name in done.files)}\n")
             for name, reason in done.skipped.items():
                 out.write(f"not written: {name} ({reason})\n")
@@ -326,6 +340,11 @@ def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     task = load_task(args.task)
     found = detect(task)
+    if args.json:
+        from singplan.outputs import documents
+
+        out.write(documents.dumps(documents.check_document(str(args.task), found)))
+        return 0
     out.write(f"{args.task}: {sum(len(m.zones) for m in found)} singular zone(s) along the programmed path\n")
     for m in found:
         for z in m.zones:
@@ -344,7 +363,7 @@ def cmd_demo(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     task_path = Path(__file__).with_name("demo_task.yaml")
     out.write(f"singplan demo: planning {task_path.name} (a LIN through a wrist singularity, KUKA KR 6 R900-2)\n")
     code = cmd_plan(argparse.Namespace(task=task_path, output=args.output, method=None, quiet=False,
-                                       no_report=False, no_replay=False), out, err)
+                                       no_report=False, no_replay=False, json=False, full=False), out, err)
     out.write(f"task: {task_path}\n")
     return code
 
@@ -426,7 +445,9 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     fmt = args.format
     if fmt not in FORMATS:
-        raise InputError(f"--format: unknown format {fmt!r}; valid formats: {', '.join(FORMATS)}")
+        near = closest(fmt, FORMATS)
+        raise InputError(f"--format: unknown format {fmt!r}{f' (did you mean {near}?)' if near else ''}; "
+                         f"valid formats: {', '.join(FORMATS)}")
     folder = Path(args.out).parent if Path(args.out).is_file() else Path(args.out)  # a trajectory.json: its folder
     program = fmt in PROGRAM_FORMATS
     given = [flag for flag, value in (("--name", args.name), ("--tolerance-mm", args.tolerance_mm),
@@ -459,9 +480,49 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     return 0
 
 
+def cmd_completion(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    """Print the shell completion script (singplan.outputs.completion)."""
+    from singplan.kinematics.robot import bundled_robots
+    from singplan.outputs.completion import completion_script
+
+    out.write(completion_script(build_parser(), args.shell, list(bundled_robots())))
+    return 0
+
+
+def _version() -> str:
+    """``singplan --version``: singplan's version, then Python's and the planning libraries' (for bug reports)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    found = []
+    for name in ("pin", "toppra", "numba", "numpy", "meshcat"):
+        try:
+            found.append(f"{name} {version(name)}")
+        except PackageNotFoundError:
+            found.append(f"{name} missing")
+    return f"singplan {__version__}\nPython {sys.version.split()[0]}; {', '.join(found)}"
+
+
+class _VersionAction(argparse.Action):
+    """``--version``: the versions are looked up only when asked for (a few ms of metadata reads)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: object) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS,
+                         help="print the versions of singplan, Python and the planning libraries, and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
+                 option_string: str | None = None) -> None:
+        sys.stdout.write(_version() + "\n")
+        parser.exit()
+
+
+COMPILE_NOTE = "about 6 s of CPU: 10 s on two cores, 25 s when they are busy"  # docs/kinematics.md, measured
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="singplan", description="Plan robot motions through singularities.")
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser = SuggestingParser(prog="singplan", description="Plan robot motions through singularities.")
+    parser.add_argument("--version", action=_VersionAction)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                                help="`singplan COMMAND --help` tells more")
     robots = sub.add_parser("robots", help="list the bundled robots")
     robots.add_argument("--json", action="store_true", help="machine-readable output")
     robots.set_defaults(func=cmd_robots)
@@ -484,6 +545,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="7-joint arms: hold this joint at DEG and list the 6R chain's branches")
     ik.add_argument("--all-variants", action="store_true",
                     help="list every 2*pi variant inside the limits, not one solution per branch")
+    ik.add_argument("--json", action="store_true", help=_JSON_HELP.format("ik"))
     ik.set_defaults(func=cmd_ik)
     plan_p = sub.add_parser("plan", help="plan a task YAML into a timed trajectory")
     plan_p.add_argument("task", help="task file (YAML v1)")
@@ -492,9 +554,13 @@ def build_parser() -> argparse.ArgumentParser:
     plan_p.add_argument("--quiet", action="store_true", help="one line instead of the summary")
     plan_p.add_argument("--no-report", action="store_true", help="do not write report.html")
     plan_p.add_argument("--no-replay", action="store_true", help="do not write replay.html")
+    plan_p.add_argument("--full", action="store_true",
+                        help="list every move in the summary (programs of more than 20 moves get an overview)")
+    plan_p.add_argument("--json", action="store_true", help=_JSON_HELP.format("plan"))
     plan_p.set_defaults(func=cmd_plan)
     check = sub.add_parser("check", help="print the singular zones along a task's path, without planning")
     check.add_argument("task", help="task file (YAML v1)")
+    check.add_argument("--json", action="store_true", help=_JSON_HELP.format("check"))
     check.set_defaults(func=cmd_check)
     rep = sub.add_parser("replay", help="replay a planned trajectory in the browser (HTML file or live server)")
     rep.add_argument("trajectory", help="trajectory.json or the output folder holding it")
@@ -543,7 +609,16 @@ def build_parser() -> argparse.ArgumentParser:
     bat.add_argument("--no-report", action="store_true", help="do not write report.html")
     bat.add_argument("--no-replay", action="store_true", help="do not write replay.html")
     bat.set_defaults(func=cmd_batch)
+    comp = sub.add_parser("completion", help="print a shell completion script (bash, zsh or tcsh)",
+                          description="Print the completion script of the singplan command for SHELL. "
+                                      'bash: eval "$(singplan completion bash)" in ~/.bashrc; '
+                                      "zsh: singplan completion zsh > a folder of $fpath, named _singplan.")
+    comp.add_argument("shell", choices=SHELLS, help="the shell the script is for")
+    comp.set_defaults(func=cmd_completion)
     return parser
+
+
+_JSON_HELP = "print one JSON document (format singplan.{0}/1; see docs/json-output.md) instead of the text"
 
 
 def main(argv: Sequence[str] | None = None, out: TextIO | None = None, err: TextIO | None = None) -> int:
@@ -552,26 +627,34 @@ def main(argv: Sequence[str] | None = None, out: TextIO | None = None, err: Text
     err = err or sys.stderr
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):  # usage, --help, --version
+            args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse already printed the usage error
         return int(exc.code or 0) if exc.code in (0, None) else 2
     try:
         with _replay_warnings(err):
             return int(args.func(args, out, err))
     except SingplanError as exc:
-        err.write(f"singplan: error: {exc}\n")
-        return exc.exit_code
+        return _failed(args, out, err, exc.exit_code, f"error: {exc}")
     except KeyboardInterrupt:
-        err.write("singplan: interrupted\n")
-        return 130
+        return _failed(args, out, err, 130, "interrupted")
     except BrokenPipeError:  # the reader went away (`singplan robots | head`): nothing left to say
         return _SIGPIPE_EXIT
     except Exception as exc:  # a bug (or an input no check caught): one line, not a traceback
         if os.environ.get("SINGPLAN_DEBUG", "") not in ("", "0"):
             traceback.print_exc(file=err)
-        err.write(f"singplan: internal error: {type(exc).__name__}: {_one_line(exc)} "
-                  "(please report this; run with SINGPLAN_DEBUG=1 for the traceback)\n")
-        return 1
+        return _failed(args, out, err, 1, f"internal error: {type(exc).__name__}: {_one_line(exc)} "
+                                          "(please report this; run with SINGPLAN_DEBUG=1 for the traceback)")
+
+
+def _failed(args: argparse.Namespace, out: TextIO, err: TextIO, code: int, message: str) -> int:
+    """Report a failed command: one line on stderr, and with --json the failure document on stdout."""
+    err.write(f"singplan: {message}\n")
+    if getattr(args, "json", False) and args.command in ("plan", "check", "ik"):
+        from singplan.outputs import documents
+
+        out.write(documents.dumps(documents.failure(args.command, code, message.removeprefix("error: "))))
+    return code
 
 
 _SIGPIPE_EXIT = 141  # 128 + SIGPIPE, what a shell reports for a writer whose pipe closed

@@ -7,7 +7,7 @@ scalar loop costs about what its arithmetic costs.
 
 Kernels are cached on disk (``cache=True``: next to the modules, or in numba's user cache
 when that folder is read-only; ``NUMBA_CACHE_DIR`` moves it), so only the first run after
-an install pays the compilation, about 10 s on two cores.
+an install pays the compilation, about 6 s of CPU time (docs/kinematics.md has the measurements).
 
 A kernel calls kernels of its own module and those of :mod:`singplan.kinematics.angles` (the
 one home of angle wraps and whole-turn shifts). numba checks a cached kernel against its own

@@ -124,11 +124,12 @@ def _braking_lengths(robot: Robot, q: np.ndarray, qd: np.ndarray, acc: np.ndarra
     return np.sum((t1 - t0) * mean_norm(v0, v1), axis=1)
 
 
-def worst_stopping(distances_m: np.ndarray, period_s: float) -> tuple[float, float]:
-    """The worst stopping distance [mm] and when [s] (trajectory.json's metrics)."""
+def worst_stopping(distances_m: np.ndarray, t: np.ndarray) -> tuple[float, float]:
+    """The worst stopping distance [mm] and when [s] (trajectory.json's metrics); ``t``: the
+    sample times (K,)."""
     k = int(np.argmax(distances_m)) if len(distances_m) else 0
     worst = float(distances_m[k]) if len(distances_m) else 0.0
-    return worst * 1e3, k * period_s
+    return worst * 1e3, float(t[k]) if len(t) else 0.0
 
 
 def path_velocities(u: np.ndarray, q: np.ndarray, length_m: float, speed_m_s: float,

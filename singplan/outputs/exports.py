@@ -38,7 +38,7 @@ from singplan.outputs.checks import check_trajectory
 from singplan.outputs.choices import DEFAULT_FILE_NAMES, FORMATS, PROGRAM_FORMATS, UR_STEP_S
 from singplan.outputs.programs import ProgramOptions, write_program
 from singplan.results.files import Writer, check_output_file, write_file
-from singplan.results.trajectory import Trajectory
+from singplan.results.trajectory import Trajectory, csv_rows
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -220,12 +220,11 @@ def write_csv_deg(stream: TextIO, traj: Trajectory, vendor_config: bool = False)
               + (["vendor_config"] if vendor_config else []))
     stream.write(",".join(_csv_field(h) for h in header) + "\n")
     robot = load_robot(traj.urdf, tip=traj.tip) if vendor_config else None
-    row = ",".join(["%.17g"] * (1 + 2 * len(traj.joint_names)))
     for start in range(0, len(traj.t), _CHUNK):
         stop = start + _CHUNK
         block = np.hstack([traj.t[start:stop, None], np.degrees(traj.q[start:stop]),
                            np.degrees(traj.qd[start:stop])])
-        lines = [row % tuple(v) for v in block.tolist()]
+        lines = csv_rows(block.tolist()).splitlines()
         if robot is not None:
             texts = [format_vendor_config(c) for c in vendor_configs(robot, traj.q[start:stop])]
             lines = [f"{line},{_csv_field(text)}" for line, text in zip(lines, texts, strict=True)]

@@ -3,27 +3,32 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections import Counter
+from collections.abc import Iterable, Sequence
 
 from singplan.planning.alternatives import Alternative
 from singplan.results.metrics import BlendFigures, CrossingFigures
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.schema import Task
 
+LISTED_MOVES = 20  # a program with more moves gets the overview (``full`` lists every move)
+NOTABLE_SHOWN = 5  # moves listed in the overview, and stopped corners listed without ``full``
 
-def summary(traj: Trajectory, task: Task) -> str:
-    """Multi-line text: one line per move, one per crossing, then the metrics."""
+
+def summary(traj: Trajectory, task: Task, full: bool = False) -> str:
+    """Multi-line text: one line per move, one per crossing, then the metrics.
+
+    A program of more than :data:`LISTED_MOVES` moves gets an overview instead of the listing
+    (counts, crossings by kind and method, the moves that lost the most time), unless ``full``.
+    """
     lines = [f"{traj.robot} (tip {traj.tip}): {len(task.moves)} move(s), {traj.duration_s:.3f} s, "
              f"{len(traj.t)} samples at {traj.period * 1e3:g} ms"]
     by_move = traj.segments_by_move()
-    for i, move in enumerate(task.moves):
-        segs = by_move[i]
-        t0, t1 = segs[0].t0, segs[-1].t1
-        what = f"{move.speed_m_s:g} m/s" if move.kind != "ptp" else f"velocity x{move.velocity_scale:g}"
-        lines.append(f"  move {i} {move.kind:4s} {t0:8.3f} .. {t1:8.3f} s  {what:16s} "
-                     f"{segs[0].config_before} -> {segs[-1].config_after}")
-        for s in segs:
-            lines.extend(_segment_lines(s, traj.zone_times(s) if s.kind == "crossing" else None))
+    short = full or len(task.moves) <= LISTED_MOVES
+    if short:
+        lines += _move_lines(traj, task, by_move, range(len(task.moves)))
+    else:
+        lines += overview_lines(traj, task, by_move)
     m = traj.metrics
     lines.append(f"metrics: position error {m.max_position_error_mm:.5f} mm, orientation error "
                  f"{m.max_orientation_error_deg:.5f} deg, joint speed x{m.max_joint_speed_ratio:.3f}, "
@@ -35,10 +40,65 @@ def summary(traj: Trajectory, task: Task) -> str:
         law = "quintic PTP law, " if task.limits.ptp_time_law == "quintic" else ""
         lines.append(f"jerk: {jerk}{law}{m.jerk.jerk_time_lost_s:.3f} s longer than the acceleration-limited "
                      f"{m.jerk.acceleration_limited_duration_s:.3f} s")
-    lines += [f"fly-by after move {b.move} ({b.requested_mm:g} mm asked): {b.reduced}" for b in m.blends if not b.flown]
+    stopped = [f"fly-by after move {b.move} ({b.requested_mm:g} mm asked): {b.reduced}" for b in m.blends
+               if not b.flown]
+    lines += stopped if short or len(stopped) <= NOTABLE_SHOWN else [
+        *stopped[:NOTABLE_SHOWN], f"... and {len(stopped) - NOTABLE_SHOWN} more corners stopped at (--full lists them)"]
     lines.append(f"stopping distance: up to {m.max_stopping_distance_mm:.3f} mm at "
                  f"t = {m.max_stopping_distance_at_s:.3f} s (every joint braking at its acceleration limit)")
     return "\n".join(lines) + "\n"
+
+
+def _move_lines(traj: Trajectory, task: Task, by_move: dict[int, list[Segment]], moves: Iterable[int]) -> list[str]:
+    """A line per move (its span, speed and configurations), and its crossings' and corners' lines."""
+    lines = []
+    for i in moves:
+        move, segs = task.moves[i], by_move[i]
+        t0, t1 = segs[0].t0, segs[-1].t1
+        what = f"{move.speed_m_s:g} m/s" if move.kind != "ptp" else f"velocity x{move.velocity_scale:g}"
+        lines.append(f"  move {i} {move.kind:4s} {t0:8.3f} .. {t1:8.3f} s  {what:16s} "
+                     f"{segs[0].config_before} -> {segs[-1].config_after}")
+        for s in segs:
+            lines.extend(_segment_lines(s, traj.zone_times(s) if s.kind == "crossing" else None))
+    return lines
+
+
+def overview_lines(traj: Trajectory, task: Task, by_move: dict[int, list[Segment]]) -> list[str]:
+    """A long program in a few lines: moves by kind, corners, crossings by kind and method with the
+    time they lost and the worst deviation, then the notable moves (a crossing, a configuration
+    change) that lost the most time, listed as in the full summary."""
+    kinds = Counter(move.kind for move in task.moves)
+    corners = [s for s in traj.segments if s.kind == "blend"]
+    changed = [i for i, segs in by_move.items() if segs[0].config_before != segs[-1].config_after]
+    lines = [f"  moves: {_counted(kinds)}; {len(changed)} change configuration; {len(corners)} fly-by corner(s)"]
+    crossings = [s for s in traj.segments if isinstance(s.details, CrossingFigures)]
+    if crossings:
+        figures = [s.details for s in crossings if isinstance(s.details, CrossingFigures)]
+        worst = max(crossings, key=lambda s: _deviation(s.details))
+        lines.append(f"  crossings: {len(crossings)} ({_counted(Counter(str(s.singularity) for s in crossings))}; "
+                     f"methods {_counted(Counter(str(s.method) for s in crossings))}), "
+                     f"{sum(f.time_lost_s for f in figures):.3f} s lost, largest deviation "
+                     f"{max(f.max_position_error_mm for f in figures):.4f} mm / "
+                     f"{max(f.max_orientation_error_deg for f in figures):.4f} deg (worst in move {worst.move})")
+    else:
+        lines.append("  crossings: none")
+    lost = {i: sum(s.details.time_lost_s for s in segs if isinstance(s.details, CrossingFigures))
+            for i, segs in by_move.items()}
+    notable = sorted({s.move for s in crossings} | set(changed), key=lambda i: (-lost[i], i))
+    if notable:
+        shown = sorted(notable[:NOTABLE_SHOWN])
+        lines.append(f"  {len(shown)} of {len(notable)} notable move(s) (a crossing or a configuration change), "
+                     "those that lost the most time; --full lists every move:")
+        lines += _move_lines(traj, task, by_move, shown)
+    return lines
+
+
+def _counted(counts: Counter[str]) -> str:
+    return ", ".join(f"{n} {name}" for name, n in counts.most_common())
+
+
+def _deviation(d: object) -> tuple[float, float]:
+    return (d.max_orientation_error_deg, d.max_position_error_mm) if isinstance(d, CrossingFigures) else (0.0, 0.0)
 
 
 def _torque_line(traj: Trajectory, task: Task) -> str:

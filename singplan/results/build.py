@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from decimal import Decimal
 from typing import Any, Literal
 
 import numpy as np
@@ -42,6 +43,29 @@ from singplan.results.trajectory import Event, MoveRecord, Segment, SegmentKind,
 from singplan.task.schema import Task
 
 
+def sample_times(count: int, period_s: float) -> np.ndarray:
+    """The times of ``count`` samples from 0 at ``period_s`` [s], shape (count,).
+
+    Sample k is at the float nearest the decimal k x period as the task wrote it (its shortest
+    round-trip text: 0.004), not at the float product k * 0.004, which drifts off the decimal
+    grid by an ulp (410 * 0.004 = 1.6400000000000001): the files and the summary then show 1.64.
+    The period is m / 10**d with integers m, d; (k * m) is exact while below 2**53 and one
+    correctly rounded division by the exact 10**d gives the nearest float to the decimal.
+    """
+    sign, digits, exponent = Decimal(repr(period_s)).as_tuple()
+    m = int("".join(map(str, digits)))
+    d = -int(exponent)
+    k = np.arange(count, dtype=float)
+    if sign or not 0 <= d <= 22 or m * max(count - 1, 0) >= 2**53:  # no exact form: the plain product
+        return k * period_s
+    return k * m / 10.0**d
+
+
+def sample_time(k: int, period_s: float) -> float:
+    """The time of sample ``k`` [s], as :func:`sample_times` gives it."""
+    return float(Decimal(k) * Decimal(repr(period_s)))
+
+
 def build_trajectory(robot: Robot, task: Task, method: str, planned: list[PlannedMove], timed: list[TimedMove],
                      planning_time_s: float, held: HeldJoint | None = None,
                      blends: tuple[Blend, ...] = ()) -> Trajectory:
@@ -53,7 +77,7 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     """
     period = task.period_s
     q_planned = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
-    t = np.arange(len(q_planned)) * period
+    t = sample_times(len(q_planned), period)
     distances = distances_batch(robot, q_planned)  # (K, 3): the labels of the chain that was planned
     labels = _Labels(distances)
     segments: list[Segment] = []
@@ -71,9 +95,9 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
         worst_pos = max(worst_pos, float(pos_err.max(initial=0.0)))
         worst_ori = max(worst_ori, float(ori_err.max(initial=0.0)))
         spans = _own_spans(pm, tm, k1 - k0)  # once for the move's segments and its zone events
-        segs = _move_segments(pm, tm, k0, k1, period, labels, pos_err, ori_err, flown.get(pm.index), spans)
+        segs = _move_segments(pm, tm, k0, k1, t, period, labels, pos_err, ori_err, flown.get(pm.index), spans)
         segments.extend(segs)
-        events.extend(_move_events(pm, tm, k0, k1, period, labels, spans))
+        events.extend(_move_events(pm, tm, k0, k1, t, labels, spans))
         crossings.extend(CrossingReport(s.move, s.t0, s.t1, s.singularity, s.method, s.config_before, s.config_after,
                                         s.details) for s in segs if isinstance(s.details, CrossingFigures))
         k0 = k1
@@ -82,9 +106,9 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
                                    arm.acceleration_rad_s2)
     qd, qdd = central_differences(q, period)
     stopping_m = stopping_distances(arm, q, qd, arm.acceleration_rad_s2)
-    stop_mm, stop_at_s = worst_stopping(stopping_m, period)
+    stop_mm, stop_at_s = worst_stopping(stopping_m, t)
     metrics = Metrics(worst_pos * 1e3, math.degrees(worst_ori), speed, accel, float(t[-1]), planning_time_s, len(t),
-                      method, tuple(crossings), _torque_metrics(arm, task, q), stop_mm, stop_at_s,
+                      method, tuple(crossings), _torque_metrics(arm, task, q, t), stop_mm, stop_at_s,
                       _jerk_metrics(arm, task, q, timed), _blend_reports(blends))
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
     samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all),
@@ -124,7 +148,7 @@ def _jerk_metrics(robot: Robot, task: Task, q: np.ndarray, timed: list[TimedMove
     return JerkFigures(optimal_s, sum(tm.duration_s for tm in timed) - optimal_s, ratio)
 
 
-def _torque_metrics(robot: Robot, task: Task, q: np.ndarray) -> TorqueFigures | str:
+def _torque_metrics(robot: Robot, task: Task, q: np.ndarray, t: np.ndarray) -> TorqueFigures | str:
     """Inverse-dynamics torques of the samples against the efforts x ``limits.torque_scale`` (1 if unset).
 
     A robot without dynamics gets the reason instead (no torque is invented for it).
@@ -134,7 +158,7 @@ def _torque_metrics(robot: Robot, task: Task, q: np.ndarray) -> TorqueFigures | 
         return f"not computed: {reason}"
     limit_nm = effort_limits_nm(robot) * (task.limits.torque_scale or 1.0)
     peaks, _ = trajectory_torques(robot, q, task.period_s, limit_nm)
-    return TorqueFigures(peaks.ratio, peaks.sample * task.period_s, robot.joint_names[peaks.joint],
+    return TorqueFigures(peaks.ratio, float(t[peaks.sample]), robot.joint_names[peaks.joint],
                          dict(zip(robot.joint_names, peaks.peak_nm.tolist(), strict=True)),
                          dict(zip(robot.joint_names, limit_nm.tolist(), strict=True)))
 
@@ -226,10 +250,11 @@ def _own_spans(pm: PlannedMove, tm: TimedMove, end: int) -> Spans:
     return [] if pm.kind == "ptp" or last == 0 else _merged_spans(pm, tm, last)
 
 
-def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float, labels: _Labels,
-                   pos_err: np.ndarray, ori_err: np.ndarray, blend: Blend | None, spans: Spans) -> list[Segment]:
+def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, t: np.ndarray, period: float,
+                   labels: _Labels, pos_err: np.ndarray, ori_err: np.ndarray, blend: Blend | None,
+                   spans: Spans) -> list[Segment]:
     def seg(kind: SegmentKind, a: int, b: int, **extra: Any) -> Segment:
-        return Segment(pm.index, kind, (k0 + a) * period, (k0 + b) * period, labels[k0 + a], labels[k0 + b], **extra)
+        return Segment(pm.index, kind, float(t[k0 + a]), float(t[k0 + b]), labels[k0 + a], labels[k0 + b], **extra)
 
     if tm.blend_from is None:
         return _path_segments(pm, tm, k1 - k0, seg, period, pos_err, ori_err, spans)
@@ -283,16 +308,16 @@ def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone
     return CrossingFigures(zone.min_distance, zone.unit, float(pos_err[a:b + 1].max()) * 1e3,
                            math.degrees(float(ori_err[a:b + 1].max())), float(tm.u[k] * pm.limits.length_m),
                            max(0.0, (b - a) * period - nominal), through, pm.alternatives,
-                           max(0, sum(waits)) * period if waits else None)
+                           sample_time(max(0, sum(waits)), period) if waits else None)
 
 
-def _move_events(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, period: float,
+def _move_events(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, t: np.ndarray,
                  labels: _Labels, spans: Spans) -> list[Event]:
     """The move's zone entries and exits (its crossings at ``spans``), and its configuration changes."""
-    events = [Event((k0 + k) * period, pm.index, kind, zone.kind)
+    events = [Event(float(t[k0 + k]), pm.index, kind, zone.kind)
               for k, kind, zone in _zone_samples(tm, k1 - k0, spans)]
     for k in labels.changes(k0, k1).tolist():
-        events.append(Event(k * period, pm.index, "config_change", config_from=labels[k - 1], config_to=labels[k]))
+        events.append(Event(float(t[k]), pm.index, "config_change", config_from=labels[k - 1], config_to=labels[k]))
     return sorted(events, key=lambda e: e.t)
 
 

@@ -252,13 +252,18 @@ def _jsonable(value: Any) -> Any:
 
 
 def write_csv(stream: TextIO, traj: Trajectory) -> None:
-    """trajectory.csv: header ``t,<joint names>``, then one row per sample (as ``%.17g``)."""
+    """trajectory.csv: header ``t,<joint names>``, then one row per sample, each number as its
+    shortest round-trip text (``repr``: 0.004, not ``%.17g``'s 0.0040000000000000001)."""
     stream.write("t," + ",".join(traj.joint_names) + "\n")
-    row = ",".join(["%.17g"] * (1 + len(traj.joint_names))) + "\n"
     for start in range(0, len(traj.t), _CHUNK_ROWS):
         stop = start + _CHUNK_ROWS
         block = np.hstack([traj.t[start:stop, None], traj.q[start:stop]])
-        stream.write("".join(row % tuple(values) for values in block.tolist()))
+        stream.write(csv_rows(block.tolist()))
+
+
+def csv_rows(rows: list[list[float]]) -> str:
+    """Rows of floats as CSV lines, each number its shortest round-trip text (read back exactly)."""
+    return "".join(",".join(map(repr, row)) + "\n" for row in rows)
 
 
 def write_json(stream: TextIO, traj: Trajectory) -> None:

@@ -27,7 +27,6 @@ from tests.shared import SHARED, require
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "controller-programs.md"
-README = ROOT / "README.md"
 _MARKER = re.compile(r"<!-- program: (\S+) (\S+) (\d+)-(\d+) -->\n```(\w*)\n(.*?)```", re.S)
 _BLOCK = re.compile(r"```(bash|python)\n(.*?)```", re.S)
 SOURCE_DATE_EPOCH = "1767225600"  # 2026-01-01: the date a FANUC /ATTR shows in the examples
@@ -81,21 +80,6 @@ def test_the_page_s_commands_and_python_run(tmp_path: Path, monkeypatch: pytest.
     assert python
     for body in python:
         exec(compile(body, str(PAGE), "exec"), {"__name__": "__docs__"})  # the page's own code
-
-
-def test_the_readme_s_program_export_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """README's command list: the plan into ``out``, then the controller program of it."""
-    (tmp_path / "examples").symlink_to(ROOT / "examples")
-    monkeypatch.chdir(tmp_path)
-    lines = commands(README.read_text())
-    programs = [argv for argv in lines if "--format" in argv and argv[argv.index("--format") + 1] in
-                ("krl", "rapid", "fanuc-ls")]
-    plans = [argv for argv in lines if argv[1] == "plan" and argv[argv.index("-o") + 1] == programs[0][2]]
-    assert programs and plans
-    for argv in (plans[0], *programs):
-        out, err = io.StringIO(), io.StringIO()
-        assert main([*argv[1:], *(["--no-report", "--no-replay"] if argv[1] == "plan" else [])],
-                    out=out, err=err) == 0, (argv, err.getvalue())
 
 
 def test_the_example_script_writes_its_robot_s_program(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,

@@ -199,15 +199,15 @@ def cmd_ik(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from singplan.kinematics.configuration import singularity_distances
     from singplan.kinematics.ik.solve import solve_all
     from singplan.kinematics.robot import load_robot
-    from singplan.task.schema import ANGLE_DEG, COORDINATE_M, TOOL_OFFSET_M, check_vector
+    from singplan.task.schema import ANGLE_DEG, COORDINATE_M, JOINT_DEG, TOOL_OFFSET_M, check_vector
 
     for flag, values, bounds in (("--xyz", args.xyz, COORDINATE_M), ("--rpy-deg", args.rpy_deg, ANGLE_DEG),
                                  ("--tool-xyz", args.tool_xyz, TOOL_OFFSET_M),
                                  ("--tool-rpy-deg", args.tool_rpy_deg, ANGLE_DEG)):
         check_vector(flag, values, 3, bounds)  # before any solve: NaN or 1e300 is bad input, not "no solution"
     full = load_robot(args.robot, tip=args.tip, tool=_pose(args.tool_xyz, args.tool_rpy_deg))
-    if args.seed_deg is not None and len(args.seed_deg) != full.n_joints:
-        raise InputError(f"--seed-deg: expected {full.n_joints} numbers, got {len(args.seed_deg)}")
+    if args.seed_deg is not None:  # NaN or 1e300 is bad input naming the option, not an internal error
+        check_vector("--seed-deg", args.seed_deg, full.n_joints, JOINT_DEG)
     held = _hold(full, args.hold)
     robot = held.reduced if held is not None else full  # a held joint leaves a 6R chain: its branches and labels
     # one solution per branch (nearest the seed, default zero) unless every 2*pi variant is asked for

@@ -248,7 +248,8 @@ def _synthetic(samples: int) -> Trajectory:
     q = rng.uniform(-3, 3, (samples, 6))
     series = {"position_error_m": rng.uniform(0, 1e-5, samples), "orientation_error_rad": rng.uniform(0, 1e-4, samples),
               "distances": rng.uniform(0, 1, (samples, 3))}
-    return Trajectory("r", "/r.urdf", "tool0", {"xyz": [0, 0, 0], "rpy_deg": [0, 0, 0]}, {"robot": "r"},
+    task = {"robot": "r", "start": {"joints_deg": [0] * 6}, "moves": [{"ptp": {"to": {"joints_deg": [0] * 6}}}]}
+    return Trajectory("r", "/r.urdf", "tool0", {"xyz": [0, 0, 0], "rpy_deg": [0, 0, 0]}, task,
                       tuple(f"j{i}" for i in range(6)), 0.004, t, q, q * 2, q * 3, (), (),
                       replace(Metrics.of_samples(float(t[-1]), samples), max_position_error_mm=float("nan")), series)
 

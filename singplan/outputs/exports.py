@@ -3,6 +3,8 @@
 * ``ros2``: a ``trajectory_msgs/msg/JointTrajectory`` as YAML, the form ``ros2 topic pub``
   and launch files take (header, joint_names, points with positions, velocities,
   accelerations, effort, time_from_start {sec, nanosec}); ``ros2-json`` the same as JSON.
+  ``time_from_start`` is a ``builtin_interfaces/Duration`` (sec int32, nanosec uint32): a
+  trajectory that starts before 0 or lasts beyond 2 147 483 647 s is refused, not written wrong.
 * ``urscript``: ``def singplan_move(): ... end``: ``movej`` to the first sample, then one
   ``servoj`` per sample at the trajectory's period. UR controllers run their servo loop at a
   fixed step (e-series 500 Hz, 0.002 s; CB3 125 Hz, 0.008 s); a period that is not a whole
@@ -10,6 +12,7 @@
   whole number of steps, at least one.
 * ``csv-deg``: header ``t [s],<joint> [deg]...,<joint> [deg/s]...``, one row per sample;
   optionally a ``vendor_config`` column (:mod:`singplan.kinematics.vendor_config`) per sample.
+  Texts are quoted as Python's csv module does (a joint name may hold commas or quotes).
 
 Every writer streams a chunk of samples at a time. Files are written by the rules of
 :mod:`singplan.results.files` (temporary name, renamed when complete, nothing else touched).
@@ -17,6 +20,7 @@ Every writer streams a chunk of samples at a time. Files are written by the rule
 
 from __future__ import annotations
 
+import csv
 import io
 import json
 import logging
@@ -45,6 +49,7 @@ GAIN_RANGE = (100.0, 2000.0)  # servoj gain, as the URScript manual allows
 _UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
               "wrist_3_joint")
 _CHUNK = 4096
+INT32_MAX = 2**31 - 1  # builtin_interfaces/Duration.sec
 
 
 @dataclass(frozen=True)
@@ -85,8 +90,18 @@ def check_trajectory(traj: Trajectory) -> None:
 
 # --- ROS 2 --------------------------------------------------------------------------------------
 
+def check_durations(traj: Trajectory) -> None:
+    """Refuse (InputError naming ``t``) times a ``builtin_interfaces/Duration`` cannot carry: before
+    0, or at and beyond 2**31 s (``sec`` is an int32; ``nanosec`` a uint32 below 1e9)."""
+    if traj.t[0] < 0.0:
+        raise InputError(f"t[0]: {traj.t[0]!r} s is before the start; a ROS 2 time_from_start is not negative")
+    if traj.t[-1] >= INT32_MAX + 1:
+        raise InputError(f"t[{len(traj.t) - 1}]: {traj.t[-1]!r} s is beyond what a ROS 2 Duration holds "
+                         f"(sec is an int32: at most {INT32_MAX} s)")
+
+
 def _duration(t_s: float) -> tuple[int, int]:
-    """builtin_interfaces/Duration (sec int32, nanosec uint32 < 1e9) of t_s >= 0."""
+    """builtin_interfaces/Duration (sec int32, nanosec uint32 < 1e9) of 0 <= t_s < 2**31 (:func:`check_durations`)."""
     sec, nanosec = divmod(round(t_s * 1e9), 10**9)
     return int(sec), int(nanosec)
 
@@ -126,6 +141,7 @@ def _point_chunks(traj: Trajectory) -> Iterator[list[_Point]]:
 def write_ros2_yaml(stream: TextIO, traj: Trajectory) -> None:
     """trajectory_msgs/msg/JointTrajectory as YAML (block style, one flow list per array)."""
     check_trajectory(traj)
+    check_durations(traj)
     stream.write("header:\n  stamp: {sec: 0, nanosec: 0}\n  frame_id: ''\n")
     stream.write("joint_names: [" + ", ".join(json.dumps(n) for n in traj.joint_names) + "]\npoints:\n")
     for chunk in _point_chunks(traj):
@@ -138,6 +154,7 @@ def write_ros2_yaml(stream: TextIO, traj: Trajectory) -> None:
 def write_ros2_json(stream: TextIO, traj: Trajectory) -> None:
     """The same message as JSON."""
     check_trajectory(traj)
+    check_durations(traj)
     stream.write('{"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""}, "joint_names": '
                  + json.dumps(list(traj.joint_names)) + ', "points": [')
     for i, chunk in enumerate(_point_chunks(traj)):
@@ -240,7 +257,7 @@ def write_csv_deg(stream: TextIO, traj: Trajectory, vendor_config: bool = False)
     check_trajectory(traj)
     header = (["t [s]"] + [f"{n} [deg]" for n in traj.joint_names] + [f"{n} [deg/s]" for n in traj.joint_names]
               + (["vendor_config"] if vendor_config else []))
-    stream.write(",".join(_csv_field(h) for h in header) + "\n")
+    stream.write(_csv_line(header) + "\n")
     robot = load_robot(traj.urdf, tip=traj.tip) if vendor_config else None
     row = ",".join(["%.17g"] * (1 + 2 * len(traj.joint_names)))
     for start in range(0, len(traj.t), _CHUNK):
@@ -250,12 +267,15 @@ def write_csv_deg(stream: TextIO, traj: Trajectory, vendor_config: bool = False)
         lines = [row % tuple(v) for v in block.tolist()]
         if robot is not None:
             texts = [format_vendor_config(c) for c in vendor_configs(robot, traj.q[start:stop])]
-            lines = [f"{line},{_csv_field(text)}" for line, text in zip(lines, texts, strict=True)]
+            lines = [f"{line},{_csv_line([text])}" for line, text in zip(lines, texts, strict=True)]
         stream.write("\n".join(lines) + "\n")
 
 
-def _csv_field(text: str) -> str:
-    return '"' + text.replace('"', '""') + '"' if any(c in text for c in ',"\n') else text
+def _csv_line(fields: list[str]) -> str:
+    """One CSV line (no line end) of texts, quoted as Python's csv module quotes them."""
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="").writerow(fields)
+    return buffer.getvalue()
 
 
 # --- strings and files --------------------------------------------------------------------------
@@ -303,6 +323,8 @@ def export(traj: Trajectory, fmt: str, path: str | os.PathLike[str], urscript: U
     """Write ``traj`` in format ``fmt`` to the file ``path`` (temporary name, renamed when complete)."""
     write = _writer(fmt, traj, urscript, vendor_config)
     check_trajectory(traj)  # before the file is touched: bad input never leaves a file behind
+    if fmt in ("ros2", "ros2-json"):
+        check_durations(traj)
     check_output_file(path)
     if fmt == "urscript" and not is_ur_robot(traj):
         log.warning("%s is not a Universal Robots arm: the URScript program needs checking", traj.robot)

@@ -8,6 +8,7 @@ of samples at a time, so writing needs little memory beyond the trajectory's own
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import os
@@ -19,9 +20,10 @@ from typing import Any, Literal, TextIO
 
 import numpy as np
 
-from singplan.errors import InputError
+from singplan.kinematics.files import display_path, read_json
 from singplan.results.files import Writer, text_writer, write_files
 from singplan.results.metrics import Metrics, NoFigures, SegmentFigures, figures_from_json
+from singplan.results.reading import MAX_TRAJECTORY_BYTES, check_document
 
 FORMAT = "singplan.trajectory/1"
 CSV_FILE = "trajectory.csv"
@@ -252,8 +254,12 @@ def _jsonable(value: Any) -> Any:
 
 
 def write_csv(stream: TextIO, traj: Trajectory) -> None:
-    """trajectory.csv: header ``t,<joint names>``, then one row per sample (as ``%.17g``)."""
-    stream.write("t," + ",".join(traj.joint_names) + "\n")
+    """trajectory.csv: header ``t,<joint names>``, then one row per sample (as ``%.17g``).
+
+    The header is written by Python's csv module (RFC 4180 quoting): a joint name holding a
+    comma, a quote or a line break is quoted, so every row has as many fields as the header.
+    """
+    csv.writer(stream, lineterminator="\n").writerow(["t", *traj.joint_names])
     row = ",".join(["%.17g"] * (1 + len(traj.joint_names))) + "\n"
     for start in range(0, len(traj.t), _CHUNK_ROWS):
         stop = start + _CHUNK_ROWS
@@ -306,30 +312,27 @@ _SEGMENT_FIELDS = ("move", "kind", "t0", "t1", "config_before", "config_after", 
 
 
 def load(path: str | Path) -> Trajectory:
-    """Read a trajectory.json (or the folder holding it)."""
+    """Read a trajectory.json (or the folder holding it), every field checked before it is used
+    (:mod:`singplan.results.reading`).
+
+    Raises:
+        FileRefusedError: not a regular UTF-8 file within
+            :data:`~singplan.results.reading.MAX_TRAJECTORY_BYTES` (a FIFO, a device, a folder ...).
+        FileFieldError: not JSON, or a field that is not what the format says (file and field named).
+    """
     p = Path(path)
     if p.is_dir():
         p = p / JSON_FILE
-    try:
-        doc = json.loads(p.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{p}: cannot read a trajectory ({exc})") from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise InputError(f"{p}: not a {FORMAT} file")
-    try:
-        return _from_document(doc)
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise InputError(f"{p}: not a valid {FORMAT} file ({type(exc).__name__}: {exc})") from None
-
-
-def _from_document(doc: dict[str, Any]) -> Trajectory:
-    segments = tuple(Segment(**{k: s.get(k) for k in _SEGMENT_FIELDS},
-                             details=figures_from_json(s["kind"], {k: v for k, v in s.items()
-                                                                   if k not in _SEGMENT_FIELDS}))
-                     for s in doc["segments"])
-    events = tuple(Event.from_json(e) for e in doc["events"])
-    arrays = {k: np.asarray(doc[k], dtype=float) for k in ("t", "q", "qd", "qdd")}
-    return Trajectory(doc["robot"], doc["urdf"], doc["tip"], doc["tool"], doc["task"], tuple(doc["joint_names"]),
-                      float(doc["period"]), arrays["t"], arrays["q"], arrays["qd"], arrays["qdd"], segments, events,
-                      Metrics.from_json(doc["metrics"]), _samples_from_file(doc.get("samples", {})),
-                      tuple(MoveRecord(**m) for m in doc.get("moves", ())))
+    c = check_document(read_json(p, MAX_TRAJECTORY_BYTES, "trajectory.json"), display_path(p), FORMAT)
+    f = c.fields
+    segments = tuple(f.record(f"segments[{i}]", lambda s=s: Segment(
+        **{k: s.get(k) for k in _SEGMENT_FIELDS},
+        details=figures_from_json(s["kind"], {k: v for k, v in s.items() if k not in _SEGMENT_FIELDS})))
+        for i, s in enumerate(c.segments))
+    events = tuple(f.record(f"events[{i}]", lambda e=e: Event.from_json(e)) for i, e in enumerate(c.events))
+    moves = tuple(f.record(f"moves[{i}]", lambda m=m: MoveRecord(**m)) for i, m in enumerate(c.moves))
+    metrics = f.record("metrics", lambda: Metrics.from_json(c.metrics))
+    samples = f.record("samples", lambda: _samples_from_file(c.samples))
+    a = c.arrays
+    return Trajectory(c.robot, c.urdf, c.tip, c.tool, c.task, c.joint_names, c.period, a["t"], a["q"], a["qd"],
+                      a["qdd"], segments, events, metrics, samples, moves)

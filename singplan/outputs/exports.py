@@ -38,7 +38,7 @@ from singplan.errors import InputError
 from singplan.kinematics.robot import load_robot
 from singplan.kinematics.vendor_config import format_vendor_config, vendor_configs
 from singplan.outputs.choices import DEFAULT_FILE_NAMES, FORMATS, UR_STEP_S
-from singplan.results.files import Writer, check_output_file, write_file
+from singplan.results.files import Writer, check_output_file, hold_output_folder, write_file
 from singplan.results.trajectory import Trajectory
 
 log = logging.getLogger(__name__)
@@ -325,10 +325,11 @@ def export(traj: Trajectory, fmt: str, path: str | os.PathLike[str], urscript: U
     check_trajectory(traj)  # before the file is touched: bad input never leaves a file behind
     if fmt in ("ros2", "ros2-json"):
         check_durations(traj)
-    check_output_file(path)
+    target = check_output_file(path)
     if fmt == "urscript" and not is_ur_robot(traj):
         log.warning("%s is not a Universal Robots arm: the URScript program needs checking", traj.robot)
-    return write_file(path, write)
+    with hold_output_folder(target.parent, (target.name,)):  # one run per folder
+        return write_file(path, write)
 
 
 def default_path(out_dir: str | os.PathLike[str], fmt: str) -> Path:

@@ -59,7 +59,7 @@ from singplan.outputs.timeline import (
 from singplan.planning.path import move_target
 from singplan.planning.pieces import move_piece
 from singplan.planning.weave import woven_moves
-from singplan.results.files import check_output_file, text_writer, write_file
+from singplan.results.files import check_output_file, hold_output_folder, text_writer, write_file
 from singplan.results.trajectory import Segment, Trajectory, load
 from singplan.task.schema import Move
 
@@ -422,18 +422,20 @@ def replay(traj: Trajectory | str | Path, html: str | Path | None = None, serve:
     """Replay a trajectory (object, or a trajectory.json / output folder) in the browser.
 
     ``html=path`` writes the self-contained page and returns its path (written under a
-    temporary name and renamed when complete; an unusable path is an OutputPathError before
-    anything is built). ``serve=True`` starts a live meshcat server listening on ``host``
-    (loopback by default) playing it (``speed`` x real time, looping unless ``loop=False``)
-    and returns the running :class:`LiveReplay`, whose ``url`` to open and ``close()`` to stop it.
+    temporary name and renamed when complete; an unusable path, or a folder another run is
+    writing into, is an OutputPathError before anything is built). ``serve=True`` starts a live
+    meshcat server listening on ``host`` (loopback by default) playing it (``speed`` x real time,
+    looping unless ``loop=False``) and returns the running :class:`LiveReplay`, whose ``url`` to
+    open and ``close()`` to stop it.
     """
     if (html is None) == (not serve):
         raise InputError("replay: give exactly one of html=PATH or serve=True")
     if not (math.isfinite(speed) and 0.01 <= speed <= 100.0):
         raise InputError(f"replay: speed must be a number in [0.01, 100], got {speed}")
-    target = None if html is None else check_output_file(html)
-    trajectory = traj if isinstance(traj, Trajectory) else load(traj)
-    robot = robot_of(trajectory)
-    if target is None:
-        return serve_replay(trajectory, robot, speed=speed, loop=loop, host=host)
-    return write_file(target, text_writer(replay_html(trajectory, robot)))
+    if html is None:
+        trajectory = traj if isinstance(traj, Trajectory) else load(traj)
+        return serve_replay(trajectory, robot_of(trajectory), speed=speed, loop=loop, host=host)
+    target = check_output_file(html)
+    with hold_output_folder(target.parent, (target.name,)):  # one run per folder, from reading to writing
+        trajectory = traj if isinstance(traj, Trajectory) else load(traj)
+        return write_file(target, text_writer(replay_html(trajectory, robot_of(trajectory))))

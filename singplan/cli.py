@@ -345,7 +345,7 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from singplan.outputs.viewer import replay
 
     if args.serve:
-        return _serve(args, out)
+        return _serve(args, out, err)
     if args.host is not None:
         raise InputError("replay: --host goes with --serve")
     if args.html is None:
@@ -355,11 +355,14 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     return 0
 
 
-def _serve(args: argparse.Namespace, out: TextIO) -> int:
+def _serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     """Play the trajectory on a live meshcat server until Ctrl-C (or SIGTERM)."""
-    from singplan.outputs.viewer import LiveReplay, replay
+    from singplan.outputs.viewer import LiveReplay, is_loopback, replay
 
     host = DEFAULT_HOST if args.host is None else args.host
+    if not is_loopback(host):
+        err.write(f"singplan: warning: --host {host} is not a loopback address: anyone who can reach this "
+                  f"machine there can open the replay (the default {DEFAULT_HOST} serves this machine only)\n")
     live = replay(args.trajectory, serve=True, speed=args.speed, loop=not args.no_loop, host=host)
     assert isinstance(live, LiveReplay)
     previous = signal.signal(signal.SIGTERM, _interrupt)

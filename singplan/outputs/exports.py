@@ -259,6 +259,9 @@ def write_csv_deg(stream: TextIO, traj: Trajectory, vendor_config: bool = False)
               + (["vendor_config"] if vendor_config else []))
     stream.write(_csv_line(header) + "\n")
     robot = load_robot(traj.urdf, tip=traj.tip) if vendor_config else None
+    if robot is not None and robot.joint_names != traj.joint_names:
+        raise InputError(f"joint_names: {list(traj.joint_names)!r} are not the joints of {traj.urdf} to {traj.tip} "
+                         f"({list(robot.joint_names)!r}); the URDF changed since the plan?")
     row = ",".join(["%.17g"] * (1 + 2 * len(traj.joint_names)))
     for start in range(0, len(traj.t), _CHUNK):
         stop = start + _CHUNK

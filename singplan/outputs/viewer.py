@@ -17,6 +17,7 @@ import atexit
 import base64
 import contextlib
 import io
+import ipaddress
 import itertools
 import json
 import math
@@ -373,8 +374,22 @@ def _stop(server: subprocess.Popen[str]) -> None:
     if server.poll() is None:
         server.kill()
     server.wait()
-    if server.stdout is not None:
-        server.stdout.close()
+    for pipe in (server.stdin, server.stdout):
+        if pipe is not None:
+            pipe.close()
+
+
+def is_loopback(host: str) -> bool:
+    """Whether every address ``host`` names is this machine's loopback (only this machine can connect).
+
+    ``0.0.0.0`` and ``::`` (every interface), a LAN address or a name that resolves to one are not.
+    """
+    try:
+        found = socket.getaddrinfo(host, None)
+    except (OSError, UnicodeError, ValueError):
+        return False
+    addresses = {info[4][0] for info in found}
+    return bool(addresses) and all(ipaddress.ip_address(a.split("%")[0]).is_loopback for a in addresses)
 
 
 def _start_server(host: str) -> tuple[subprocess.Popen[str], str]:
@@ -384,7 +399,8 @@ def _start_server(host: str) -> tuple[subprocess.Popen[str], str]:
     except (OSError, UnicodeError, ValueError) as exc:
         raise InputError(f"replay --host {host!r}: not an address of this machine ({exc})") from None
     script = Path(__file__).with_name("meshcat_server.py")
-    server = subprocess.Popen([sys.executable, "-u", str(script), host], stdout=subprocess.PIPE,
+    # stdin: a pipe this process holds and never writes; the server exits when it closes (this process ended)
+    server = subprocess.Popen([sys.executable, "-u", str(script), host], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                               stderr=subprocess.DEVNULL, text=True, start_new_session=True)
     atexit.register(_stop, server)
     try:

@@ -217,11 +217,11 @@ def _arrays(f: FieldChecks, doc: dict[str, Any], n: int, period: float) -> dict[
     if not 1 <= k <= MAX_OUTPUT_SAMPLES:
         f.fail("t", f"expected 1 to {MAX_OUTPUT_SAMPLES} sample times, got {k}")
     if t[0] < 0.0:
-        f.fail("t[0]", f"times start at 0 or later, got {t[0]!r}")
+        f.fail("t[0]", f"times start at 0 or later, got {float(t[0])!r}")
     steps = np.diff(t) <= 0.0
     if steps.any():
         i = int(np.argmax(steps)) + 1
-        f.fail(f"t[{i}]", f"times must increase, got {t[i - 1]!r} then {t[i]!r}")
+        f.fail(f"t[{i}]", f"times must increase, got {float(t[i - 1])!r} then {float(t[i])!r}")
     out = {"t": t}
     for field, bound in (("q", MAX_Q_RAD), ("qd", MAX_QD_RAD_S), ("qdd", MAX_QDD_RAD_S2)):
         value = doc.pop(field, None)

@@ -20,7 +20,6 @@ Every writer streams a chunk of samples at a time. Files are written by the rule
 
 from __future__ import annotations
 
-import csv
 import io
 import json
 import logging
@@ -39,7 +38,7 @@ from singplan.kinematics.robot import load_robot
 from singplan.kinematics.vendor_config import format_vendor_config, vendor_configs
 from singplan.outputs.choices import DEFAULT_FILE_NAMES, FORMATS, UR_STEP_S
 from singplan.results.files import Writer, check_output_file, hold_output_folder, write_file
-from singplan.results.trajectory import Trajectory
+from singplan.results.trajectory import Trajectory, csv_line
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -257,7 +256,7 @@ def write_csv_deg(stream: TextIO, traj: Trajectory, vendor_config: bool = False)
     check_trajectory(traj)
     header = (["t [s]"] + [f"{n} [deg]" for n in traj.joint_names] + [f"{n} [deg/s]" for n in traj.joint_names]
               + (["vendor_config"] if vendor_config else []))
-    stream.write(_csv_line(header) + "\n")
+    stream.write(csv_line(header) + "\n")
     robot = load_robot(traj.urdf, tip=traj.tip) if vendor_config else None
     if robot is not None and robot.joint_names != traj.joint_names:
         raise InputError(f"joint_names: {list(traj.joint_names)!r} are not the joints of {traj.urdf} to {traj.tip} "
@@ -270,15 +269,8 @@ def write_csv_deg(stream: TextIO, traj: Trajectory, vendor_config: bool = False)
         lines = [row % tuple(v) for v in block.tolist()]
         if robot is not None:
             texts = [format_vendor_config(c) for c in vendor_configs(robot, traj.q[start:stop])]
-            lines = [f"{line},{_csv_line([text])}" for line, text in zip(lines, texts, strict=True)]
+            lines = [f"{line},{csv_line([text])}" for line, text in zip(lines, texts, strict=True)]
         stream.write("\n".join(lines) + "\n")
-
-
-def _csv_line(fields: list[str]) -> str:
-    """One CSV line (no line end) of texts, quoted as Python's csv module quotes them."""
-    buffer = io.StringIO()
-    csv.writer(buffer, lineterminator="").writerow(fields)
-    return buffer.getvalue()
 
 
 # --- strings and files --------------------------------------------------------------------------

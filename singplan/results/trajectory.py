@@ -9,10 +9,11 @@ of samples at a time, so writing needs little memory beyond the trajectory's own
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -256,15 +257,25 @@ def _jsonable(value: Any) -> Any:
 def write_csv(stream: TextIO, traj: Trajectory) -> None:
     """trajectory.csv: header ``t,<joint names>``, then one row per sample (as ``%.17g``).
 
-    The header is written by Python's csv module (RFC 4180 quoting): a joint name holding a
-    comma, a quote or a line break is quoted, so every row has as many fields as the header.
+    The header is written by Python's csv module (RFC 4180 quoting, :func:`csv_line`): a joint
+    name holding a comma, a quote or a line break is quoted, so every row has as many fields as
+    the header.
     """
-    csv.writer(stream, lineterminator="\n").writerow(["t", *traj.joint_names])
+    stream.write(csv_line(["t", *traj.joint_names]) + "\n")
     row = ",".join(["%.17g"] * (1 + len(traj.joint_names))) + "\n"
     for start in range(0, len(traj.t), _CHUNK_ROWS):
         stop = start + _CHUNK_ROWS
         block = np.hstack([traj.t[start:stop, None], traj.q[start:stop]])
         stream.write("".join(row % tuple(values) for values in block.tolist()))
+
+
+def csv_line(fields: Sequence[str]) -> str:
+    """One CSV line (without its end) of texts, quoted by Python's csv module: a field holding a
+    comma, a quote, a carriage return or a line feed is quoted (with ``\\n`` alone as the line
+    terminator the module would leave a bare ``\\r`` unquoted, which readers take for a line end)."""
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\r\n").writerow(fields)
+    return buffer.getvalue()[:-2]
 
 
 def write_json(stream: TextIO, traj: Trajectory) -> None:

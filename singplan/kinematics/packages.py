@@ -36,6 +36,8 @@ from typing import NamedTuple
 
 from singplan.kinematics.files import is_within
 
+PACKAGE_SEARCH = ("looked in the URDF's own package, the folders above it, example-robot-data, ROS_PACKAGE_PATH "
+                  "and AMENT_PREFIX_PATH; a package is a folder holding package.xml")
 _PACKAGE_NAME = re.compile(r"<name>\s*([A-Za-z0-9_.-]+)\s*</name>")
 # <package>/urdf/arm.urdf (ROS), <package>/robots/arm.urdf (example-robot-data)
 _DESCRIPTION_FOLDERS = ("urdf", "robots")

@@ -34,7 +34,7 @@ import pinocchio as pin
 
 from singplan.errors import RobotModelError
 from singplan.kinematics.files import display_path
-from singplan.kinematics.packages import MeshFile, locate_mesh
+from singplan.kinematics.packages import PACKAGE_SEARCH, MeshFile, locate_mesh
 
 logger = logging.getLogger("singplan.outputs.scene")  # the scene's warnings, which the CLI shows
 
@@ -70,7 +70,7 @@ class VisualMeshes:
     urdf_text: str
     files: dict[str, MeshFile] = field(default_factory=dict)
     folder: tempfile.TemporaryDirectory[str] | None = None
-    remaining_bytes: int = MAX_PAGE_MESH_BYTES
+    remaining_bytes: int = 0
 
     def close(self) -> None:
         if self.folder is not None:
@@ -85,7 +85,7 @@ def checked_visuals(urdf_text: str, urdf_path: Path) -> VisualMeshes:
     """
     root = ET.fromstring(urdf_text)  # the scan (singplan.kinematics.urdf_scan) bounded its size and depth
     folder = tempfile.TemporaryDirectory(prefix="singplan-visuals-")
-    out = VisualMeshes("", {}, folder)
+    out = VisualMeshes("", {}, folder, MAX_PAGE_MESH_BYTES)
     try:
         for link in root.findall("link"):
             for k, visual in enumerate(list(link.findall("visual"))):
@@ -103,9 +103,13 @@ def _keep(visual: ET.Element, mesh: ET.Element, what: str, urdf_path: Path, out:
     """Whether the visual stays: its mesh replaced by a placeholder or a box; False: leave it out."""
     uri = mesh.get("filename", "")
     ref = locate_mesh(uri, urdf_path)
-    if ref.path is None or not ref.path.exists():
-        looked = "" if ref.path is None else f" (looked for {display_path(ref.path)})"
-        raise RobotModelError(display_path(urdf_path), f"visual mesh {uri!r} of link {what}: no such file{looked}")
+    if ref.path is None:
+        raise RobotModelError(display_path(urdf_path), f"visual mesh {uri!r} of link {what}: no package "
+                                                       f"{uri.removeprefix('package://').split('/')[0]!r} found "
+                                                       f"({PACKAGE_SEARCH})")
+    if not ref.path.exists():
+        raise RobotModelError(display_path(urdf_path), f"visual mesh {uri!r} of link {what}: no such file "
+                                                       f"(looked for {display_path(ref.path)})")
     if not ref.allowed:
         return _left_out(what, uri, f"it lies outside the robot's own folders ({display_path(ref.root)})")
     try:

@@ -24,9 +24,10 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 from singplan.errors import RobotModelError
 from singplan.kinematics.files import FileRefusedError, display_path, read_bounded
@@ -93,11 +94,11 @@ class _Scanner:
 
     def scan(self, data: bytes, text: str) -> UrdfScan:
         depth = elements = 0
-        parser = ET.XMLPullParser(events=("start", "end"))
+        parser: ET.XMLPullParser[ET.Element] = ET.XMLPullParser(events=("start", "end"))
         try:
             for start in range(0, max(len(data), 1), 1 << 20):  # fed a MiB at a time: events as they come
                 parser.feed(data[start:start + (1 << 20)])
-                for event, element in parser.read_events():
+                for event, element in cast(Iterator[tuple[str, ET.Element]], parser.read_events()):
                     if event == "start":
                         depth += 1
                         elements += 1

@@ -222,11 +222,13 @@ def _texture(name: str, mesh: MeshFile, urdf_path: Path, meshes: VisualMeshes) -
     text = name.removeprefix("file://")
     image = Path(text) if Path(text).is_absolute() else mesh.path.parent / text
     if not texture_allowed(image, mesh, urdf_path):
-        return _no_texture(name, mesh, "it lies outside the robot's own folders")
+        _no_texture(name, mesh, "it lies outside the robot's own folders")
+        return None
     try:
-        data = read_bounded(image, max(meshes.remaining_bytes, 0), "texture")
+        data = read_bounded(image, max(min(MAX_MESH_BYTES, meshes.remaining_bytes), 0), "texture")
     except InputError as exc:
-        return _no_texture(name, mesh, getattr(exc, "reason", str(exc)))
+        _no_texture(name, mesh, getattr(exc, "reason", str(exc)))
+        return None
     meshes.remaining_bytes -= len(data)
     kind = mimetypes.guess_type(image.name)[0] or "image/png"
     return f"data:{kind};base64,{base64.b64encode(data).decode('ascii')}"
@@ -234,7 +236,6 @@ def _texture(name: str, mesh: MeshFile, urdf_path: Path, meshes: VisualMeshes) -
 
 def _no_texture(name: str, mesh: MeshFile, reason: str) -> None:
     logger.warning("replay: texture %r of mesh %r left out: %s", name[:200], mesh.uri, reason)
-    return None
 
 
 def _primitive(g: pin.GeometryObject) -> tuple[Any, ...] | None:

@@ -388,7 +388,7 @@ def is_loopback(host: str) -> bool:
         found = socket.getaddrinfo(host, None)
     except (OSError, UnicodeError, ValueError):
         return False
-    addresses = {info[4][0] for info in found}
+    addresses = {str(info[4][0]) for info in found}
     return bool(addresses) and all(ipaddress.ip_address(a.split("%")[0]).is_loopback for a in addresses)
 
 

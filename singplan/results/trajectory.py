@@ -15,7 +15,7 @@ import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
-from functools import cached_property
+from functools import cached_property, partial
 from pathlib import Path
 from typing import Any, Literal, TextIO
 
@@ -322,6 +322,13 @@ def save(traj: Trajectory, out_dir: str | Path, extra_files: Mapping[str, str] |
 _SEGMENT_FIELDS = ("move", "kind", "t0", "t1", "config_before", "config_after", "singularity", "method")
 
 
+def _segment(doc: Mapping[str, Any]) -> Segment:
+    """A segment of trajectory.json (its fields checked), its own figures from the keys beyond its fields."""
+    return Segment(int(doc["move"]), doc["kind"], float(doc["t0"]), float(doc["t1"]), str(doc["config_before"]),
+                   str(doc["config_after"]), doc.get("singularity"), doc.get("method"),
+                   details=figures_from_json(doc["kind"], {k: v for k, v in doc.items() if k not in _SEGMENT_FIELDS}))
+
+
 def load(path: str | Path) -> Trajectory:
     """Read a trajectory.json (or the folder holding it), every field checked before it is used
     (:mod:`singplan.results.reading`).
@@ -336,12 +343,9 @@ def load(path: str | Path) -> Trajectory:
         p = p / JSON_FILE
     c = check_document(read_json(p, MAX_TRAJECTORY_BYTES, "trajectory.json"), display_path(p), FORMAT)
     f = c.fields
-    segments = tuple(f.record(f"segments[{i}]", lambda s=s: Segment(
-        **{k: s.get(k) for k in _SEGMENT_FIELDS},
-        details=figures_from_json(s["kind"], {k: v for k, v in s.items() if k not in _SEGMENT_FIELDS})))
-        for i, s in enumerate(c.segments))
-    events = tuple(f.record(f"events[{i}]", lambda e=e: Event.from_json(e)) for i, e in enumerate(c.events))
-    moves = tuple(f.record(f"moves[{i}]", lambda m=m: MoveRecord(**m)) for i, m in enumerate(c.moves))
+    segments = tuple(f.record(f"segments[{i}]", partial(_segment, s)) for i, s in enumerate(c.segments))
+    events = tuple(f.record(f"events[{i}]", partial(Event.from_json, e)) for i, e in enumerate(c.events))
+    moves = tuple(f.record(f"moves[{i}]", partial(MoveRecord, **m)) for i, m in enumerate(c.moves))
     metrics = f.record("metrics", lambda: Metrics.from_json(c.metrics))
     samples = f.record("samples", lambda: _samples_from_file(c.samples))
     a = c.arrays

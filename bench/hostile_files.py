@@ -120,7 +120,7 @@ def _planned() -> Path:
         folder = Path(tempfile.mkdtemp(prefix="singplan-hostile-base-"))
         subprocess.run([sys.executable, "-m", "singplan", "plan", str(REPO / "singplan" / "demo_task.yaml"), "-o",
                         str(folder), "--quiet", "--no-report", "--no-replay"], check=True, env=_env(),
-                       capture_output=True)
+                       capture_output=True, cwd=folder)
         _PLANNED.append(folder)
     return _PLANNED[0]
 
@@ -147,7 +147,9 @@ def _env() -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": str(_SINGPLAN[0])}
 
 
-def run(argv: list[str], timeout_s: float, mem_limit_mb: int) -> tuple[int | None, float, float, str]:
+def run(argv: list[str], folder: Path, timeout_s: float, mem_limit_mb: int) -> tuple[int | None, float, float, str]:
+    """Run ``singplan ARGV`` in ``folder`` (not here: ``python -m`` puts the working folder first on the
+    path, which would shadow ``--against``)."""
     def limit() -> None:
         if mem_limit_mb:
             cap = mem_limit_mb * 1024 * 1024
@@ -155,7 +157,8 @@ def run(argv: list[str], timeout_s: float, mem_limit_mb: int) -> tuple[int | Non
 
     started = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-m", "singplan", *argv], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True, errors="replace", preexec_fn=limit, env=_env())
+                            stderr=subprocess.PIPE, text=True, errors="replace", preexec_fn=limit, env=_env(),
+                            cwd=folder)
     timer = _Timer(proc.pid, timeout_s)
     assert proc.stderr is not None
     said = proc.stderr.read()
@@ -200,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
             continue
         folder = Path(tempfile.mkdtemp(prefix="singplan-hostile-"))
         try:
-            code, seconds, peak, said = run(setup(folder), args.timeout, args.mem_limit_mb)
+            code, seconds, peak, said = run(setup(folder), folder, args.timeout, args.mem_limit_mb)
         finally:
             shutil.rmtree(folder, ignore_errors=True)
         outcomes.append(Outcome(category, name, code, seconds, peak, said))

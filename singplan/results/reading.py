@@ -232,14 +232,16 @@ def _arrays(f: FieldChecks, doc: dict[str, Any], n: int, period: float) -> dict[
 
 
 def _task(f: FieldChecks, value: Any) -> dict[str, Any]:
-    """The recorded task, checked as a task (its URDF need not exist any more: the record names it)."""
+    """The recorded task, checked as a task (its URDF need not exist any more: the record names it),
+    as the validated task's mapping (defaults filled in, ``null`` of an optional key gone), the
+    form the file is written in and the pages read."""
     task = f.mapping("task", value)
-    f.text("task.robot", task.get("robot"), 4096)
+    robot = f.text("task.robot", task.get("robot"), 4096)
     try:
-        parse_task({**task, "robot": "recorded"})
+        checked = parse_task({**task, "robot": "recorded"})
     except TaskError as exc:
         f.fail(f"task.{exc.field}" if exc.field else "task", exc.reason)
-    return task
+    return {**checked.to_mapping(), "robot": robot}
 
 
 def _span(f: FieldChecks, field: str, doc: Mapping[str, Any], duration: float) -> tuple[float, float]:

@@ -364,13 +364,17 @@ def test_a_hostile_urdf_is_refused_by_name_before_pinocchio(name: str, tmp_path:
 
 @pytest.mark.parametrize("kind", ["FIFO", "/dev/zero"])
 def test_a_urdf_that_is_no_regular_file_is_refused(kind: str, tmp_path: Path) -> None:
+    task = _robot_task(tmp_path)
     urdf = tmp_path / "robot.urdf"
+    urdf.unlink()
     if kind == "FIFO":
         os.mkfifo(urdf)
     else:
         urdf.symlink_to("/dev/zero")
     code, text = run_cli(["info", str(urdf)])
     assert_refused(code, text, "robot.urdf" if kind == "FIFO" else "/dev/zero", "not a regular file")
+    code, text = _plan(task, tmp_path / "out")
+    assert_refused(code, text, "robot: ", "not a regular file")
 
 
 def _with_gripper(urdf: str) -> str:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import Any, NoReturn, TypeVar
 
 import numpy as np
@@ -40,26 +39,6 @@ SEGMENT_KINDS = ("path", "pre", "crossing", "post", "ptp", "blend")
 EVENT_TYPES = ("zone_entry", "zone_exit", "config_change")
 SINGULARITIES = ("wrist", "shoulder", "elbow")
 _T = TypeVar("_T")
-
-
-@dataclass(frozen=True)
-class Checked:
-    """The fields of a checked trajectory.json, as :class:`~singplan.results.trajectory.Trajectory` takes them."""
-
-    robot: str
-    urdf: str
-    tip: str
-    tool: dict[str, list[float]]
-    task: dict[str, Any]
-    joint_names: tuple[str, ...]
-    period: float
-    arrays: dict[str, np.ndarray]  # t (K,), q, qd, qdd (K, n)
-    segments: list[dict[str, Any]]
-    events: list[dict[str, Any]]
-    moves: list[dict[str, Any]]
-    metrics: dict[str, Any]
-    samples: dict[str, Any]
-    fields: FieldChecks  # for the records built from these (:meth:`FieldChecks.record`)
 
 
 class FieldChecks:
@@ -172,33 +151,35 @@ def _kind_text(raw: np.ndarray) -> str:
         raw.dtype.kind, str(raw.dtype))
 
 
-def check_document(doc: Any, name: str, fmt: str) -> Checked:
-    """Check a parsed trajectory.json of format ``fmt`` from the file ``name`` (its arrays are taken
-    out of ``doc`` as they are converted, so the lists and the arrays are not all held at once)."""
+def check_document(doc: Any, name: str, fmt: str) -> FieldChecks:
+    """Check a parsed trajectory.json of format ``fmt`` from the file ``name``, in place: on return its
+    fields are what :class:`~singplan.results.trajectory.Trajectory` takes (``t``, ``q``, ``qd``,
+    ``qdd`` and the per-sample series as float arrays, converted one at a time so the lists and the
+    arrays are not all held at once; ``tool`` and ``task`` in their canonical form). Returns the
+    checks, for the records built from the checked fields (:meth:`FieldChecks.record`)."""
     f = FieldChecks(name)
     if not isinstance(doc, dict) or doc.get("format") != fmt:
         f.fail("format", f"not a {fmt} file (expected a JSON object whose format is {fmt!r})")
-    names = _joint_names(f, doc.get("joint_names"))
-    period = f.number("period", doc.get("period"), PERIOD_S.low, PERIOD_S.high, "s")
-    arrays = _arrays(f, doc, len(names), period)
-    duration = float(arrays["t"][-1])
-    task = _task(f, doc.get("task"))
-    n_moves = len(task["moves"])
+    doc["joint_names"] = _joint_names(f, doc.get("joint_names"))
+    doc["period"] = f.number("period", doc.get("period"), PERIOD_S.low, PERIOD_S.high, "s")
+    _arrays(f, doc, len(doc["joint_names"]))
+    k, duration = len(doc["t"]), float(doc["t"][-1])
+    doc["task"] = _task(f, doc.get("task"))
+    n_moves = len(doc["task"]["moves"])
+    for key, max_chars in (("robot", MAX_NAME_CHARS), ("urdf", 4096), ("tip", MAX_NAME_CHARS)):
+        f.text(key, doc.get(key), max_chars)
     tool = f.mapping("tool", doc.get("tool"))
-    return Checked(
-        robot=f.text("robot", doc.get("robot")), urdf=f.text("urdf", doc.get("urdf"), 4096),
-        tip=f.text("tip", doc.get("tip")),
-        tool={"xyz": f.triple("tool.xyz", tool.get("xyz"), TOOL_OFFSET_M),
-              "rpy_deg": f.triple("tool.rpy_deg", tool.get("rpy_deg"), ANGLE_DEG)},
-        task=task, joint_names=names, period=period, arrays=arrays,
-        segments=[_segment(f, f"segments[{i}]", s, n_moves, duration)
-                  for i, s in enumerate(f.items("segments", doc.get("segments"), len(arrays["t"]) + 2 * n_moves))],
-        events=[_event(f, f"events[{i}]", e, n_moves, duration)
-                for i, e in enumerate(f.items("events", doc.get("events", []), 3 * len(arrays["t"])))],
-        moves=[_move(f, f"moves[{i}]", m, n_moves, duration)
-               for i, m in enumerate(f.items("moves", doc.get("moves", []), n_moves))],
-        metrics=f.mapping("metrics", doc.get("metrics")),
-        samples=_samples(f, doc.get("samples", {}), len(arrays["t"])), fields=f)
+    doc["tool"] = {"xyz": f.triple("tool.xyz", tool.get("xyz"), TOOL_OFFSET_M),
+                   "rpy_deg": f.triple("tool.rpy_deg", tool.get("rpy_deg"), ANGLE_DEG)}
+    for i, s in enumerate(f.items("segments", doc.get("segments"), k + 2 * n_moves)):
+        _segment(f, f"segments[{i}]", s, n_moves, duration)
+    for i, e in enumerate(f.items("events", doc.setdefault("events", []), 3 * k)):
+        _event(f, f"events[{i}]", e, n_moves, duration)
+    for i, m in enumerate(f.items("moves", doc.setdefault("moves", []), n_moves)):
+        _move(f, f"moves[{i}]", m, n_moves, duration)
+    f.mapping("metrics", doc.get("metrics"))
+    doc["samples"] = _samples(f, doc.get("samples", {}), k)
+    return f
 
 
 def _joint_names(f: FieldChecks, value: Any) -> tuple[str, ...]:
@@ -211,8 +192,10 @@ def _joint_names(f: FieldChecks, value: Any) -> tuple[str, ...]:
     return names
 
 
-def _arrays(f: FieldChecks, doc: dict[str, Any], n: int, period: float) -> dict[str, np.ndarray]:
-    t = f.array("t", doc.pop("t", None), (None,), MAX_DURATION_S)
+def _arrays(f: FieldChecks, doc: dict[str, Any], n: int) -> None:
+    """``t``, ``q``, ``qd``, ``qdd`` of ``doc`` replaced by their checked arrays, one after the other."""
+    t = f.array("t", doc.get("t"), (None,), MAX_DURATION_S)
+    doc["t"] = t
     k = len(t)
     if not 1 <= k <= MAX_OUTPUT_SAMPLES:
         f.fail("t", f"expected 1 to {MAX_OUTPUT_SAMPLES} sample times, got {k}")
@@ -222,13 +205,11 @@ def _arrays(f: FieldChecks, doc: dict[str, Any], n: int, period: float) -> dict[
     if steps.any():
         i = int(np.argmax(steps)) + 1
         f.fail(f"t[{i}]", f"times must increase, got {float(t[i - 1])!r} then {float(t[i])!r}")
-    out = {"t": t}
     for field, bound in (("q", MAX_Q_RAD), ("qd", MAX_QD_RAD_S), ("qdd", MAX_QDD_RAD_S2)):
-        value = doc.pop(field, None)
+        value = doc.get(field)
         if isinstance(value, list) and value and isinstance(value[0], list) and len(value[0]) != n:
             f.fail(field, f"rows of {len(value[0])} values, but {n} joint names (one value per joint)")
-        out[field] = f.array(field, value, (k, n), bound)
-    return out
+        doc[field] = f.array(field, value, (k, n), bound)
 
 
 def _task(f: FieldChecks, value: Any) -> dict[str, Any]:

@@ -341,13 +341,13 @@ def load(path: str | Path) -> Trajectory:
     p = Path(path)
     if p.is_dir():
         p = p / JSON_FILE
-    c = check_document(read_json(p, MAX_TRAJECTORY_BYTES, "trajectory.json"), display_path(p), FORMAT)
-    f = c.fields
-    segments = tuple(f.record(f"segments[{i}]", partial(_segment, s)) for i, s in enumerate(c.segments))
-    events = tuple(f.record(f"events[{i}]", partial(Event.from_json, e)) for i, e in enumerate(c.events))
-    moves = tuple(f.record(f"moves[{i}]", partial(MoveRecord, **m)) for i, m in enumerate(c.moves))
-    metrics = f.record("metrics", lambda: Metrics.from_json(c.metrics))
-    samples = f.record("samples", lambda: _samples_from_file(c.samples))
-    a = c.arrays
-    return Trajectory(c.robot, c.urdf, c.tip, c.tool, c.task, c.joint_names, c.period, a["t"], a["q"], a["qd"],
-                      a["qdd"], segments, events, metrics, samples, moves)
+    doc = read_json(p, MAX_TRAJECTORY_BYTES, "trajectory.json")
+    f = check_document(doc, display_path(p), FORMAT)  # in place: the fields below are checked
+    segments = tuple(f.record(f"segments[{i}]", partial(_segment, s)) for i, s in enumerate(doc["segments"]))
+    events = tuple(f.record(f"events[{i}]", partial(Event.from_json, e)) for i, e in enumerate(doc["events"]))
+    moves = tuple(f.record(f"moves[{i}]", partial(MoveRecord, **m)) for i, m in enumerate(doc["moves"]))
+    metrics = f.record("metrics", partial(Metrics.from_json, doc["metrics"]))
+    samples = f.record("samples", partial(_samples_from_file, doc["samples"]))
+    return Trajectory(doc["robot"], doc["urdf"], doc["tip"], doc["tool"], doc["task"], doc["joint_names"],
+                      doc["period"], doc["t"], doc["q"], doc["qd"], doc["qdd"], segments, events, metrics, samples,
+                      moves)

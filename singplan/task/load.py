@@ -160,6 +160,9 @@ def _robot_ref(value: Any, base_dir: Path | None) -> str:
     try:
         if path.is_dir():
             raise TaskError("robot", f"{_path_text(str(path))} is a directory, not a URDF file")
+        if path.exists() and not path.is_file():
+            raise TaskError("robot", f"{_path_text(str(path))} is not a regular file (a FIFO or a device?); "
+                                     "a URDF must be one")
         if not path.is_file():
             raise TaskError("robot", f"URDF file {_path_text(name)} does not exist{_looked_at(name, path)}")
         return str(path.resolve())

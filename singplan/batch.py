@@ -37,7 +37,7 @@ from typing import Any, TextIO
 from singplan.errors import InputError, SingplanError
 from singplan.outputs.plan_folder import OUTPUT_FILES, plan_into
 from singplan.planning.budget import TASK_MEMORY_MB
-from singplan.results.files import check_output_dir, remove_temporary_files, write_files
+from singplan.results.files import check_output_dir, hold_output_folder, remove_temporary_files, write_files
 from singplan.results.trajectory import Trajectory
 from singplan.task.load import load_task
 
@@ -204,17 +204,18 @@ def plan_many(tasks: Sequence[str | os.PathLike[str]], out_dir: str | os.PathLik
     jobs = make_jobs(tasks, folder, method, report, replay)
     client = _connect(scheduler) if scheduler is not None else None  # refused before DIR is created
     try:
-        folder.mkdir(parents=True, exist_ok=True)  # before the workers, which would race to create it
-        started = time.perf_counter()
-        results = (_on_dask(jobs, client, runner) if client is not None
-                   else _on_processes(jobs, local_workers(workers, len(jobs)), runner))
-        done, stopped = _collect(results, len(jobs), progress)
+        # created before the workers, which would race to create it; held until the summary is written
+        with hold_output_folder(folder, SUMMARY_FILES):
+            started = time.perf_counter()
+            results = (_on_dask(jobs, client, runner) if client is not None
+                       else _on_processes(jobs, local_workers(workers, len(jobs)), runner))
+            done, stopped = _collect(results, len(jobs), progress)
+            result = BatchResult(Path(os.path.abspath(folder)), _records(jobs, done, stopped),
+                                 stopped == _INTERRUPTION, time.perf_counter() - started)
+            write_summary(result)
     finally:
         if client is not None:
             client.close()
-    result = BatchResult(Path(os.path.abspath(folder)), _records(jobs, done, stopped), stopped == _INTERRUPTION,
-                         time.perf_counter() - started)
-    write_summary(result)
     return result
 
 

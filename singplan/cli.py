@@ -210,15 +210,15 @@ def cmd_ik(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from singplan.kinematics.configuration import singularity_distances
     from singplan.kinematics.ik.solve import solve_all
     from singplan.kinematics.robot import load_robot
-    from singplan.task.schema import ANGLE_DEG, COORDINATE_M, TOOL_OFFSET_M, check_vector
+    from singplan.task.schema import ANGLE_DEG, COORDINATE_M, JOINT_DEG, TOOL_OFFSET_M, check_vector
 
     for flag, values, bounds in (("--xyz", args.xyz, COORDINATE_M), ("--rpy-deg", args.rpy_deg, ANGLE_DEG),
                                  ("--tool-xyz", args.tool_xyz, TOOL_OFFSET_M),
                                  ("--tool-rpy-deg", args.tool_rpy_deg, ANGLE_DEG)):
         check_vector(flag, values, 3, bounds)  # before any solve: NaN or 1e300 is bad input, not "no solution"
     full = load_robot(args.robot, tip=args.tip, tool=_pose(args.tool_xyz, args.tool_rpy_deg))
-    if args.seed_deg is not None and len(args.seed_deg) != full.n_joints:
-        raise InputError(f"--seed-deg: expected {full.n_joints} numbers, got {len(args.seed_deg)}")
+    if args.seed_deg is not None:  # NaN or 1e300 is bad input naming the option, not an internal error
+        check_vector("--seed-deg", args.seed_deg, full.n_joints, JOINT_DEG)
     held = _hold(full, args.hold)
     robot = held.reduced if held is not None else full  # a held joint leaves a 6R chain: its branches and labels
     # one solution per branch (nearest the seed, default zero) unless every 2*pi variant is asked for
@@ -372,7 +372,7 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from singplan.outputs.viewer import replay
 
     if args.serve:
-        return _serve(args, out)
+        return _serve(args, out, err)
     if args.host is not None:
         raise InputError("replay: --host goes with --serve")
     if args.html is None:
@@ -382,11 +382,14 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     return 0
 
 
-def _serve(args: argparse.Namespace, out: TextIO) -> int:
+def _serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     """Play the trajectory on a live meshcat server until Ctrl-C (or SIGTERM)."""
-    from singplan.outputs.viewer import LiveReplay, replay
+    from singplan.outputs.viewer import LiveReplay, is_loopback, replay
 
     host = DEFAULT_HOST if args.host is None else args.host
+    if not is_loopback(host):
+        err.write(f"singplan: warning: --host {host} is not a loopback address: anyone who can reach this "
+                  f"machine there can open the replay (the default {DEFAULT_HOST} serves this machine only)\n")
     live = replay(args.trajectory, serve=True, speed=args.speed, loop=not args.no_loop, host=host)
     assert isinstance(live, LiveReplay)
     previous = signal.signal(signal.SIGTERM, _interrupt)

@@ -248,7 +248,8 @@ def _synthetic(samples: int) -> Trajectory:
     q = rng.uniform(-3, 3, (samples, 6))
     series = {"position_error_m": rng.uniform(0, 1e-5, samples), "orientation_error_rad": rng.uniform(0, 1e-4, samples),
               "distances": rng.uniform(0, 1, (samples, 3))}
-    return Trajectory("r", "/r.urdf", "tool0", {"xyz": [0, 0, 0], "rpy_deg": [0, 0, 0]}, {"robot": "r"},
+    task = {"robot": "r", "start": {"joints_deg": [0] * 6}, "moves": [{"ptp": {"to": {"joints_deg": [0] * 6}}}]}
+    return Trajectory("r", "/r.urdf", "tool0", {"xyz": [0, 0, 0], "rpy_deg": [0, 0, 0]}, task,
                       tuple(f"j{i}" for i in range(6)), 0.004, t, q, q * 2, q * 3, (), (),
                       replace(Metrics.of_samples(float(t[-1]), samples), max_position_error_mm=float("nan")), series)
 
@@ -343,10 +344,11 @@ def test_temporary_files_a_killed_writer_left_are_removed_and_nothing_else(tmp_p
     seen: list[str] = []
 
     def peek(stream: io.TextIOBase) -> None:  # the real writer's temporary name, while it exists
-        seen.extend(p.name for p in tmp_path.iterdir() if p.name.startswith("."))
+        seen.extend(p.name for p in tmp_path.iterdir() if p.name.startswith(".") and p.name != outputs.LOCK_NAME)
 
     outputs.write_files(tmp_path, {"trajectory.json": peek})
     assert len(seen) == 1 and seen[0].startswith(".trajectory.json.")
+    assert not (tmp_path / outputs.LOCK_NAME).exists()  # the writer's lock went with it
     (tmp_path / seen[0]).write_text("half a file")  # as if the writer had been killed before its rename
     (tmp_path / ".summary.csv.x1y2.singplan-tmp").write_text("not one of the names given")
     (tmp_path / "mine.txt").write_text("keep")

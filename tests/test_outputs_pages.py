@@ -292,9 +292,11 @@ def test_the_replay_takes_the_reports_colours_from_the_page_data(demo: Trajector
     assert not written & ours and "rgba(" not in script  # no colour of the report written again
 
 
-def test_the_viewer_imports_neither_the_task_loader_nor_the_planner() -> None:
+def test_the_viewer_imports_neither_the_planner_nor_pinocchio_viewers() -> None:
+    # singplan.task.load is imported: a trajectory.json's task is checked as a task when it is read
+    # (singplan.results.reading); the programmed path is still drawn from the record, not re-parsed
     code = ("import sys, singplan.outputs.viewer, singplan.outputs.report; "
-            "print([m for m in ('singplan.task.load', 'singplan.planning.planner', 'pinocchio.visualize', "
+            "print([m for m in ('singplan.planning.planner', 'pinocchio.visualize', "
             "'matplotlib') if m in sys.modules])")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True,
                          env={"PYTHONPATH": str(ROOT), "PATH": ""})

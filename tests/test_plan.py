@@ -197,7 +197,7 @@ def test_replay_is_written_self_contained_and_can_be_rebuilt_from_the_saved_traj
     assert singplan.replay(saved, html=tmp_path / "api.html").is_file()
     err = io.StringIO()
     assert main(["replay", str(tmp_path / "nowhere"), "--html", str(tmp_path / "x.html")], err=err) == 2
-    assert "cannot read a trajectory" in err.getvalue()
+    assert "nowhere: no such trajectory.json" in err.getvalue()
     err = io.StringIO()
     assert main(["replay", str(folder)], err=err) == 2  # neither --html nor --serve
     assert "--serve" in err.getvalue()

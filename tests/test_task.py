@@ -239,7 +239,8 @@ def test_directory_and_oversized_file(tmp_path: Path) -> None:
         load_task(tmp_path)
     big = tmp_path / "big.yaml"
     big.write_bytes(b"#" * (MAX_FILE_BYTES + 1))
-    with pytest.raises(TaskError, match=rf"big\.yaml: over the {MAX_FILE_BYTES}-byte cap for a task file"):
+    cap = rf"big\.yaml: {MAX_FILE_BYTES + 1} bytes is over the {MAX_FILE_BYTES}-byte cap for a task file"
+    with pytest.raises(TaskError, match=cap):
         load_task(big)
 
 

@@ -6,13 +6,19 @@ file over its cap is refused before it is read, so no input can hang a run or fi
 the file is opened without blocking (a FIFO with no writer would wait forever in ``open``),
 checked with ``fstat`` on the open descriptor (no race between the check and the read), and
 read up to one byte past the cap (a file that grows meanwhile is still refused).
+
+What is read is then parsed with bounded work (:func:`read_json`; YAML in
+:mod:`singplan.kinematics.yamldoc`) and every value is checked before use; a value that is not
+what it must be is a :class:`FileFieldError` naming the file and the field.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import stat
 from pathlib import Path
+from typing import Any
 
 from singplan.errors import InputError
 
@@ -31,6 +37,22 @@ class FileRefusedError(InputError):
         self.what = what
         self.reason = reason
         super().__init__(f"{path}: {reason}")
+
+
+class FileFieldError(InputError):
+    """A value in a file singplan read is not what it must be.
+
+    Attributes:
+        path: the file as named.
+        field: where in it, as a key path (``segments[3].kind``; empty for the whole document).
+        reason: what is wrong, with the value found and what was expected.
+    """
+
+    def __init__(self, path: str, field: str, reason: str) -> None:
+        self.path = path
+        self.field = field
+        self.reason = reason
+        super().__init__(f"{path}: {field}: {reason}" if field else f"{path}: {reason}")
 
 
 def display_path(path: str | os.PathLike[str]) -> str:
@@ -54,17 +76,20 @@ def read_bounded(path: str | os.PathLike[str], max_bytes: int, what: str) -> byt
     except FileNotFoundError:
         raise FileRefusedError(name, what, f"no such {what}") from None
     except IsADirectoryError:
-        raise FileRefusedError(name, what, f"is a folder, not a {what}") from None
+        raise FileRefusedError(name, what, f"is a directory, not a {what}") from None
     except PermissionError:
         raise FileRefusedError(name, what, "cannot be read (permission denied)") from None
-    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
-        raise FileRefusedError(name, what, f"cannot be read ({getattr(exc, 'strerror', None) or exc})") from None
-    with os.fdopen(fd, "rb") as f:
-        info = os.fstat(f.fileno())
+    except ValueError:  # a NUL byte in the path: no file has that name
+        raise FileRefusedError(name, what, f"no such {what} (the name holds a NUL character)") from None
+    except OSError as exc:
+        raise FileRefusedError(name, what, f"cannot be read ({exc.strerror or exc})") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):
+        os.close(fd)
         if stat.S_ISDIR(info.st_mode):
-            raise FileRefusedError(name, what, f"is a folder, not a {what}")
-        if not stat.S_ISREG(info.st_mode):
-            raise FileRefusedError(name, what, f"not a regular file (a {_kind(info.st_mode)}); a {what} must be one")
+            raise FileRefusedError(name, what, f"is a directory, not a {what}")
+        raise FileRefusedError(name, what, f"not a regular file (a {_kind(info.st_mode)}); a {what} must be one")
+    with os.fdopen(fd, "rb") as f:
         if info.st_size > max_bytes:
             raise FileRefusedError(name, what, f"{info.st_size} bytes is over the {max_bytes}-byte cap for a {what}")
         try:
@@ -88,6 +113,27 @@ def read_bounded_text(path: str | os.PathLike[str], max_bytes: int, what: str) -
     except UnicodeDecodeError as exc:
         raise FileRefusedError(display_path(path), what,
                                f"not a UTF-8 text file (byte {exc.start} is invalid)") from None
+
+
+def read_json(path: str | os.PathLike[str], max_bytes: int, what: str) -> Any:
+    """The JSON document of the file ``path`` (:func:`read_bounded_text`), parsed with bounded work.
+
+    Python's parser refuses nesting past the interpreter's recursion limit (a few thousand
+    levels at most, each a character of the bounded file) with RecursionError; that, a
+    syntax error and a number Python will not convert (an integer of over 4300 digits) are
+    each a :class:`FileFieldError` naming the file (and the line and column of a syntax error).
+    The values are not checked here: the caller checks each before use.
+    """
+    text = read_bounded_text(path, max_bytes, what)
+    name = display_path(path)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise FileFieldError(name, "", f"not valid JSON (line {exc.lineno}, column {exc.colno}): {exc.msg}") from None
+    except RecursionError:
+        raise FileFieldError(name, "", "nested too deeply to be a " + what) from None
+    except ValueError as exc:  # e.g. an integer too long to convert
+        raise FileFieldError(name, "", f"a value cannot be read: {str(exc)[:120]}") from None
 
 
 def _kind(mode: int) -> str:

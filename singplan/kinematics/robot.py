@@ -24,11 +24,12 @@ from singplan.errors import RobotModelError, UnknownNameError
 from singplan.kinematics.families import Family, OpwParameters, Recognition, recognise
 from singplan.kinematics.ik.ur import UrParameters
 from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
+from singplan.kinematics.urdf_scan import MAX_URDF_BYTES as MAX_URDF_BYTES  # the cap, named where robots load
+from singplan.kinematics.urdf_scan import UrdfScan, check_no_mimic, read_urdf
 
 logger = logging.getLogger(__name__)
 
 SUPPORTED_JOINT_COUNTS = (5, 6, 7)  # actuated revolute joints from the root to the tip
-MAX_URDF_BYTES = 32 * 1024 * 1024
 VELOCITY_LIMIT_RAD_S = (1e-3, 1e3)  # a joint slower than 0.001 rad/s would make durations overflow
 MAX_JOINT_SPAN_RAD = 8 * math.pi  # 4 turns: the IK lists every 2*pi variant inside the range
 _FK_CHUNK = 16_384  # samples whose chain transforms are formed at once (~0.5 kB of temporaries each)
@@ -335,38 +336,24 @@ def _chain_joint_ids(model: pin.Model, frame_id: int) -> list[int]:
     return ids
 
 
-def _load_model(urdf_path: Path) -> pin.Model:
-    _check_urdf_file(urdf_path)
+def _load_model(urdf_path: Path) -> tuple[pin.Model, UrdfScan]:
+    """The URDF's whole model, built from the text :func:`~singplan.kinematics.urdf_scan.read_urdf`
+    read and scanned (Pinocchio parses exactly what was checked), and what the scan found."""
+    scan = read_urdf(urdf_path)
     with tempfile.TemporaryFile() as messages:
         try:
-            model = _build_quietly(urdf_path, messages.fileno())
+            model = _build_quietly(scan.text, messages.fileno())
         except (RuntimeError, ValueError) as exc:
             messages.seek(0)
             reason = _urdfdom_reason(messages.read(8192).decode("utf-8", "replace")) or str(exc)
             raise RobotModelError(str(urdf_path), f"cannot be read as URDF: {reason}") from None
     if not any(f.type == pin.FrameType.BODY for f in model.frames):
         raise RobotModelError(str(urdf_path), "has no links")
-    return model
+    return model, scan
 
 
-def _check_urdf_file(urdf_path: Path) -> None:
-    """A readable regular file within the size cap."""
-    try:
-        if urdf_path.is_dir():
-            raise RobotModelError(str(urdf_path), "is a directory, not a URDF file")
-        if not urdf_path.is_file():
-            raise RobotModelError(str(urdf_path), "no such URDF file")
-        size = urdf_path.stat().st_size
-        with urdf_path.open("rb") as f:
-            f.read(1)
-    except OSError as exc:
-        raise RobotModelError(str(urdf_path), f"cannot be read ({exc.strerror or exc})") from None
-    if size > MAX_URDF_BYTES:
-        raise RobotModelError(str(urdf_path), f"{size} bytes is over the {MAX_URDF_BYTES}-byte cap for a URDF")
-
-
-def _build_quietly(urdf_path: Path, sink_fd: int) -> pin.Model:
-    """``pin.buildModelFromUrdf`` with urdfdom's messages (written to fd 2) sent to ``sink_fd``.
+def _build_quietly(urdf_text: str, sink_fd: int) -> pin.Model:
+    """``pin.buildModelFromXML`` with urdfdom's messages (written to fd 2) sent to ``sink_fd``.
 
     urdfdom explains a rejected file only on stderr; keeping its lines lets the error name
     the joint and the value.
@@ -374,10 +361,10 @@ def _build_quietly(urdf_path: Path, sink_fd: int) -> pin.Model:
     try:
         saved = os.dup(2)
     except OSError:  # no stderr to redirect
-        return pin.buildModelFromUrdf(str(urdf_path))
+        return pin.buildModelFromXML(urdf_text)
     os.dup2(sink_fd, 2)
     try:
-        return pin.buildModelFromUrdf(str(urdf_path))
+        return pin.buildModelFromXML(urdf_text)
     finally:
         os.dup2(saved, 2)
         os.close(saved)
@@ -547,7 +534,9 @@ def load_robot(name_or_urdf: str | Path, tip: str | None = None, tool: pin.SE3 |
 
     Raises:
         UnknownNameError: unknown robot name (lists the valid ones) or unknown tip frame.
-        RobotModelError: the URDF is missing, unreadable, over :data:`MAX_URDF_BYTES`, or lacks
+        RobotModelError: the URDF is missing, not a regular file or over :data:`MAX_URDF_BYTES`; it
+            is refused by its scan (:mod:`singplan.kinematics.urdf_scan`: too
+            many joints or elements, a joint axis of no length, a mimic joint on the chain) or lacks
             what planning needs (named joint and reason).
     """
     registry = bundled_robots()
@@ -556,9 +545,10 @@ def load_robot(name_or_urdf: str | Path, tip: str | None = None, tool: pin.SE3 |
     if entry is None and not text.lower().endswith(".urdf"):
         raise UnknownNameError("robot", text, sorted(registry))
     urdf_path = entry.urdf_path() if entry is not None else Path(text).expanduser().resolve()
-    model = _load_model(urdf_path)
+    model, scan = _load_model(urdf_path)
     tip_name = tip or (entry.tip if entry is not None else default_tip(model))
     model = _reduce_to_chain(model, tip_name, urdf_path)
+    check_no_mimic(scan, (model.names[j] for j in range(1, model.njoints)), str(urdf_path))
     _check_limits(model, urdf_path)
     name = entry.name if entry is not None else urdf_path.stem
     robot = Robot(name, urdf_path, model, tip_name, tool if tool is not None else pin.SE3.Identity(), entry)

@@ -8,7 +8,11 @@ signs, offsets and couplings (FANUC J2/J3, the ABB IRB 2400 parallel linkage), w
     axis_i = axis_signs[i] * joint_i + axis_offsets_deg[i] + sum(f * joint_j for {axis: i, joint: j, factor: f})
 
 A user URDF declares its convention in a sidecar file next to it, ``<name>.controller.yaml``,
-holding the same ``controller:`` mapping; without one its vendor configuration is null.
+holding the same ``controller:`` mapping; without one its vendor configuration is null. The
+sidecar is read like every file singplan reads (:mod:`singplan.kinematics.files`,
+:mod:`singplan.kinematics.yamldoc`): a regular UTF-8 file of at most
+:data:`MAX_SIDECAR_BYTES`, no aliases, shallow nesting, each value checked for type and range;
+anything else is bad input naming the file and the field.
 
 The forms (degrees of the controller axes ``a1..a6``):
 
@@ -39,17 +43,24 @@ from pathlib import Path
 from typing import Any, Literal, NamedTuple, cast
 
 import numpy as np
-import yaml
 
 from singplan.errors import InputError, RobotModelError
 from singplan.kinematics.angles import wrap_deg
 from singplan.kinematics.configuration import distances_batch
+from singplan.kinematics.files import FileFieldError, display_path, read_bounded_text
 from singplan.kinematics.robot import Robot, registry_specs, robots_dir
+from singplan.kinematics.yamldoc import YamlLimits, load_yaml, shorten
 
 Vendor = Literal["abb", "kuka", "fanuc", "staubli", "none"]
 VENDORS: tuple[Vendor, ...] = ("abb", "kuka", "fanuc", "staubli", "none")
 SIDECAR_SUFFIX = ".controller.yaml"
+MAX_SIDECAR_BYTES = 64 * 1024  # a convention is a few lines; sources may quote a manual or two
+_SIDECAR_YAML = YamlLimits("a controller sidecar", max_depth=6, max_nodes=2000, max_key_chars=64,
+                           max_scalar_chars=2000)
 _N_AXES = 6
+_CONVENTION_KEYS = ("vendor", "axis_signs", "axis_offsets_deg", "couplings", "sources")
+MAX_OFFSET_DEG = 720.0  # an axis offset beyond two turns is a unit mistake
+MAX_COUPLING_FACTOR = 100.0
 
 
 @dataclass(frozen=True)
@@ -130,45 +141,76 @@ def parse_convention(spec: object, where: str) -> ControllerConvention | None:
     if spec is None:
         return None
     if not isinstance(spec, Mapping):
-        raise RobotModelError(where, "expected a mapping with vendor, axis_signs, axis_offsets_deg, couplings")
+        raise RobotModelError(where, f"expected a mapping with {', '.join(_CONVENTION_KEYS)}, got {_shown(spec)}")
     vendor = spec.get("vendor")
-    if vendor not in VENDORS:
-        raise RobotModelError(where, f"vendor: expected one of {', '.join(VENDORS)}, got {vendor!r}")
+    if not isinstance(vendor, str) or vendor not in VENDORS:
+        raise RobotModelError(f"{where}.vendor", f"expected one of {', '.join(VENDORS)}, got {_shown(vendor)}")
     if vendor == "none":
         return None
-    unknown = set(spec) - {"vendor", "axis_signs", "axis_offsets_deg", "couplings", "sources"}
+    unknown = [str(k) for k in spec if k not in _CONVENTION_KEYS]
     if unknown:
-        raise RobotModelError(where, f"unknown key(s) {', '.join(sorted(map(str, unknown)))}")
-    signs = _numbers(spec.get("axis_signs", [1] * _N_AXES), f"{where}.axis_signs")
-    if any(s not in (1.0, -1.0) for s in signs):
-        raise RobotModelError(where, f"axis_signs: each must be 1 or -1, got {signs}")
-    offsets = _numbers(spec.get("axis_offsets_deg", [0] * _N_AXES), f"{where}.axis_offsets_deg")
+        raise RobotModelError(where, f"unknown key(s) {shorten(', '.join(sorted(unknown)))}; valid: "
+                                     f"{', '.join(_CONVENTION_KEYS)}")
+    signs = _numbers(spec.get("axis_signs", [1] * _N_AXES), f"{where}.axis_signs", 1.0)
+    bad = next((i for i, s in enumerate(signs) if s not in (1.0, -1.0)), None)
+    if bad is not None:
+        raise RobotModelError(f"{where}.axis_signs[{bad}]", f"must be 1 or -1, got {signs[bad]:g}")
+    offsets = _numbers(spec.get("axis_offsets_deg", [0] * _N_AXES), f"{where}.axis_offsets_deg", MAX_OFFSET_DEG)
     matrix = np.diag(signs)
-    for k, c in enumerate(spec.get("couplings") or []):
+    for k, c in enumerate(_list(spec.get("couplings"), f"{where}.couplings")):
         axis, joint, factor = _coupling(c, f"{where}.couplings[{k}]")
         matrix[axis - 1, joint - 1] += factor
     if abs(np.linalg.det(matrix)) < 1e-9:
-        raise RobotModelError(where, "couplings: the axes would not determine the joints (singular mapping)")
+        raise RobotModelError(f"{where}.couplings", "the axes would not determine the joints (singular mapping)")
+    sources = _list(spec.get("sources"), f"{where}.sources")
+    if not all(isinstance(text, str) for text in sources):
+        raise RobotModelError(f"{where}.sources", "expected a list of texts (where each figure comes from)")
     return ControllerConvention(cast(Vendor, vendor), tuple(map(tuple, matrix.tolist())),
-                                tuple(math.radians(v) for v in offsets), tuple(map(str, spec.get("sources", ()))))
+                                tuple(math.radians(v) for v in offsets), tuple(sources))
 
 
-def _numbers(value: object, where: str) -> list[float]:
-    ok = isinstance(value, list) and len(value) == _N_AXES and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
-    if not ok:
-        raise RobotModelError(where, f"expected {_N_AXES} finite numbers, got {value!r}")
-    return [float(v) for v in cast(list[float], value)]
+def _shown(value: object) -> str:
+    """A value for a message: its type and a short repr (a huge list is never printed whole)."""
+    text = repr(value) if not isinstance(value, (list, dict)) or len(value) <= 12 else f"{len(value)} items"
+    return f"{type(value).__name__} {shorten(text, 60)}"
+
+
+def _list(value: object, where: str) -> list[Any]:
+    """An optional list (None: empty)."""
+    if value is None:
+        return []
+    if not isinstance(value, list):
+        raise RobotModelError(where, f"expected a list, got {_shown(value)}")
+    return value
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _numbers(value: object, where: str, bound: float) -> list[float]:
+    """Six finite numbers of magnitude at most ``bound``."""
+    if not isinstance(value, list) or len(value) != _N_AXES:
+        raise RobotModelError(where, f"expected {_N_AXES} numbers, got {_shown(value)}")
+    for i, v in enumerate(value):
+        if not _is_number(v) or not abs(v) <= bound:  # also NaN; an int too large for a float compares fine
+            raise RobotModelError(f"{where}[{i}]", f"expected a finite number of magnitude at most {bound:g}, "
+                                                   f"got {_shown(v)}")
+    return [float(v) for v in value]
 
 
 def _coupling(c: object, where: str) -> tuple[int, int, float]:
     if not isinstance(c, Mapping) or set(c) != {"axis", "joint", "factor"}:
-        raise RobotModelError(where, "expected {axis: i, joint: j, factor: f}")
+        raise RobotModelError(where, f"expected {{axis: i, joint: j, factor: f}}, got {_shown(c)}")
     axis, joint, factor = c["axis"], c["joint"], c["factor"]
-    if axis not in range(1, _N_AXES + 1) or joint not in range(1, _N_AXES + 1) or axis == joint:
-        raise RobotModelError(where, f"axis and joint: two different numbers 1..{_N_AXES}, got {axis}, {joint}")
-    if not isinstance(factor, (int, float)) or isinstance(factor, bool) or not math.isfinite(factor):
-        raise RobotModelError(where, f"factor: expected a finite number, got {factor!r}")
+    for key, value in (("axis", axis), ("joint", joint)):
+        if not isinstance(value, int) or isinstance(value, bool) or not 1 <= value <= _N_AXES:
+            raise RobotModelError(f"{where}.{key}", f"expected a whole number 1..{_N_AXES}, got {_shown(value)}")
+    if axis == joint:
+        raise RobotModelError(where, f"axis and joint must differ (the sign is axis_signs[{axis - 1}]), got {axis}")
+    if not _is_number(factor) or not abs(factor) <= MAX_COUPLING_FACTOR:
+        raise RobotModelError(f"{where}.factor", f"expected a finite number of magnitude at most "
+                                                 f"{MAX_COUPLING_FACTOR:g}, got {_shown(factor)}")
     return int(axis), int(joint), float(factor)
 
 
@@ -192,14 +234,23 @@ def _convention_of_file(urdf_path: str) -> ControllerConvention | None:
 
 @lru_cache(maxsize=64)
 def _read_sidecar(side: str, mtime_ns: int) -> ControllerConvention | None:
-    """A sidecar's convention, cached per modification time (an edited sidecar is read again)."""
-    try:
-        doc = yaml.safe_load(Path(side).read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise RobotModelError(side, f"cannot read the controller convention ({exc})") from None
+    """A sidecar's convention, cached per modification time (an edited sidecar is read again).
+
+    Raises:
+        FileRefusedError: not a regular UTF-8 file within :data:`MAX_SIDECAR_BYTES` (a FIFO, a
+            link to a device, a folder ...).
+        FileFieldError: YAML that is malformed or breaks the scan's limits, naming the field.
+        RobotModelError: a field of the convention is wrong (``<file>: controller.couplings[0].axis: ...``).
+    """
+    name = display_path(side)
+    text = read_bounded_text(side, MAX_SIDECAR_BYTES, "controller sidecar")
+    doc = load_yaml(text, _SIDECAR_YAML, lambda field, reason: FileFieldError(name, field, reason))
     if not isinstance(doc, Mapping) or "controller" not in doc:
-        raise RobotModelError(side, "expected a mapping with the key 'controller'")
-    return parse_convention(doc["controller"], f"{side}: controller")
+        raise FileFieldError(name, "", f"expected a mapping with the key 'controller', got {_shown(doc)}")
+    unknown = [str(k) for k in doc if k != "controller"]
+    if unknown:
+        raise FileFieldError(name, shorten(unknown[0], 64), "unknown key; a sidecar holds `controller:` only")
+    return parse_convention(doc["controller"], f"{name}: controller")
 
 
 def convention_for(robot: Robot) -> ControllerConvention | None:

@@ -3,6 +3,8 @@
 * ``ros2``: a ``trajectory_msgs/msg/JointTrajectory`` as YAML, the form ``ros2 topic pub``
   and launch files take (header, joint_names, points with positions, velocities,
   accelerations, effort, time_from_start {sec, nanosec}); ``ros2-json`` the same as JSON.
+  ``time_from_start`` is a ``builtin_interfaces/Duration`` (sec int32, nanosec uint32): a
+  trajectory that starts before 0 or lasts beyond 2 147 483 647 s is refused, not written wrong.
 * ``urscript``: ``def singplan_move(): ... end``: ``movej`` to the first sample, then one
   ``servoj`` per sample at the trajectory's period. UR controllers run their servo loop at a
   fixed step (e-series 500 Hz, 0.002 s; CB3 125 Hz, 0.008 s); a period that is not a whole
@@ -11,6 +13,7 @@
 * ``csv-deg``: header ``t [s],<joint> [deg]...,<joint> [deg/s]...``, one row per sample;
   optionally a ``vendor_config`` column (:mod:`singplan.kinematics.vendor_config`) per sample.
 * ``krl``, ``rapid``, ``fanuc-ls``: controller programs, written by :mod:`singplan.outputs.programs`.
+  Texts are quoted as Python's csv module does (a joint name may hold commas or quotes).
 
 Every writer streams a chunk of samples at a time. Files are written by the rules of
 :mod:`singplan.results.files` (temporary name, renamed when complete, nothing else touched).
@@ -37,8 +40,8 @@ from singplan.kinematics.vendor_config import format_vendor_config, vendor_confi
 from singplan.outputs.checks import check_trajectory
 from singplan.outputs.choices import DEFAULT_FILE_NAMES, FORMATS, PROGRAM_FORMATS, UR_STEP_S
 from singplan.outputs.programs import ProgramOptions, write_program
-from singplan.results.files import Writer, check_output_file, write_file
-from singplan.results.trajectory import Trajectory, csv_rows
+from singplan.results.files import Writer, check_output_file, hold_output_folder, write_file
+from singplan.results.trajectory import Trajectory, csv_line, csv_rows
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -48,6 +51,7 @@ GAIN_RANGE = (100.0, 2000.0)  # servoj gain, as the URScript manual allows
 _UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
               "wrist_3_joint")
 _CHUNK = 4096
+INT32_MAX = 2**31 - 1  # builtin_interfaces/Duration.sec
 
 
 @dataclass(frozen=True)
@@ -63,8 +67,18 @@ class UrScriptOptions:
 
 # --- ROS 2 --------------------------------------------------------------------------------------
 
+def check_durations(traj: Trajectory) -> None:
+    """Refuse (InputError naming ``t``) times a ``builtin_interfaces/Duration`` cannot carry: before
+    0, or at and beyond 2**31 s (``sec`` is an int32; ``nanosec`` a uint32 below 1e9)."""
+    if traj.t[0] < 0.0:
+        raise InputError(f"t[0]: {traj.t[0]!r} s is before the start; a ROS 2 time_from_start is not negative")
+    if traj.t[-1] >= INT32_MAX + 1:
+        raise InputError(f"t[{len(traj.t) - 1}]: {traj.t[-1]!r} s is beyond what a ROS 2 Duration holds "
+                         f"(sec is an int32: at most {INT32_MAX} s)")
+
+
 def _duration(t_s: float) -> tuple[int, int]:
-    """builtin_interfaces/Duration (sec int32, nanosec uint32 < 1e9) of t_s >= 0."""
+    """builtin_interfaces/Duration (sec int32, nanosec uint32 < 1e9) of 0 <= t_s < 2**31 (:func:`check_durations`)."""
     sec, nanosec = divmod(round(t_s * 1e9), 10**9)
     return int(sec), int(nanosec)
 
@@ -104,6 +118,7 @@ def _point_chunks(traj: Trajectory) -> Iterator[list[_Point]]:
 def write_ros2_yaml(stream: TextIO, traj: Trajectory) -> None:
     """trajectory_msgs/msg/JointTrajectory as YAML (block style, one flow list per array)."""
     check_trajectory(traj)
+    check_durations(traj)
     stream.write("header:\n  stamp: {sec: 0, nanosec: 0}\n  frame_id: ''\n")
     stream.write("joint_names: [" + ", ".join(json.dumps(n) for n in traj.joint_names) + "]\npoints:\n")
     for chunk in _point_chunks(traj):
@@ -116,6 +131,7 @@ def write_ros2_yaml(stream: TextIO, traj: Trajectory) -> None:
 def write_ros2_json(stream: TextIO, traj: Trajectory) -> None:
     """The same message as JSON."""
     check_trajectory(traj)
+    check_durations(traj)
     stream.write('{"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""}, "joint_names": '
                  + json.dumps(list(traj.joint_names)) + ', "points": [')
     for i, chunk in enumerate(_point_chunks(traj)):
@@ -218,8 +234,11 @@ def write_csv_deg(stream: TextIO, traj: Trajectory, vendor_config: bool = False)
     check_trajectory(traj)
     header = (["t [s]"] + [f"{n} [deg]" for n in traj.joint_names] + [f"{n} [deg/s]" for n in traj.joint_names]
               + (["vendor_config"] if vendor_config else []))
-    stream.write(",".join(_csv_field(h) for h in header) + "\n")
+    stream.write(csv_line(header) + "\n")
     robot = load_robot(traj.urdf, tip=traj.tip) if vendor_config else None
+    if robot is not None and robot.joint_names != traj.joint_names:
+        raise InputError(f"joint_names: {list(traj.joint_names)!r} are not the joints of {traj.urdf} to {traj.tip} "
+                         f"({list(robot.joint_names)!r}); the URDF changed since the plan?")
     for start in range(0, len(traj.t), _CHUNK):
         stop = start + _CHUNK
         block = np.hstack([traj.t[start:stop, None], np.degrees(traj.q[start:stop]),
@@ -227,12 +246,8 @@ def write_csv_deg(stream: TextIO, traj: Trajectory, vendor_config: bool = False)
         lines = csv_rows(block.tolist()).splitlines()
         if robot is not None:
             texts = [format_vendor_config(c) for c in vendor_configs(robot, traj.q[start:stop])]
-            lines = [f"{line},{_csv_field(text)}" for line, text in zip(lines, texts, strict=True)]
+            lines = [f"{line},{csv_line([text])}" for line, text in zip(lines, texts, strict=True)]
         stream.write("\n".join(lines) + "\n")
-
-
-def _csv_field(text: str) -> str:
-    return '"' + text.replace('"', '""') + '"' if any(c in text for c in ',"\n') else text
 
 
 # --- strings and files --------------------------------------------------------------------------
@@ -293,10 +308,13 @@ def export(traj: Trajectory, fmt: str, path: str | os.PathLike[str], urscript: U
                          f"({', '.join(PROGRAM_FORMATS)}), not --format {fmt}")
     write = _writer(fmt, traj, urscript, vendor_config)
     check_trajectory(traj)  # before the file is touched: bad input never leaves a file behind
-    check_output_file(path)
+    if fmt in ("ros2", "ros2-json"):
+        check_durations(traj)
+    target = check_output_file(path)
     if fmt == "urscript" and not is_ur_robot(traj):
         log.warning("%s is not a Universal Robots arm: the URScript program needs checking", traj.robot)
-    return write_file(path, write)
+    with hold_output_folder(target.parent, (target.name,)):  # one run per folder
+        return write_file(path, write)
 
 
 def default_path(out_dir: str | os.PathLike[str], fmt: str) -> Path:

@@ -6,7 +6,10 @@ listen on ``host`` only and keeps the command socket on loopback whatever ``host
 accepts scene commands from anyone who can reach it).
 
 Usage: ``python meshcat_server.py HOST`` prints ``zmq_url=...`` and ``web_url=...`` (as
-meshcat's own server does) or ``error=...``, then serves until killed.
+meshcat's own server does) or ``error=...``, then serves until killed or until its standard
+input closes. The process that starts it keeps the other end of that pipe and never writes to
+it, so when that process ends in any way (SIGKILL and the OOM killer included: the kernel closes
+its descriptors) the server sees end-of-file and exits; no server outlives its replay.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import threading
 
 if __name__ == "__main__":  # run by path: this folder must not shadow top-level modules
     sys.path[:] = [p for p in sys.path if os.path.abspath(p or ".") != os.path.dirname(os.path.abspath(__file__))]
@@ -68,9 +72,19 @@ def main(argv: list[str]) -> int:
     print(f"zmq_url={bridge.zmq_url}", flush=True)
     print(f"web_url={bridge.web_url}", flush=True)
     sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - nobody reads the pipe any more
+    threading.Thread(target=_exit_with_parent, name="parent-watch", daemon=True).start()
     with contextlib.suppress(KeyboardInterrupt):
         bridge.run()
     return 0
+
+
+def _exit_with_parent() -> None:
+    """Exit (at once, whatever the event loop is doing) when standard input reaches end-of-file:
+    the parent that holds the pipe's other end has gone."""
+    with contextlib.suppress(OSError):
+        while sys.stdin.buffer.read(4096):
+            pass
+    os._exit(0)
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
 """One task planned into an output folder: the pipeline `singplan plan` and each batch task run.
 
-The folder is checked before planning (nobody waits for a plan that cannot be written), the
+The folder is checked and held before planning (nobody waits for a plan that cannot be written,
+and no second run writes there meanwhile: :func:`~singplan.results.files.hold_output_folder`), the
 task is planned once, the pages are built on the robot the plan loaded, and every file is
 written by the rules of :mod:`singplan.results.files` (DESIGN.md, "Outputs"). The names of
 singplan's files live with their writers (:mod:`singplan.results.trajectory`,
@@ -16,7 +17,7 @@ from pathlib import Path
 
 from singplan.outputs.pages import PAGE_FILES, build_pages, page_names
 from singplan.planning.planner import Progress, plan_moves
-from singplan.results.files import check_output_dir
+from singplan.results.files import hold_output_folder
 from singplan.results.plan import trajectory_of
 from singplan.results.trajectory import TRAJECTORY_FILES, Trajectory, save
 from singplan.task.schema import Task
@@ -48,14 +49,15 @@ def plan_into(task: Task, out_dir: str | os.PathLike[str], *, method: str | None
     ``before_planning`` runs once the folder was found usable, just before planning starts.
 
     Raises:
-        OutputPathError: ``out_dir`` cannot receive the files (checked before planning; exit code 2).
+        OutputPathError: ``out_dir`` cannot receive the files, or another run is writing there
+            (checked before planning, and the folder held until the files are written; exit code 2).
         InputError, PlanningError: as :func:`singplan.results.plan.plan`; the folder is left as it was.
     """
-    folder = check_output_dir(out_dir, output_names(report, replay))
-    if before_planning is not None:
-        before_planning()
-    planned = plan_moves(task, method=method, progress=progress)
-    traj = trajectory_of(planned)
-    pages, skipped = build_pages(traj, planned.full, report=report, replay=replay)  # the robot the plan loaded
-    written = save(traj, folder, extra_files=pages)
+    with hold_output_folder(out_dir, output_names(report, replay)) as folder:  # one run per folder, from here
+        if before_planning is not None:
+            before_planning()
+        planned = plan_moves(task, method=method, progress=progress)
+        traj = trajectory_of(planned)
+        pages, skipped = build_pages(traj, planned.full, report=report, replay=replay)  # the robot the plan loaded
+        written = save(traj, folder, extra_files=pages)
     return PlannedFolder(traj, written, (*TRAJECTORY_FILES, *pages), skipped)

@@ -3,7 +3,9 @@
 This does what Pinocchio's ``MeshcatVisualizer`` did for the replay (its primitives and mesh
 files, their colours and placements), without importing ``pinocchio.visualize``, which loads
 every Pinocchio viewer with trimesh and SciPy (half a second to a second before any page is
-built). The animation is formed from arrays: the placements of every visual at every keyframe
+built). Which mesh files are read, and how much of them, is decided by
+:mod:`singplan.outputs.visuals` (the robot's own folders only, bounded sizes); Pinocchio never
+opens a mesh. The animation is formed from arrays: the placements of every visual at every keyframe
 from one Pinocchio call per keyframe, packed straight into meshcat's message format
 (:meth:`AnimationCommand.packed`) instead of one Python object per key, which took seconds
 for a long program.
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import base64
 import logging
+import mimetypes
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,14 +28,19 @@ import numpy as np
 import pinocchio as pin
 import umsgpack
 
-from singplan.errors import RobotModelError
+from singplan.errors import InputError, RobotModelError
+from singplan.kinematics.files import display_path, read_bounded
+from singplan.kinematics.packages import MeshFile, texture_allowed
 from singplan.kinematics.robot import Robot
+from singplan.kinematics.urdf_scan import read_urdf
+from singplan.outputs.visuals import MAX_MESH_BYTES, VisualMeshes, checked_visuals
 
 logger = logging.getLogger(__name__)
 
 ROOT = "robot/visuals"  # the visuals' node under meshcat's scene (pinocchio's layout: robot/visuals/<name>)
 _Y_TO_Z = np.array([[1.0, 0, 0, 0], [0, 0, -1.0, 0], [0, 1.0, 0, 0], [0, 0, 0, 1.0]])  # three.js cylinders run along y
 _COLLADA = "{http://www.collada.org/2005/11/COLLADASchema}"
+_UINT8_ARRAY = mg.threejs_type(np.uint8)[1]  # msgpack extension code of a byte array, as meshcat's STL loader sends it
 
 
 class _ZCylinder(mg.Cylinder):
@@ -44,17 +52,28 @@ class _ZCylinder(mg.Cylinder):
 
 class _ColladaObject:
     """A .dae mesh with its texture images inlined, sent as meshcat's ``_meshfile_object``
-    (the file's own materials are kept unless the URDF overrides them)."""
+    (the file's own materials are kept unless the URDF overrides them).
 
-    def __init__(self, path: Path, material: mg.Material | None) -> None:
-        self.text = path.read_text()
+    A texture is inlined only from the folders its mesh may come from
+    (:func:`~singplan.kinematics.packages.texture_allowed`), as a regular file within the page's
+    remaining mesh bytes; any other (``../../etc/passwd``, ``/etc/shadow``, a missing image, a
+    FIFO) is left out with a warning and the mesh drawn without it.
+    """
+
+    def __init__(self, mesh: MeshFile, text: str, urdf_path: Path, meshes: VisualMeshes,
+                 material: mg.Material | None) -> None:
+        assert mesh.path is not None
+        self.text = text
         self.resources: dict[str, str] = {}
-        images = ET.fromstring(self.text).find(f"{_COLLADA}library_images")
+        try:
+            images = ET.fromstring(text).find(f"{_COLLADA}library_images")
+        except ET.ParseError as exc:
+            raise RobotModelError(display_path(mesh.path), f"not a Collada (XML) file: {exc}") from None
         for element in images.iter() if images is not None else ():
             if element.tag.endswith("init_from") and element.text:
-                image = Path(element.text) if Path(element.text).is_absolute() else path.parent / element.text
-                data = base64.b64encode(image.read_bytes()).decode("ascii")
-                self.resources[element.text] = f"data:image/png;base64,{data}"
+                data = _texture(element.text.strip(), mesh, urdf_path, meshes)
+                if data is not None:
+                    self.resources[element.text] = data
         self.material = material
 
     def command(self, node: str) -> dict[str, Any]:
@@ -87,6 +106,8 @@ class RobotScene:
         model, data: the URDF's whole kinematic model (extra joints at neutral).
         visual, visual_data: its visual geometry.
         names: the visuals' node names under :data:`ROOT`, in geometry order.
+        meshes: the mesh files behind the visuals' placeholders, and what the page may still carry.
+        urdf_path: the URDF (textures are looked up from it).
     """
 
     model: pin.Model
@@ -95,24 +116,33 @@ class RobotScene:
     visual_data: pin.GeometryData
     names: list[str]
     _index: np.ndarray
+    meshes: VisualMeshes
+    urdf_path: Path
 
     @classmethod
     def of(cls, robot: Robot) -> RobotScene:
-        # package:// meshes resolve against every folder above the URDF (example-robot-data's layout)
-        package_dirs = [str(p) for p in robot.urdf_path.parents]
+        """The scene of the robot's URDF: read and scanned again (it may have changed since it was
+        planned with), its visual meshes checked (:func:`~singplan.outputs.visuals.checked_visuals`)."""
+        scan = read_urdf(robot.urdf_path)
+        model = pin.buildModelFromXML(scan.text)
+        meshes = checked_visuals(scan.text, robot.urdf_path)
         try:
-            model = pin.buildModelFromUrdf(str(robot.urdf_path))
-            visual = pin.buildGeomFromUrdf(model, str(robot.urdf_path), pin.GeometryType.VISUAL,
-                                           package_dirs=package_dirs)
+            visual = pin.buildGeomFromUrdfString(model, meshes.urdf_text, pin.GeometryType.VISUAL)
         except ValueError as exc:
             raise RobotModelError(str(robot.urdf_path),
                                   f"cannot load its visual geometry for the replay ({exc})") from None
+        finally:
+            meshes.close()  # the placeholders are read; the real meshes are read when sent
         if visual.ngeoms == 0:
             logger.warning("replay: %s has no <visual> geometry; the replay shows the tool's paths only",
                            robot.urdf_path)
+        missing = [name for name in robot.joint_names if not model.existJointName(name)]
+        if missing:
+            raise InputError(f"joint_names: {missing[0]!r} is not a joint of {display_path(robot.urdf_path)} "
+                             "(the URDF changed since the plan?)")
         index = np.array([model.joints[model.getJointId(name)].idx_q for name in robot.joint_names])
         names = [g.name for g in visual.geometryObjects]
-        return cls(model, model.createData(), visual, visual.createData(), names, index)
+        return cls(model, model.createData(), visual, visual.createData(), names, index, meshes, robot.urdf_path)
 
     def full(self, q: np.ndarray) -> np.ndarray:
         """The whole model's configuration for the chain's joint values q (n,) [rad]."""
@@ -127,7 +157,7 @@ class RobotScene:
         placements = self._placements(q)
         for g, name, placement in zip(self.visual.geometryObjects, self.names, placements, strict=True):
             node = vis[f"{ROOT}/{name}"]
-            obj = _meshcat_object(g)
+            obj = self._meshcat_object(g)
             if obj is None:
                 logger.warning("replay: visual %s (%s) cannot be drawn; left out", name, type(g.geometry).__name__)
                 continue
@@ -138,6 +168,25 @@ class RobotScene:
             node.set_transform(placement @ np.diag([*g.meshScale, 1.0]))  # the mesh's scale, as Pinocchio does
             shown.append(name)
         return shown
+
+    def _meshcat_object(self, g: pin.GeometryObject) -> tuple[Any, ...] | _ColladaObject | None:
+        """(geometry, material) for ``set_object``, a Collada object, or None if meshcat cannot draw it.
+
+        A mesh is read here, from the file its placeholder stands for, within the cap it was checked against.
+        """
+        mesh = self.meshes.files.get(g.meshPath)
+        if mesh is None:
+            return _primitive(g)
+        assert mesh.path is not None
+        material = _material(g)
+        data = read_bounded(mesh.path, MAX_MESH_BYTES, "mesh")
+        suffix = mesh.path.suffix.lower()
+        if suffix == ".dae":
+            return _ColladaObject(mesh, _text(data, mesh), self.urdf_path, self.meshes,
+                                  material if g.overrideMaterial else None)
+        if suffix == ".stl":
+            return mg.MeshGeometry(umsgpack.Ext(_UINT8_ARRAY, data), "stl"), material
+        return mg.MeshGeometry(_text(data, mesh), "obj"), material
 
     def _update(self, q: np.ndarray) -> list[pin.SE3]:
         """The visuals' placements at joints q (n,)."""
@@ -160,10 +209,38 @@ class RobotScene:
         return xyz, quat
 
 
-def _meshcat_object(g: pin.GeometryObject) -> tuple[Any, ...] | _ColladaObject | None:
-    """(geometry, material) for ``set_object``, a Collada object, or None if meshcat cannot draw it."""
+def _text(data: bytes, mesh: MeshFile) -> str:
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise RobotModelError(display_path(mesh.uri), f"a text mesh that is not UTF-8 (byte {exc.start})") from None
+
+
+def _texture(name: str, mesh: MeshFile, urdf_path: Path, meshes: VisualMeshes) -> str | None:
+    """A Collada texture as a data URI, or None (left out with a warning) when it may not be read."""
+    assert mesh.path is not None
+    text = name.removeprefix("file://")
+    image = Path(text) if Path(text).is_absolute() else mesh.path.parent / text
+    if not texture_allowed(image, mesh, urdf_path):
+        _no_texture(name, mesh, "it lies outside the robot's own folders")
+        return None
+    try:
+        data = read_bounded(image, max(min(MAX_MESH_BYTES, meshes.remaining_bytes), 0), "texture")
+    except InputError as exc:
+        _no_texture(name, mesh, getattr(exc, "reason", str(exc)))
+        return None
+    meshes.remaining_bytes -= len(data)
+    kind = mimetypes.guess_type(image.name)[0] or "image/png"
+    return f"data:{kind};base64,{base64.b64encode(data).decode('ascii')}"
+
+
+def _no_texture(name: str, mesh: MeshFile, reason: str) -> None:
+    logger.warning("replay: texture %r of mesh %r left out: %s", name[:200], mesh.uri, reason)
+
+
+def _primitive(g: pin.GeometryObject) -> tuple[Any, ...] | None:
+    """(geometry, material) of a URDF primitive, or None if meshcat cannot draw it."""
     material = _material(g)
-    suffix = Path(g.meshPath).suffix.lower() if g.meshPath else ""
     shape = g.geometry
     if isinstance(shape, (coal.Cylinder, coal.Capsule)):  # a capsule drawn as its cylinder
         return _ZCylinder(2.0 * shape.halfLength, shape.radius), material
@@ -175,12 +252,6 @@ def _meshcat_object(g: pin.GeometryObject) -> tuple[Any, ...] | _ColladaObject |
         return mg.Sphere(shape.radius), material
     if isinstance(shape, coal.Ellipsoid):
         return mg.Ellipsoid(np.asarray(shape.radii)), material
-    if suffix == ".dae":
-        return _ColladaObject(Path(g.meshPath), material if g.overrideMaterial else None)
-    if suffix == ".stl":
-        return mg.StlMeshGeometry.from_file(g.meshPath), material
-    if suffix == ".obj":
-        return mg.ObjMeshGeometry.from_file(g.meshPath), material
     return None
 
 

@@ -17,6 +17,7 @@ import atexit
 import base64
 import contextlib
 import io
+import ipaddress
 import itertools
 import json
 import math
@@ -58,7 +59,7 @@ from singplan.outputs.timeline import (
 from singplan.planning.path import move_target
 from singplan.planning.pieces import move_piece
 from singplan.planning.weave import woven_moves
-from singplan.results.files import check_output_file, text_writer, write_file
+from singplan.results.files import check_output_file, hold_output_folder, text_writer, write_file
 from singplan.results.trajectory import Segment, Trajectory, load
 from singplan.task.schema import Move
 
@@ -358,8 +359,22 @@ def _stop(server: subprocess.Popen[str]) -> None:
     if server.poll() is None:
         server.kill()
     server.wait()
-    if server.stdout is not None:
-        server.stdout.close()
+    for pipe in (server.stdin, server.stdout):
+        if pipe is not None:
+            pipe.close()
+
+
+def is_loopback(host: str) -> bool:
+    """Whether every address ``host`` names is this machine's loopback (only this machine can connect).
+
+    ``0.0.0.0`` and ``::`` (every interface), a LAN address or a name that resolves to one are not.
+    """
+    try:
+        found = socket.getaddrinfo(host, None)
+    except (OSError, UnicodeError, ValueError):
+        return False
+    addresses = {str(info[4][0]) for info in found}
+    return bool(addresses) and all(ipaddress.ip_address(a.split("%")[0]).is_loopback for a in addresses)
 
 
 def _start_server(host: str) -> tuple[subprocess.Popen[str], str]:
@@ -369,7 +384,8 @@ def _start_server(host: str) -> tuple[subprocess.Popen[str], str]:
     except (OSError, UnicodeError, ValueError) as exc:
         raise InputError(f"replay --host {host!r}: not an address of this machine ({exc})") from None
     script = Path(__file__).with_name("meshcat_server.py")
-    server = subprocess.Popen([sys.executable, "-u", str(script), host], stdout=subprocess.PIPE,
+    # stdin: a pipe this process holds and never writes; the server exits when it closes (this process ended)
+    server = subprocess.Popen([sys.executable, "-u", str(script), host], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                               stderr=subprocess.DEVNULL, text=True, start_new_session=True)
     atexit.register(_stop, server)
     try:
@@ -407,18 +423,20 @@ def replay(traj: Trajectory | str | Path, html: str | Path | None = None, serve:
     """Replay a trajectory (object, or a trajectory.json / output folder) in the browser.
 
     ``html=path`` writes the self-contained page and returns its path (written under a
-    temporary name and renamed when complete; an unusable path is an OutputPathError before
-    anything is built). ``serve=True`` starts a live meshcat server listening on ``host``
-    (loopback by default) playing it (``speed`` x real time, looping unless ``loop=False``)
-    and returns the running :class:`LiveReplay`, whose ``url`` to open and ``close()`` to stop it.
+    temporary name and renamed when complete; an unusable path, or a folder another run is
+    writing into, is an OutputPathError before anything is built). ``serve=True`` starts a live
+    meshcat server listening on ``host`` (loopback by default) playing it (``speed`` x real time,
+    looping unless ``loop=False``) and returns the running :class:`LiveReplay`, whose ``url`` to
+    open and ``close()`` to stop it.
     """
     if (html is None) == (not serve):
         raise InputError("replay: give exactly one of html=PATH or serve=True")
     if not (math.isfinite(speed) and 0.01 <= speed <= 100.0):
         raise InputError(f"replay: speed must be a number in [0.01, 100], got {speed}")
-    target = None if html is None else check_output_file(html)
-    trajectory = traj if isinstance(traj, Trajectory) else load(traj)
-    robot = robot_of(trajectory)
-    if target is None:
-        return serve_replay(trajectory, robot, speed=speed, loop=loop, host=host)
-    return write_file(target, text_writer(replay_html(trajectory, robot)))
+    if html is None:
+        trajectory = traj if isinstance(traj, Trajectory) else load(traj)
+        return serve_replay(trajectory, robot_of(trajectory), speed=speed, loop=loop, host=host)
+    target = check_output_file(html)
+    with hold_output_folder(target.parent, (target.name,)):  # one run per folder, from reading to writing
+        trajectory = traj if isinstance(traj, Trajectory) else load(traj)
+        return write_file(target, text_writer(replay_html(trajectory, robot_of(trajectory))))

@@ -15,6 +15,7 @@ from singplan.kinematics.dynamics import TorqueLimit, effort_limits_nm, require_
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import Robot, load_robot
+from singplan.kinematics.vendor_config import convention_for
 from singplan.planning.path import move_target
 from singplan.planning.redundancy import HeldJoint, hold_for_task
 from singplan.planning.timing import MoveLimits
@@ -28,6 +29,7 @@ def load_task_robot(task: Task) -> Robot:
     tool = pin.SE3(rpy_deg_to_rotation(task.tool_rpy_deg), np.asarray(task.tool_xyz, dtype=float))
     robot = load_robot(task.robot, tip=task.tip, tool=tool)
     check_against_robot(task, robot)
+    convention_for(robot)  # a URDF's controller sidecar is read (or refused) before planning, not after it
     if task.limits.torque_scale is not None:
         require_dynamics(robot)
     return robot.with_acceleration(np.asarray(task.limits.acceleration_rad_s2, dtype=float))

@@ -8,20 +8,23 @@ of samples at a time, so writing needs little memory beyond the trajectory's own
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
-from functools import cached_property
+from functools import cached_property, partial
 from pathlib import Path
 from typing import Any, Literal, TextIO
 
 import numpy as np
 
-from singplan.errors import InputError
+from singplan.kinematics.files import display_path, read_json
 from singplan.results.files import Writer, text_writer, write_files
 from singplan.results.metrics import Metrics, NoFigures, SegmentFigures, figures_from_json
+from singplan.results.reading import MAX_TRAJECTORY_BYTES, check_document
 
 FORMAT = "singplan.trajectory/1"
 CSV_FILE = "trajectory.csv"
@@ -253,8 +256,13 @@ def _jsonable(value: Any) -> Any:
 
 def write_csv(stream: TextIO, traj: Trajectory) -> None:
     """trajectory.csv: header ``t,<joint names>``, then one row per sample, each number as its
-    shortest round-trip text (``repr``: 0.004, not ``%.17g``'s 0.0040000000000000001)."""
-    stream.write("t," + ",".join(traj.joint_names) + "\n")
+    shortest round-trip text (``repr``: 0.004, not ``%.17g``'s 0.0040000000000000001).
+
+    The header is written by Python's csv module (RFC 4180 quoting, :func:`csv_line`): a joint
+    name holding a comma, a quote or a line break is quoted, so every row has as many fields as
+    the header.
+    """
+    stream.write(csv_line(["t", *traj.joint_names]) + "\n")
     for start in range(0, len(traj.t), _CHUNK_ROWS):
         stop = start + _CHUNK_ROWS
         block = np.hstack([traj.t[start:stop, None], traj.q[start:stop]])
@@ -264,6 +272,15 @@ def write_csv(stream: TextIO, traj: Trajectory) -> None:
 def csv_rows(rows: list[list[float]]) -> str:
     """Rows of floats as CSV lines, each number its shortest round-trip text (read back exactly)."""
     return "".join(",".join(map(repr, row)) + "\n" for row in rows)
+
+
+def csv_line(fields: Sequence[str]) -> str:
+    """One CSV line (without its end) of texts, quoted by Python's csv module: a field holding a
+    comma, a quote, a carriage return or a line feed is quoted (with ``\\n`` alone as the line
+    terminator the module would leave a bare ``\\r`` unquoted, which readers take for a line end)."""
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\r\n").writerow(fields)
+    return buffer.getvalue()[:-2]
 
 
 def write_json(stream: TextIO, traj: Trajectory) -> None:
@@ -310,31 +327,32 @@ def save(traj: Trajectory, out_dir: str | Path, extra_files: Mapping[str, str] |
 _SEGMENT_FIELDS = ("move", "kind", "t0", "t1", "config_before", "config_after", "singularity", "method")
 
 
+def _segment(doc: Mapping[str, Any]) -> Segment:
+    """A segment of trajectory.json (its fields checked), its own figures from the keys beyond its fields."""
+    return Segment(int(doc["move"]), doc["kind"], float(doc["t0"]), float(doc["t1"]), str(doc["config_before"]),
+                   str(doc["config_after"]), doc.get("singularity"), doc.get("method"),
+                   details=figures_from_json(doc["kind"], {k: v for k, v in doc.items() if k not in _SEGMENT_FIELDS}))
+
+
 def load(path: str | Path) -> Trajectory:
-    """Read a trajectory.json (or the folder holding it)."""
+    """Read a trajectory.json (or the folder holding it), every field checked before it is used
+    (:mod:`singplan.results.reading`).
+
+    Raises:
+        FileRefusedError: not a regular UTF-8 file within
+            :data:`~singplan.results.reading.MAX_TRAJECTORY_BYTES` (a FIFO, a device, a folder ...).
+        FileFieldError: not JSON, or a field that is not what the format says (file and field named).
+    """
     p = Path(path)
     if p.is_dir():
         p = p / JSON_FILE
-    try:
-        doc = json.loads(p.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{p}: cannot read a trajectory ({exc})") from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise InputError(f"{p}: not a {FORMAT} file")
-    try:
-        return _from_document(doc)
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise InputError(f"{p}: not a valid {FORMAT} file ({type(exc).__name__}: {exc})") from None
-
-
-def _from_document(doc: dict[str, Any]) -> Trajectory:
-    segments = tuple(Segment(**{k: s.get(k) for k in _SEGMENT_FIELDS},
-                             details=figures_from_json(s["kind"], {k: v for k, v in s.items()
-                                                                   if k not in _SEGMENT_FIELDS}))
-                     for s in doc["segments"])
-    events = tuple(Event.from_json(e) for e in doc["events"])
-    arrays = {k: np.asarray(doc[k], dtype=float) for k in ("t", "q", "qd", "qdd")}
-    return Trajectory(doc["robot"], doc["urdf"], doc["tip"], doc["tool"], doc["task"], tuple(doc["joint_names"]),
-                      float(doc["period"]), arrays["t"], arrays["q"], arrays["qd"], arrays["qdd"], segments, events,
-                      Metrics.from_json(doc["metrics"]), _samples_from_file(doc.get("samples", {})),
-                      tuple(MoveRecord(**m) for m in doc.get("moves", ())))
+    doc = read_json(p, MAX_TRAJECTORY_BYTES, "trajectory.json")
+    f = check_document(doc, display_path(p), FORMAT)  # in place: the fields below are checked
+    segments = tuple(f.record(f"segments[{i}]", partial(_segment, s)) for i, s in enumerate(doc["segments"]))
+    events = tuple(f.record(f"events[{i}]", partial(Event.from_json, e)) for i, e in enumerate(doc["events"]))
+    moves = tuple(f.record(f"moves[{i}]", partial(MoveRecord, **m)) for i, m in enumerate(doc["moves"]))
+    metrics = f.record("metrics", partial(Metrics.from_json, doc["metrics"]))
+    samples = f.record("samples", partial(_samples_from_file, doc["samples"]))
+    return Trajectory(doc["robot"], doc["urdf"], doc["tip"], doc["tool"], doc["task"], doc["joint_names"],
+                      doc["period"], doc["t"], doc["q"], doc["qd"], doc["qdd"], segments, events, metrics, samples,
+                      moves)

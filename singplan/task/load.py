@@ -9,18 +9,16 @@ the field (``moves[3].lin.speed``) and the valid values or range. The checks tha
 from __future__ import annotations
 
 import math
-import re
-from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
-
-import yaml
+from typing import Any
 
 from singplan.errors import TaskError
 from singplan.kinematics.configuration import parse_configuration
+from singplan.kinematics.files import FileRefusedError, read_bounded_text
 from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
 from singplan.kinematics.robot import Robot
+from singplan.kinematics.yamldoc import YamlLimits, load_yaml
 from singplan.task.schema import (
     ACCELERATION_RAD_S2,
     ANGLE_DEG,
@@ -77,7 +75,6 @@ from singplan.task.schema import (
     _check_keys,
     _check_mapping,
     _describe,
-    _join,
     _key_text,
     _number,
     _optional_mapping,
@@ -88,39 +85,7 @@ from singplan.task.schema import (
     method_names,
 )
 
-# more digits than any float can hold: decimal (and YAML 1.1 octal), hexadecimal, binary
-_LONG_INTEGER = re.compile(r"[-+]?(?:[0-9][0-9_:]{399,}|0[xX][0-9a-fA-F_]{256,}|0[bB][01_]{1024,})")
-
-# -- reading ---------------------------------------------------------------------------------
-
-
-if TYPE_CHECKING:  # the stubs' CSafeLoader is not a SafeLoader; both read the same documents
-    _SafeLoader = yaml.SafeLoader
-else:
-    _SafeLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-
-
-class _Loader(_SafeLoader):
-    """The safe loader (libyaml's when installed); reached only after :func:`_scan` passed.
-
-    It also reads ``1e-3`` and ``2E5`` as numbers (YAML 1.2, JSON), which YAML 1.1 leaves as
-    strings; a user writing them means numbers.
-    """
-
-
-_Loader.add_implicit_resolver("tag:yaml.org,2002:float",
-                              re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"), list("-+0123456789"))
-
-
-@dataclass
-class _Open:
-    """A mapping or sequence the event scan is inside of."""
-
-    path: str
-    is_mapping: bool
-    key_lines: dict[str, int] = field(default_factory=dict)  # mapping: key -> line it was given on
-    count: int = 0  # sequence: items so far; mapping: keys and values so far
-    key: str = ""  # mapping: the key whose value comes next
+_TASK_YAML = YamlLimits("a task", MAX_DEPTH, MAX_YAML_NODES, MAX_KEY_CHARS, MAX_SCALAR_CHARS)
 
 
 def load_task(path: str | Path) -> Task:
@@ -132,17 +97,9 @@ def load_task(path: str | Path) -> Task:
     refused with the key path and line before PyYAML builds anything.
     """
     p = Path(path)
-    text = _read_text(p)
-    try:
-        _scan(text, _path_text(p.name))
-        doc = yaml.load(text, Loader=_Loader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise TaskError("", f"{_path_text(p.name)}: not valid YAML{where}: {_short(str(problem))}") from None
-    except (ValueError, OverflowError) as exc:  # a scalar PyYAML itself cannot convert
-        raise TaskError("", f"{_path_text(p.name)}: a value cannot be read: {_short(str(exc))}") from None
+    name = _path_text(p.name)
+    doc = load_yaml(_read_text(p), _TASK_YAML,
+                    lambda field, reason: TaskError(field, reason if field else f"{name}: {reason}"))
     if doc is None:
         raise TaskError("", f"{_path_text(p.name)}: the task file is empty; it needs at least robot, start and moves")
     if not isinstance(doc, Mapping):
@@ -152,109 +109,15 @@ def load_task(path: str | Path) -> Task:
 
 
 def _read_text(p: Path) -> str:
-    """The file's text, refusing what is not a readable UTF-8 file within the size cap."""
-    name = _path_text(str(p))
+    """The file's text (:func:`~singplan.kinematics.files.read_bounded_text`: a regular UTF-8 file
+    within :data:`MAX_FILE_BYTES`), refused when it holds nothing."""
     try:
-        if p.is_dir():
-            raise TaskError("", f"{name}: is a directory, not a task file")
-        if not p.exists():
-            raise TaskError("", f"{name}: no such task file")
-        if not p.is_file():
-            raise TaskError("", f"{name}: not a regular file")
-        with p.open("rb") as f:
-            data = f.read(MAX_FILE_BYTES + 1)  # bounded even if the file grows meanwhile
-    except PermissionError:
-        raise TaskError("", f"{name}: cannot be read (permission denied)") from None
-    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the path
-        raise TaskError("", f"{name}: cannot be read ({_short(getattr(exc, 'strerror', None) or str(exc))})") from None
-    if len(data) > MAX_FILE_BYTES:
-        raise TaskError("", f"{name}: over the {MAX_FILE_BYTES}-byte cap for a task file")
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise TaskError("", f"{name}: not a UTF-8 text file (byte {exc.start} is invalid)") from None
+        text = read_bounded_text(p, MAX_FILE_BYTES, "task file")
+    except FileRefusedError as exc:
+        raise TaskError("", str(exc)) from None
     if not text.strip():
-        raise TaskError("", f"{name}: the task file is empty; it needs at least robot, start and moves")
+        raise TaskError("", f"{_path_text(str(p))}: the task file is empty; it needs at least robot, start and moves")
     return text
-
-
-def _scan(text: str, name: str) -> None:
-    """Refuse what the YAML event stream shows is unsafe or ambiguous (see :func:`load_task`).
-
-    libyaml reads ahead of the events it hands out and, since PyYAML 6.0.4, stops deep flow
-    nesting with its own error before this scan sees the level that passes :data:`MAX_DEPTH`.
-    So a document libyaml refuses is scanned again with PyYAML's own parser, which reads ahead
-    by one token only: the guard's message (which names the limit) comes first whatever the
-    release, and a document that is really malformed still raises the parser's error.
-    """
-    try:
-        _scan_events(yaml.parse(text, Loader=_Loader), name)
-    except yaml.YAMLError:
-        if _SafeLoader is yaml.SafeLoader:  # PyYAML without libyaml: the error is already the Python parser's
-            raise
-        _scan_events(yaml.parse(text, Loader=yaml.SafeLoader), name)
-
-
-def _scan_events(events: Iterator[Any], name: str) -> None:
-    stack: list[_Open] = []
-    documents = nodes = 0
-    for event in events:
-        line = event.start_mark.line + 1 if event.start_mark is not None else 0  # the parser always marks
-        if isinstance(event, yaml.DocumentStartEvent):
-            documents += 1
-            if documents > 1:
-                raise TaskError("", f"{name}: holds more than one YAML document (the second starts at "
-                                    f"line {line}); a task file holds one")
-        elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
-            stack.pop()
-        elif isinstance(event, yaml.NodeEvent):
-            nodes += 1
-            if nodes > MAX_YAML_NODES:
-                raise TaskError("", f"{name}: more than {MAX_YAML_NODES} YAML nodes (at line {line})")
-            where = _place(stack, event, line)
-            if where is not None:
-                _check_node(stack, event, where, line)
-
-
-def _place(stack: list[_Open], event: Any, line: int) -> str | None:
-    """The key path of a value node; None (after checking it) when the node is a mapping key."""
-    if not stack:
-        return ""
-    top = stack[-1]
-    top.count += 1
-    if not top.is_mapping:
-        return f"{top.path}[{top.count - 1}]"
-    if top.count % 2 == 0:
-        return _join(top.path, _key_text(top.key))
-    if not isinstance(event, yaml.ScalarEvent):
-        raise TaskError(top.path, f"a key must be a plain name, not a list, mapping or alias (line {line})")
-    key_path = _join(top.path, _key_text(event.value))
-    if event.value == "<<" and event.implicit[0]:
-        raise TaskError(key_path, f"YAML merge keys are not allowed in a task (line {line})")
-    if event.value in top.key_lines:
-        raise TaskError(key_path, f"given twice in one mapping (lines {top.key_lines[event.value]} and {line}); "
-                                  "a key may appear once")
-    if len(event.value) > MAX_KEY_CHARS:
-        raise TaskError(key_path, f"a key of {len(event.value)} characters is over the cap of {MAX_KEY_CHARS} "
-                                  f"(line {line})")
-    top.key_lines[event.value] = line
-    top.key = event.value
-    return None
-
-
-def _check_node(stack: list[_Open], event: Any, where: str, line: int) -> None:
-    if isinstance(event, yaml.AliasEvent):
-        raise TaskError(where, f"YAML aliases are not allowed in a task (line {line})")
-    if isinstance(event, yaml.ScalarEvent):
-        if _LONG_INTEGER.fullmatch(event.value):  # quoted too: `!!int "9...9"` would reach int() otherwise
-            raise TaskError(where, f"number too large ({len(event.value)} characters, line {line})")
-        if len(event.value) > MAX_SCALAR_CHARS:
-            raise TaskError(where, f"a value of {len(event.value)} characters is over the cap of "
-                                   f"{MAX_SCALAR_CHARS} (line {line})")
-        return
-    if len(stack) >= MAX_DEPTH:
-        raise TaskError(_short(where, 120), f"nesting deeper than {MAX_DEPTH} levels (line {line})")
-    stack.append(_Open(where, isinstance(event, yaml.MappingStartEvent)))
 
 
 def parse_task(doc: Any, base_dir: Path | None = None) -> Task:
@@ -297,6 +160,9 @@ def _robot_ref(value: Any, base_dir: Path | None) -> str:
     try:
         if path.is_dir():
             raise TaskError("robot", f"{_path_text(str(path))} is a directory, not a URDF file")
+        if path.exists() and not path.is_file():
+            raise TaskError("robot", f"{_path_text(str(path))} is not a regular file (a FIFO or a device?); "
+                                     "a URDF must be one")
         if not path.is_file():
             raise TaskError("robot", f"URDF file {_path_text(name)} does not exist{_looked_at(name, path)}")
         return str(path.resolve())

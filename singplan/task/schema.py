@@ -47,6 +47,9 @@ import numpy as np
 
 from singplan.errors import TaskError
 from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2  # limits.acceleration, all joints
+from singplan.kinematics.yamldoc import join_field as _join
+from singplan.kinematics.yamldoc import key_text as _key_text
+from singplan.kinematics.yamldoc import shorten as _short
 
 MAX_MOVES = 10_000
 MAX_OUTPUT_SAMPLES = 10_000_000
@@ -318,26 +321,9 @@ def _one_or_list(values: tuple[float, ...]) -> float | list[float]:
 # -- field checks ----------------------------------------------------------------------------
 
 
-def _join(prefix: str, key: str) -> str:
-    return f"{prefix}.{key}" if prefix else key
-
-
-def _short(text: str, limit: int = 80) -> str:
-    """``text`` cut to ``limit`` characters for a message."""
-    return text if len(text) <= limit else f"{text[:limit - 3]}..."
-
-
 def _path_text(path: str) -> str:
     """A file path for a message: as it is when printable, else quoted; shortened either way."""
     return _short(path if path.isprintable() else repr(path), 200)
-
-
-def _key_text(key: Any) -> str:
-    """A key as it appears in a field path: plain when it is a short printable name."""
-    text = str(key)
-    if isinstance(key, str) and text.isprintable() and 0 < len(text) <= 64:
-        return text
-    return _short(repr(key), 40)
 
 
 def _check_mapping(where: str, value: Any) -> None:

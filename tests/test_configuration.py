@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from singplan.errors import TaskError
 from singplan.kinematics.configuration import (
+    LABEL_ZERO,
     Configuration,
     classify,
     distances_batch,
@@ -104,27 +105,31 @@ def test_classify_matches_label_and_distances() -> None:
 
 
 def _boundary_rows(robot, rng: np.random.Generator, n: int) -> np.ndarray:
-    """n random joint vectors, most put on or within round-off of a label boundary: the wrist at
-    q5 = 0 or +-pi (exactly, or 1e-17 .. 1e-9 off), the elbow stretched, the wrist point on axis 1."""
+    """n random joint vectors, most put on or within round-off of a singularity or of a label
+    boundary (LABEL_ZERO from it): the wrist at q5 = 0 or +-pi (exactly, or 1e-17 .. 1e-9 off, or
+    +-LABEL_ZERO and that off), the elbow stretched, the wrist point on axis 1 (distance 0 or
+    -LABEL_ZERO, found by bisection, then 1e-17 .. 1e-9 off)."""
     lo, hi = np.maximum(robot.lower_rad, -2 * np.pi), np.minimum(robot.upper_rad, 2 * np.pi)
     q = rng.uniform(lo, hi, size=(n, robot.n_joints))
     offsets = np.array([0.0, 1e-17, -1e-17, 1e-13, -1e-13, 1e-9, -1e-9])
     wrist = slice(0, n // 3)
-    q[wrist, 4] = rng.choice([0.0, math.pi, -math.pi], n // 3) + rng.choice(offsets, n // 3)
+    q[wrist, 4] = (rng.choice([0.0, math.pi, -math.pi], n // 3) + rng.choice(offsets, n // 3)
+                   + rng.choice([0.0, LABEL_ZERO, -LABEL_ZERO], n // 3))
     for column, rows in ((2, slice(n // 3, 2 * n // 3)), (1, slice(2 * n // 3, n - n // 10))):
-        q[rows] = _zero_of(robot, q[rows], column, 2 if column == 2 else 1)
+        for level, half in ((0.0, slice(0, None, 2)), (-LABEL_ZERO, slice(1, None, 2))):
+            q[rows][half] = _zero_of(robot, q[rows][half], column, 2 if column == 2 else 1, level)
         q[rows, column] += rng.choice(offsets, len(q[rows]))
     return q
 
 
-def _zero_of(robot, q: np.ndarray, joint: int, distance: int) -> np.ndarray:
-    """q with ``joint`` moved (bisection, to round-off) where ``distance`` (elbow 2, shoulder 1) changes sign."""
+def _zero_of(robot, q: np.ndarray, joint: int, distance: int, level: float = 0.0) -> np.ndarray:
+    """q with ``joint`` moved (bisection, to round-off) where ``distance`` (elbow 2, shoulder 1) crosses ``level``."""
     grid = np.linspace(-math.pi, math.pi, 73)
     out = q.copy()
     for k, row in enumerate(q):
         trial = np.repeat(row[None], len(grid), axis=0)
         trial[:, joint] = grid
-        d = distances_batch(robot, trial)[:, distance]
+        d = distances_batch(robot, trial)[:, distance] - level
         flips = np.flatnonzero((np.sign(d[:-1]) != np.sign(d[1:])) & (np.abs(np.diff(d)) < 1.0))
         if not len(flips):
             continue
@@ -134,7 +139,7 @@ def _zero_of(robot, q: np.ndarray, joint: int, distance: int) -> np.ndarray:
             mid = 0.5 * (a + b)
             row_mid = row.copy()
             row_mid[joint] = mid
-            dm = distances_batch(robot, row_mid)[0, distance]
+            dm = distances_batch(robot, row_mid)[0, distance] - level
             a, b, da = (mid, b, dm) if np.sign(dm) == np.sign(da) else (a, mid, da)
         out[k, joint] = a
     return out
@@ -151,7 +156,7 @@ def test_labels_batch_equals_classify_row_by_row_at_the_boundaries(name: str) ->
     assert labels_batch(robot, q) == expected
     if robot.family in ("opw", "ur"):  # the rows did reach the boundaries, where the closed forms alone disagree
         assert labels_from_distances(d) != expected
-        assert np.sum(np.min(np.abs(d), axis=1) < 1e-9) > 100
+        assert np.sum(np.min(np.minimum(np.abs(d), np.abs(np.abs(d) - LABEL_ZERO)), axis=1) < 1e-9) > 100
 
 
 @pytest.mark.parametrize("name", ["abb_irb2400", "ur5"])

@@ -32,7 +32,7 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.kinematics.angles import TWO_PI, nearest_shifted, wrap_to_pi
-from singplan.kinematics.configuration import classify, labels_batch
+from singplan.kinematics.configuration import LABEL_ZERO, classify, labels_batch
 from singplan.kinematics.ik import numeric as ik_numeric
 from singplan.kinematics.ik import opw
 from singplan.kinematics.ik.ur import ur_batch
@@ -145,7 +145,9 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
 
     Without a seed, every 2*pi-shifted variant inside the limits is listed (joints whose
     range exceeds +-180 deg have several). With a seed, each branch gives the variant nearest
-    the seed, and at a wrist singularity the seed's q4 is kept.
+    the seed, and at a wrist singularity the seed's q4 is kept; solutions equal up to whole
+    turns are one solution, listed once (branches meet on a singular pose: the UR5 at q = 0 has
+    two solver branches 360 deg apart in q2 and q4), as the variant nearest the seed.
     """
     if robot.family in ("opw", "ur"):
         rows, branches = _closed_form_candidates(robot, T_base_tcp, seed)
@@ -156,7 +158,7 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
         variants = ([_nearest_variant(q, seed, robot.lower_rad, robot.upper_rad)] if seed is not None
                     else _shift_variants(q, robot.lower_rad, robot.upper_rad))
         found += [(v, branch) for v in variants if v is not None]
-    kept = _distinct([v for v, _ in found])
+    kept = _distinct([v for v, _ in found]) if seed is None else _distinct_turns([v for v, _ in found], seed)
     q_all = np.array([found[k][0] for k in kept]).reshape(-1, robot.n_joints)
     branch_list = [found[k][1] for k in kept]
     labels = tuple(labels_batch(robot, q_all))
@@ -175,6 +177,21 @@ def _distinct(rows: list[np.ndarray]) -> list[int]:
         earlier = table[kept]
         if not np.any(np.all(np.abs(row - earlier) <= 1e-9 + 1e-5 * np.abs(earlier), axis=1)):
             kept.append(k)
+    return kept
+
+
+def _distinct_turns(rows: list[np.ndarray], seed: np.ndarray) -> list[int]:
+    """Indices of the rows that differ from every other up to whole turns by more than
+    :data:`~singplan.kinematics.configuration.LABEL_ZERO` in some joint, in order; of rows equal up to
+    whole turns the one nearest ``seed`` (max norm; the first among equals) stands for them. (Where
+    branches meet, a pose's solver branches differ by the round-off LABEL_ZERO absorbs.)"""
+    kept: list[int] = []
+    for k, row in enumerate(rows):
+        same = [i for i, m in enumerate(kept) if np.max(np.abs(wrap_to_pi(row - rows[m]))) <= LABEL_ZERO]
+        if not same:
+            kept.append(k)
+        elif np.max(np.abs(row - seed)) < np.max(np.abs(rows[kept[same[0]]] - seed)):
+            kept[same[0]] = k
     return kept
 
 

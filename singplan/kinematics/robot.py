@@ -403,10 +403,12 @@ def default_tip(model: pin.Model) -> str:
     Panda's prismatic fingers), whatever its type; its end links are those fixed to that joint
     (Pinocchio merges fixed joints into the body they hang on), which leaves out fingers and
     other joints branching off. The last link is the one most fixed joints away from that joint
-    (the first in the file among equals). Links whose name another frame carries too (a fixed
-    joint named like its child link, e.g. the Unitree Z1's ``gripperStator``) are passed over
-    while another is left: outputs name the tip, and other tools cannot look up a name that
-    matches two frames.
+    (the first in the file among equals). Outputs name the tip, and other tools (the checker)
+    cannot look up a name that two frames carry: links whose name another frame carries too (a
+    fixed joint named like its child link, e.g. the Unitree Z1's ``gripperStator``) are passed
+    over while another is left, and when none is left the tip is a uniquely named frame at the
+    same place (the SO-100's last link ``gripper`` shares its name with the jaw's joint: its tip
+    is the frame of the joint ``wrist_roll`` that carries it, as the registry names it).
     """
     end = _chain_end(model)
     if end is None:
@@ -419,7 +421,21 @@ def default_tip(model: pin.Model) -> str:
                  if model.frames[k].name == wanted or model.frames[k].name.endswith("_" + wanted)]
         if named:
             return named[0]
-    return model.frames[max(links, key=lambda k: _fixed_depth(model, k))].name
+    return _unique_name_at(model, max(links, key=lambda k: _fixed_depth(model, k)))
+
+
+def _unique_name_at(model: pin.Model, k: int) -> str:
+    """Frame k's name if no other frame carries it, else a uniquely named frame on the same joint
+    at the same placement (the joint's own frame first, then fixed joints' frames), else k's name."""
+    names = [f.name for f in model.frames]
+    frame = model.frames[k]
+    if names.count(frame.name) == 1:
+        return frame.name
+    same = [f for f in model.frames if f.parentJoint == frame.parentJoint and names.count(f.name) == 1
+            and f.placement.isApprox(frame.placement, 1e-12)]
+    order = (pin.FrameType.JOINT, pin.FrameType.FIXED_JOINT, pin.FrameType.BODY, pin.FrameType.OP_FRAME)
+    same.sort(key=lambda f: order.index(f.type) if f.type in order else len(order))
+    return same[0].name if same else frame.name
 
 
 def _chain_end(model: pin.Model) -> int | None:

@@ -324,11 +324,11 @@ def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             out.write(f"  move {m.index} ({m.kind}) {z.kind:8s} s {z.u_entry * m.length_m * 1e3:8.1f} .. "
                       f"{z.u_exit * m.length_m * 1e3:8.1f} mm, closest {z.describe_distance()} at "
                       f"s {z.u_closest * m.length_m * 1e3:.1f} mm\n")
-    worst = max(found, key=lambda m: m.stopping[0])
-    where = (f"{worst.stopping[1]:.2f} of the joint motion" if worst.kind == "ptp"
-             else f"s {worst.stopping[1] * worst.length_m * 1e3:.1f} mm")
-    out.write(f"stopping distance (estimate at the programmed speed, not planned): up to "
-              f"{worst.stopping[0] * 1e3:.3f} mm in move {worst.index} ({worst.kind}) at {where}\n")
+    worst = max(found, key=lambda m: m.stopping.bound_m)
+    where = (f"{worst.stopping.at:.2f} of the joint motion" if worst.kind == "ptp"
+             else f"s {worst.stopping.at * worst.length_m * 1e3:.1f} mm")
+    out.write(f"stopping distance: at most {worst.stopping.bound_m * 1e3:.3f} mm (a bound for every plan of the "
+              f"task), reached in move {worst.index} ({worst.kind}) at {where}\n")
     return 0
 
 

@@ -268,6 +268,11 @@ class Robot:
             steps.append((placement, pin.log3(turn), self.model.joints[j].idx_q))
         return steps
 
+    @cached_property
+    def joint_axes(self) -> np.ndarray:
+        """Each chain joint's unit axis (n, 3) in its own frame (where the next joint's placement is given)."""
+        return np.array([axis for _, axis, _ in self._chain_steps])
+
     def fk_tip(self, q: np.ndarray) -> pin.SE3:
         """Tip-frame pose in the base frame (no tool)."""
         pin.forwardKinematics(self.model, self.data, q)

@@ -105,7 +105,7 @@ def _pose(T: pin.SE3) -> dict[str, list[float]]:
             "rpy_deg": [float(v) for v in np.degrees(pin.rpy.matrixToRpy(T.rotation))]}
 
 
-def _ends(robot: Robot, q_mid: np.ndarray, move: str, rng: np.random.Generator
+def _ends(robot: Robot, q_mid: np.ndarray, move: str, rng: np.random.Generator, held: bool = False
           ) -> tuple[pin.SE3, pin.SE3, np.ndarray | None]:
     """Start and end poses around ``T_mid = fk(q_mid)`` (and a CIRC's via point), T_mid at the path's middle.
 
@@ -120,7 +120,7 @@ def _ends(robot: Robot, q_mid: np.ndarray, move: str, rng: np.random.Generator
     length = rng.uniform(0.06, 0.25)
     scale = length / max(float(np.linalg.norm(twist[:3])), 1e-9)
     scale = min(scale, math.radians(30.0) / max(float(np.linalg.norm(twist[3:])), 1e-9))  # at most 30 deg
-    direction, turn = twist[:3] * scale, T_mid.rotation.T @ twist[3:] * scale  # turn: body axis x angle
+    direction, turn = twist[:3] * scale, T_mid.rotation.T @ twist[3:] * scale * (not held)  # body axis x angle
     half_turn = pin.exp3(0.5 * turn)
     R0, R1 = T_mid.rotation @ half_turn.T, T_mid.rotation @ half_turn
     if move == "lin":
@@ -137,7 +137,7 @@ def _ends(robot: Robot, q_mid: np.ndarray, move: str, rng: np.random.Generator
 
 
 def draw_task(arm: str, robot: Robot, kind: Kind, miss_deg: float, move: Literal["lin", "circ"],
-              rng: np.random.Generator, tries: int = 200) -> dict[str, Any] | None:
+              rng: np.random.Generator, held: bool = False, tries: int = 200) -> dict[str, Any] | None:
     """One task's mapping (see the module's docstring), or None when ``tries`` draws all fail."""
     lo, hi = np.maximum(robot.lower_rad, -math.pi) + 0.3, np.minimum(robot.upper_rad, math.pi) - 0.3
     joint = SCAN_JOINT[kind]
@@ -148,7 +148,7 @@ def draw_task(arm: str, robot: Robot, kind: Kind, miss_deg: float, move: Literal
         q[joint] += math.radians(miss_deg) * rng.choice([-1.0, 1.0])
         if not robot.within_limits(q):
             continue
-        T_start, T_end, via = _ends(robot, q, move, rng)
+        T_start, T_end, via = _ends(robot, q, move, rng, held)
         q_start = solve_lm(robot, T_start, q.copy())
         q_end = solve_lm(robot, T_end, q.copy())
         if q_start is None or q_end is None or not (robot.within_limits(q_start) and robot.within_limits(q_end)):
@@ -169,8 +169,9 @@ def draw_task(arm: str, robot: Robot, kind: Kind, miss_deg: float, move: Literal
 
 def battery(seed: int, arms: tuple[str, ...] = ARMS, kinds: tuple[Kind, ...] = ("wrist", "shoulder", "elbow"),
             misses_deg: tuple[float, ...] = (0.0, 0.5), moves: tuple[Literal["lin", "circ"], ...] = ("lin", "circ"),
-            per_case: int = 1) -> list[SingularTask]:
-    """Tasks for every (arm, kind, miss, move), ``per_case`` each, from ``seed``."""
+            per_case: int = 1, held: bool = False) -> list[SingularTask]:
+    """Tasks for every (arm, kind, miss, move), ``per_case`` each, from ``seed``; ``held``: every path
+    keeps its orientation."""
     out = []
     for a, arm in enumerate(arms):
         robot = arm_robot(arm)
@@ -179,9 +180,9 @@ def battery(seed: int, arms: tuple[str, ...] = ARMS, kinds: tuple[Kind, ...] = (
                 for v, move in enumerate(moves):
                     for n in range(per_case):
                         rng = np.random.default_rng([seed, a, k, m, v, n])
-                        mapping = draw_task(arm, robot, kind, miss, move, rng)
+                        mapping = draw_task(arm, robot, kind, miss, move, rng, held)
                         if mapping is not None:
                             label = "hit" if miss == 0 else f"miss{miss:g}"
-                            out.append(SingularTask(f"{arm}-{kind}-{label}-{move}-{n}", arm, kind, miss, move,
-                                                    mapping))
+                            name = f"{arm}-{kind}-{label}-{move}{'-held' if held else ''}-{n}"
+                            out.append(SingularTask(name, arm, kind, miss, move, mapping))
     return out

@@ -26,7 +26,7 @@ import pinocchio as pin
 import umsgpack
 
 from singplan.errors import RobotModelError
-from singplan.kinematics.robot import Robot
+from singplan.kinematics.robot import Robot, load_full_model
 
 logger = logging.getLogger(__name__)
 
@@ -101,7 +101,7 @@ class RobotScene:
         # package:// meshes resolve against every folder above the URDF (example-robot-data's layout)
         package_dirs = [str(p) for p in robot.urdf_path.parents]
         try:
-            model = pin.buildModelFromUrdf(str(robot.urdf_path))
+            model = load_full_model(robot.urdf_path)  # continuous joints as unlimited revolute ones, as planned
             visual = pin.buildGeomFromUrdf(model, str(robot.urdf_path), pin.GeometryType.VISUAL,
                                            package_dirs=package_dirs)
         except ValueError as exc:

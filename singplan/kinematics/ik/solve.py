@@ -118,9 +118,13 @@ def _to_opw(params: OpwParameters, q_robot: np.ndarray) -> np.ndarray:
 
 
 def _shift_variants(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> list[np.ndarray]:
-    """Every q + 2*pi*k (per joint) inside the limits."""
+    """Every q + 2*pi*k (per joint) inside the limits; an unlimited joint's angle in (-pi, pi] only
+    (its other turns are the same solution: a seed picks the turn, :func:`_nearest_variant`)."""
     options = []
     for j, value in enumerate(q):
+        if not (math.isfinite(lower[j]) and math.isfinite(upper[j])):
+            options.append([float(wrap_to_pi(np.array([value]))[0])])
+            continue
         k_lo = math.ceil((lower[j] - value) / TWO_PI - 1e-12)
         k_hi = math.floor((upper[j] - value) / TWO_PI + 1e-12)
         options.append([value + TWO_PI * k for k in range(k_lo, k_hi + 1)])
@@ -144,8 +148,9 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
     """Every IK solution of a TCP pose inside the joint limits.
 
     Without a seed, every 2*pi-shifted variant inside the limits is listed (joints whose
-    range exceeds +-180 deg have several). With a seed, each branch gives the variant nearest
-    the seed, and at a wrist singularity the seed's q4 is kept; solutions equal up to whole
+    range exceeds +-180 deg have several; an unlimited joint's angle is given in (-pi, pi]). With
+    a seed, each branch gives the variant nearest the seed (the shortest turn), and at a wrist
+    singularity the seed's q4 is kept; solutions equal up to whole
     turns are one solution, listed once (branches meet on a singular pose: the UR5 at q = 0 has
     two solver branches 360 deg apart in q2 and q4), as the variant nearest the seed.
     """

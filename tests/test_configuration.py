@@ -19,6 +19,7 @@ from singplan.kinematics.configuration import (
     labels_batch,
     labels_from_distances,
     parse_configuration,
+    positive_sides,
     singularity_distances,
 )
 from singplan.kinematics.ik.solve import solve_all
@@ -60,8 +61,9 @@ def _bisect(f, a: float, b: float, fa: float) -> float:
 @settings(max_examples=40, deadline=None)
 @given(name=st.sampled_from(ROBOT_NAMES), seed=st.integers(0, 2**32 - 1))
 def test_labels_flip_exactly_where_distances_change_sign_and_the_jacobian_drops_rank(name: str, seed: int) -> None:
-    """Along a random straight joint-space segment, every label flip sits at a sign change of
-    its distance, and the bisected sign change is a real singularity (sigma_min ~ 0)."""
+    """Along a random straight joint-space segment, every label flip sits where its distance changes
+    side (its sign, read by the one rule: on the singularity within LABEL_ZERO counts as positive),
+    and the bisected sign change is a real singularity (sigma_min ~ 0)."""
     robot = _ROBOTS[name]
     rng = np.random.default_rng(seed)
     lo, hi = np.maximum(robot.lower_rad, -np.pi), np.minimum(robot.upper_rad, np.pi)
@@ -76,9 +78,9 @@ def test_labels_flip_exactly_where_distances_change_sign_and_the_jacobian_drops_
         (c0, d0), (c1, d1) = rows[k], rows[k + 1]
         for part, dist_index, letters in (("shoulder", 1, "FB"), ("elbow", 2, "UD"), ("wrist", 0, "NF")):
             flipped = getattr(c0, part) != getattr(c1, part)
-            sign_changed = (d0[dist_index] >= 0) != (d1[dist_index] >= 0)
-            assert flipped == sign_changed
-            assert getattr(c0, part) == letters[0 if d0[dist_index] >= 0 else 1]
+            side0, side1 = (bool(positive_sides(np.array(d[:3]))[dist_index]) for d in (d0, d1))
+            assert flipped == (side0 != side1)
+            assert getattr(c0, part) == letters[0 if side0 else 1]
             if flipped:
                 root = _bisect(lambda s, i=dist_index: singularity_distances(robot, at(s))[i],
                                float(ss[k]), float(ss[k + 1]), d0[dist_index])

@@ -39,6 +39,7 @@ from singplan.planning.budget import check_task
 from singplan.planning.checks import refusal
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
+from singplan.planning.crossing.methods import Exact
 from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_cartesian
 from singplan.planning.records import PlannedMove
 from singplan.planning.targets import ptp_target, task_arm
@@ -123,14 +124,14 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
             T = robot.fk(starts[0])
         else:
             tracking = MoveTracking(robot, task, i, move, T)
-            zones = tracking.stage(tracking.grid, 0.0, starts[0], False, None).found  # raises: no method plans
+            stage = tracking.stage(tracking.grid, 0.0, starts[0], False, None)  # raises: no method plans
             move_states, ends = [], []
             for q in starts:
                 s, e = _path_states(robot, task, i, move, tracking, q)
                 move_states += s
                 ends += e
-            found.append((tracking.piece.length_m, zones))
-            starts = _distinct(ends) or starts
+            found.append((tracking.piece.length_m, stage.found))
+            starts = _distinct(ends) or [stage.ctx.tracked.q[-1]]  # no method plans it: on as tracked
             T = tracking.piece.T_end
         states.append(move_states)
     qd = _velocities(robot, task, states)
@@ -148,9 +149,12 @@ def _methods(move: Move) -> Iterator[CrossingMethod]:
 def _path_states(robot: Robot, task: Task, i: int, move: Move, tracking: MoveTracking,
                  q_start: np.ndarray) -> tuple[list[_States], list[np.ndarray]]:
     """The states of each method's joint map of a LIN / CIRC from ``q_start`` that the planner
-    would time (its refusals left out), and where each ends."""
+    would time (its refusals left out), and where each ends. Without a singular zone every method
+    keeps the tracked path: one of them stands for all."""
+    zones = tracking.stage(tracking.grid, 0.0, q_start, False, None).found
+    methods = list(_methods(move)) if zones else registry.candidates(Exact.name, move)
     states, ends = [], []
-    for method in _methods(move):
+    for method in methods:
         try:
             pm = plan_cartesian(robot, task, i, move, tracking, q_start, method)
         except PlanningError:

@@ -7,12 +7,15 @@ detection), so ``check`` refuses a move (exit 3) only where every method's plan 
 path leaves the workspace, or the IK jumps outside any singular zone.
 
 The stopping bound covers every plan a crossing method can make: each built-in (and registered)
-method's joint map of the move is made as the planner makes it (no timing), and each sample's joints
-get speed bounds from the joint limits and the programmed TCP speed
-(:func:`~singplan.kinematics.stopping.speed_bounds`); a fly-by corner adds the two moves' speed
-bounds where they overlap. :func:`~singplan.kinematics.stopping.stopping_bound` turns those into
-distances. The next move starts in each branch a method may end in (a few at most), so the bound of
-a later move covers the planner's choice too.
+method's joint map of the move is made as the planner makes it (no timing; the maps the planner
+refuses before timing left out), and each sample gets the fastest joint velocity any timing can
+give it: along the path's slope, at the most the joint limits and the programmed TCP speed allow
+(:func:`~singplan.kinematics.stopping.path_rates`), no joint faster than it can get from the nearest
+point at rest (:func:`~singplan.kinematics.stopping.rest_speed_bounds`). Those states become
+distances by the two bounds of :mod:`singplan.kinematics.stopping` (the smaller holds); a fly-by
+corner, where the blend adds the two moves' speeds, by the joint-by-joint one. The next move starts
+in each branch a method may end in (a few at most), so the bound of a later move covers the
+planner's choice too.
 """
 
 

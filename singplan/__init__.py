@@ -53,7 +53,7 @@ _HOMES = {  # public name -> the module that defines it
     "Task": "singplan.task.schema",
     "load_task": "singplan.task.load",
     "parse_task": "singplan.task.load",
-    "detect": "singplan.planning.planner",
+    "detect": "singplan.planning.detect",
     "plan": "singplan.results.plan",
     "Segment": "singplan.results.trajectory",
     "Trajectory": "singplan.results.trajectory",

@@ -93,8 +93,8 @@ def cmd_robots(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 class _JointInfo(TypedDict):
     name: str
-    lower_deg: float
-    upper_deg: float
+    lower_deg: float | None  # None: no position limit (a continuous joint)
+    upper_deg: float | None
     velocity_deg_s: float
 
 
@@ -139,7 +139,8 @@ def _info(robot: Robot) -> _RobotInfo:
     elif rec.ur is not None:
         params = dataclasses.asdict(rec.ur)
     joints: list[_JointInfo] = [
-        {"name": name, "lower_deg": math.degrees(lo), "upper_deg": math.degrees(hi), "velocity_deg_s": math.degrees(v)}
+        {"name": name, "lower_deg": math.degrees(lo) if math.isfinite(lo) else None,
+         "upper_deg": math.degrees(hi) if math.isfinite(hi) else None, "velocity_deg_s": math.degrees(v)}
         for name, lo, hi, v in zip(robot.joint_names, robot.lower_rad, robot.upper_rad, robot.velocity_rad_s,
                                    strict=True)]
     how, refused = rec.how(), rec.crossing_methods()
@@ -168,7 +169,10 @@ def cmd_info(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         out.write(f"not {name}: {why}\n")
     out.write(f"tip: {info['tip']}\n{'joint':24s} {'lower [deg]':>11s} {'upper [deg]':>11s} {'speed [deg/s]':>13s}\n")
     for j in info["joints"]:
-        out.write(f"{j['name']:24s} {j['lower_deg']:11.2f} {j['upper_deg']:11.2f} {j['velocity_deg_s']:13.2f}\n")
+        lower, upper = j["lower_deg"], j["upper_deg"]
+        limits = (f"{lower:11.2f} {upper:11.2f}" if lower is not None and upper is not None
+                  else f"{'unlimited (continuous)':>23s}")
+        out.write(f"{j['name']:24s} {limits} {j['velocity_deg_s']:13.2f}\n")
     out.write("crossing methods:\n")
     for m in info["crossing_methods"]:
         out.write(f"  {m['method']:12s} {'yes' if m['applies'] else 'no':3s} {m['note']}\n")
@@ -351,11 +355,11 @@ def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             out.write(f"  move {m.index} ({m.kind}) {z.kind:8s} s {z.u_entry * m.length_m * 1e3:8.1f} .. "
                       f"{z.u_exit * m.length_m * 1e3:8.1f} mm, closest {z.describe_distance()} at "
                       f"s {z.u_closest * m.length_m * 1e3:.1f} mm\n")
-    worst = max(found, key=lambda m: m.stopping[0])
-    where = (f"{worst.stopping[1]:.2f} of the joint motion" if worst.kind == "ptp"
-             else f"s {worst.stopping[1] * worst.length_m * 1e3:.1f} mm")
-    out.write(f"stopping distance (estimate at the programmed speed, not planned): up to "
-              f"{worst.stopping[0] * 1e3:.3f} mm in move {worst.index} ({worst.kind}) at {where}\n")
+    worst = max(found, key=lambda m: m.stopping.bound_m)
+    where = (f"{worst.stopping.at:.2f} of the joint motion" if worst.kind == "ptp"
+             else f"s {worst.stopping.at * worst.length_m * 1e3:.1f} mm")
+    out.write(f"stopping distance: at most {worst.stopping.bound_m * 1e3:.3f} mm (a bound for every plan of the "
+              f"task), reached in move {worst.index} ({worst.kind}) at {where}\n")
     return 0
 
 

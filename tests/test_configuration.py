@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from singplan.errors import TaskError
 from singplan.kinematics.configuration import (
+    LABEL_ZERO,
     Configuration,
     classify,
     distances_batch,
@@ -18,6 +19,7 @@ from singplan.kinematics.configuration import (
     labels_batch,
     labels_from_distances,
     parse_configuration,
+    positive_sides,
     singularity_distances,
 )
 from singplan.kinematics.ik.solve import solve_all
@@ -59,8 +61,9 @@ def _bisect(f, a: float, b: float, fa: float) -> float:
 @settings(max_examples=40, deadline=None)
 @given(name=st.sampled_from(ROBOT_NAMES), seed=st.integers(0, 2**32 - 1))
 def test_labels_flip_exactly_where_distances_change_sign_and_the_jacobian_drops_rank(name: str, seed: int) -> None:
-    """Along a random straight joint-space segment, every label flip sits at a sign change of
-    its distance, and the bisected sign change is a real singularity (sigma_min ~ 0)."""
+    """Along a random straight joint-space segment, every label flip sits where its distance changes
+    side (its sign, read by the one rule: on the singularity within LABEL_ZERO counts as positive),
+    and the bisected sign change is a real singularity (sigma_min ~ 0)."""
     robot = _ROBOTS[name]
     rng = np.random.default_rng(seed)
     lo, hi = np.maximum(robot.lower_rad, -np.pi), np.minimum(robot.upper_rad, np.pi)
@@ -75,14 +78,17 @@ def test_labels_flip_exactly_where_distances_change_sign_and_the_jacobian_drops_
         (c0, d0), (c1, d1) = rows[k], rows[k + 1]
         for part, dist_index, letters in (("shoulder", 1, "FB"), ("elbow", 2, "UD"), ("wrist", 0, "NF")):
             flipped = getattr(c0, part) != getattr(c1, part)
-            sign_changed = (d0[dist_index] >= 0) != (d1[dist_index] >= 0)
-            assert flipped == sign_changed
-            assert getattr(c0, part) == letters[0 if d0[dist_index] >= 0 else 1]
-            if flipped:
+            side0, side1 = (bool(positive_sides(np.array(d[:3]))[dist_index]) for d in (d0, d1))
+            assert flipped == (side0 != side1)
+            assert getattr(c0, part) == letters[0 if side0 else 1]
+            if flipped and (d0[dist_index] >= 0) != (d1[dist_index] >= 0):  # through the singularity
                 root = _bisect(lambda s, i=dist_index: singularity_distances(robot, at(s))[i],
                                float(ss[k]), float(ss[k + 1]), d0[dist_index])
                 sigma = singularity_distances(robot, at(root)).sigma_min
                 assert sigma < 1e-6, f"{part} label flips at s={root} where sigma_min={sigma}"
+            elif flipped:  # past the rule's margin: the positive side's end is within it of the singularity
+                on_it = d0[dist_index] if side0 else d1[dist_index]
+                assert -LABEL_ZERO <= on_it < 0 or (dist_index != 1 and on_it <= -math.pi + LABEL_ZERO)
 
 
 @pytest.mark.parametrize("name", [*OPW_NAMES, "ur5"])
@@ -104,27 +110,31 @@ def test_classify_matches_label_and_distances() -> None:
 
 
 def _boundary_rows(robot, rng: np.random.Generator, n: int) -> np.ndarray:
-    """n random joint vectors, most put on or within round-off of a label boundary: the wrist at
-    q5 = 0 or +-pi (exactly, or 1e-17 .. 1e-9 off), the elbow stretched, the wrist point on axis 1."""
+    """n random joint vectors, most put on or within round-off of a singularity or of a label
+    boundary (LABEL_ZERO from it): the wrist at q5 = 0 or +-pi (exactly, or 1e-17 .. 1e-9 off, or
+    +-LABEL_ZERO and that off), the elbow stretched, the wrist point on axis 1 (distance 0 or
+    -LABEL_ZERO, found by bisection, then 1e-17 .. 1e-9 off)."""
     lo, hi = np.maximum(robot.lower_rad, -2 * np.pi), np.minimum(robot.upper_rad, 2 * np.pi)
     q = rng.uniform(lo, hi, size=(n, robot.n_joints))
     offsets = np.array([0.0, 1e-17, -1e-17, 1e-13, -1e-13, 1e-9, -1e-9])
     wrist = slice(0, n // 3)
-    q[wrist, 4] = rng.choice([0.0, math.pi, -math.pi], n // 3) + rng.choice(offsets, n // 3)
+    q[wrist, 4] = (rng.choice([0.0, math.pi, -math.pi], n // 3) + rng.choice(offsets, n // 3)
+                   + rng.choice([0.0, LABEL_ZERO, -LABEL_ZERO], n // 3))
     for column, rows in ((2, slice(n // 3, 2 * n // 3)), (1, slice(2 * n // 3, n - n // 10))):
-        q[rows] = _zero_of(robot, q[rows], column, 2 if column == 2 else 1)
+        for level, half in ((0.0, slice(0, None, 2)), (-LABEL_ZERO, slice(1, None, 2))):
+            q[rows][half] = _zero_of(robot, q[rows][half], column, 2 if column == 2 else 1, level)
         q[rows, column] += rng.choice(offsets, len(q[rows]))
     return q
 
 
-def _zero_of(robot, q: np.ndarray, joint: int, distance: int) -> np.ndarray:
-    """q with ``joint`` moved (bisection, to round-off) where ``distance`` (elbow 2, shoulder 1) changes sign."""
+def _zero_of(robot, q: np.ndarray, joint: int, distance: int, level: float = 0.0) -> np.ndarray:
+    """q with ``joint`` moved (bisection, to round-off) where ``distance`` (elbow 2, shoulder 1) crosses ``level``."""
     grid = np.linspace(-math.pi, math.pi, 73)
     out = q.copy()
     for k, row in enumerate(q):
         trial = np.repeat(row[None], len(grid), axis=0)
         trial[:, joint] = grid
-        d = distances_batch(robot, trial)[:, distance]
+        d = distances_batch(robot, trial)[:, distance] - level
         flips = np.flatnonzero((np.sign(d[:-1]) != np.sign(d[1:])) & (np.abs(np.diff(d)) < 1.0))
         if not len(flips):
             continue
@@ -134,7 +144,7 @@ def _zero_of(robot, q: np.ndarray, joint: int, distance: int) -> np.ndarray:
             mid = 0.5 * (a + b)
             row_mid = row.copy()
             row_mid[joint] = mid
-            dm = distances_batch(robot, row_mid)[0, distance]
+            dm = distances_batch(robot, row_mid)[0, distance] - level
             a, b, da = (mid, b, dm) if np.sign(dm) == np.sign(da) else (a, mid, da)
         out[k, joint] = a
     return out
@@ -151,7 +161,7 @@ def test_labels_batch_equals_classify_row_by_row_at_the_boundaries(name: str) ->
     assert labels_batch(robot, q) == expected
     if robot.family in ("opw", "ur"):  # the rows did reach the boundaries, where the closed forms alone disagree
         assert labels_from_distances(d) != expected
-        assert np.sum(np.min(np.abs(d), axis=1) < 1e-9) > 100
+        assert np.sum(np.min(np.minimum(np.abs(d), np.abs(np.abs(d) - LABEL_ZERO)), axis=1) < 1e-9) > 100
 
 
 @pytest.mark.parametrize("name", ["abb_irb2400", "ur5"])

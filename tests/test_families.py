@@ -22,7 +22,8 @@ from singplan.outputs.summary import summary
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
 
-from .conftest import OPW_NAMES
+from .conftest import OPW_NAMES, erd_urdf
+from .shared import run_checker
 
 ROOT = Path(__file__).resolve().parents[1]
 _AXIS_RPY = {0: "{d} 0 0", 1: "0 {d} 0", 2: "0 0 {d}"}  # a turn about the joint's own axis, as URDF rpy
@@ -459,6 +460,39 @@ def test_a_last_link_named_like_a_joint_is_passed_over_for_one_name_that_is_uniq
     robot = load_robot(_write(tree, tmp_path / "z1_like.urdf"))
     assert robot.tip == "link_6"
     assert [f.name for f in robot.model.frames].count(robot.tip) == 1
+
+
+@pytest.mark.parametrize("name", ["so100", "so101", "z1", "panda", "ur5", "ur10", "xarm7"])
+def test_a_default_tip_is_one_frame_of_its_urdf_where_the_robot_puts_it(name: str) -> None:
+    """By path, the tip names exactly one frame of the whole URDF (as another tool loads it), and that
+    frame is where the robot's own chain puts the tip. The SO-100's last link ``gripper`` shares its
+    name with the jaw's joint: its tip is the joint frame ``wrist_roll`` at the same place."""
+    robot = load_robot(erd_urdf(name))
+    full = pin.buildModelFromUrdf(str(robot.urdf_path))
+    assert [f.name for f in full.frames].count(robot.tip) == 1
+    data = full.createData()
+    rng = np.random.default_rng(2)
+    for q in rng.uniform(np.maximum(robot.lower_rad, -3), np.minimum(robot.upper_rad, 3), (5, robot.n_joints)):
+        q_full = pin.neutral(full)
+        for value, joint in zip(q, robot.joint_names, strict=True):
+            q_full[full.joints[full.getJointId(joint)].idx_q] = value
+        pin.framesForwardKinematics(full, data, q_full)
+        assert data.oMf[full.getFrameId(robot.tip)].isApprox(robot.fk_tip(q), 1e-12)
+    if name == "so100":
+        assert robot.tip == "wrist_roll" == load_robot("so100").tip
+
+
+def test_the_so100_by_path_plans_and_the_checker_finds_its_tip(tmp_path: Path) -> None:
+    """The example task with the URDF given by path: trajectory.json names a tip the checker can look up."""
+    doc = yaml.safe_load((Path(__file__).resolve().parents[1] / "examples" / "so100_lin.yaml").read_text())
+    doc["robot"] = erd_urdf("so100")
+    task = tmp_path / "so100_by_path.yaml"
+    task.write_text(yaml.safe_dump(doc))
+    assert main(["plan", str(task), "-o", str(tmp_path / "out"), "--no-report", "--no-replay"],
+                out=io.StringIO(), err=io.StringIO()) == 0
+    assert json.loads((tmp_path / "out" / "trajectory.json").read_text())["tip"] == "wrist_roll"
+    done = run_checker(task, tmp_path / "out")
+    assert done.returncode == 0, done.stdout + done.stderr
 
 
 def test_panda_by_path_ends_at_its_tcp_not_at_a_finger() -> None:

@@ -44,8 +44,9 @@ def test_so_arms_leave_the_gripper_joint_out_of_the_chain(name: str) -> None:
     pytest.importorskip("example_robot_data")
     robot = load_robot(erd_urdf(name))
     assert robot.family == "five" and "gripper" not in robot.joint_names
-    assert robot.tip in ("gripper", "gripper_frame_link")  # the default rule for a URDF by path
-    assert load_robot(name).tip == {"so100": "wrist_roll", "so101": "gripper_frame_link"}[name]  # by name
+    tip = {"so100": "wrist_roll", "so101": "gripper_frame_link"}[name]  # SO-100: `gripper` is two frames' name
+    assert robot.tip == tip  # the default rule for a URDF by path
+    assert load_robot(name).tip == tip  # by name
 
 
 def test_ik_keeps_position_and_tool_axis_and_holds_the_roll_at_the_seed() -> None:

@@ -151,7 +151,7 @@ CASES: dict[str, Case] = {
     "robot directory named x.urdf": Case(edit("robot: abb_irb2400", "robot: folder.urdf"),
                                          ("folder.urdf", "directory")),
     "missing URDF": Case(edit("robot: abb_irb2400", "robot: missing.urdf"), ("missing.urdf", "does not exist")),
-    "URDF zero velocity limit": Case(WITH_URDF, ("robot.urdf", "joint_5", "velocity limit 0"),
+    "URDF zero velocity limit": Case(WITH_URDF, ("robot.urdf", "joint_5", "no velocity limit"),
                                      urdf_edit(JOINT_5_LIMIT, JOINT_5_LIMIT.replace("6.283185307179586", "0")),
                                      check_too=True),
     "URDF velocity limit 1e-300": Case(WITH_URDF, ("robot.urdf", "joint_5", "velocity limit"),
@@ -171,9 +171,10 @@ CASES: dict[str, Case] = {
     "URDF prismatic joint": Case(WITH_URDF, ("robot.urdf", "joint_4", "prismatic"),
                                  urdf_edit('<joint name="joint_4" type="revolute">',
                                            '<joint name="joint_4" type="prismatic">')),
-    "URDF continuous joint": Case(WITH_URDF, ("robot.urdf", "joint_4", "continuous"),
-                                  urdf_edit('<joint name="joint_4" type="revolute">',
-                                            '<joint name="joint_4" type="continuous">')),
+    "URDF continuous joint without a speed limit": Case(
+        WITH_URDF, ("robot.urdf", "joint_5", "no velocity limit"),
+        urdf_edit('<joint name="joint_5" type="revolute">', '<joint name="joint_5" type="continuous">').replace(
+            JOINT_5_LIMIT, JOINT_5_LIMIT.replace("6.283185307179586", "0"), 1)),
     "URDF floating joint": Case(WITH_URDF, ("robot.urdf", "joint_4", "FreeFlyer"),
                                 urdf_edit('<joint name="joint_4" type="revolute">',
                                           '<joint name="joint_4" type="floating">')),

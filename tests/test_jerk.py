@@ -143,6 +143,32 @@ def test_quintic_ptp_follows_the_seeds_003_law(jerk: tuple[float, ...] | None) -
     assert traj.metrics["duration_s"] > optimal.metrics["duration_s"]
 
 
+def test_the_yaml_key_sets_the_quintic_law_and_round_trips(tmp_path: Path) -> None:
+    """``limits.ptp_time_law`` in a task file gives the same task (and plan) as the Python field."""
+    mapping = {"robot": "abb_irb2400", "start": {"joints_deg": [0, 10, 10, 0, 40, 0]},
+               "moves": [{"ptp": {"to": {"joints_deg": [30, 25, 5, 10, 45, -20]}}}],
+               "limits": {"acceleration": 8.0, "ptp_time_law": "quintic"}}
+    path = tmp_path / "quintic.yaml"
+    path.write_text(yaml.safe_dump(mapping))
+    task = load_task(path)
+    assert task.limits.ptp_time_law == "quintic"
+    assert parse_task(task.to_mapping()) == task  # trajectory.json's task names the law
+    by_python = _with_limits(parse_task({**mapping, "limits": {"acceleration": 8.0}}), ptp_time_law="quintic")
+    np.testing.assert_array_equal(plan(task).q, plan(by_python).q)
+    assert parse_task({**mapping, "limits": {}}).limits.ptp_time_law == "optimal"
+
+
+@pytest.mark.parametrize(("value", "words"), [("quintc", "did you mean 'quintic'"), (5, "expected a non-empty string"),
+                                              ("", "expected a non-empty string")])
+def test_a_bad_yaml_time_law_names_the_field(value: object, words: str) -> None:
+    mapping = {"robot": "abb_irb2400", "start": {"joints_deg": [0, 10, 10, 0, 40, 0]},
+               "moves": [{"ptp": {"to": {"joints_deg": [30, 25, 5, 10, 45, -20]}}}],
+               "limits": {"ptp_time_law": value}}
+    with pytest.raises(TaskError, match=words) as info:
+        parse_task(mapping)
+    assert info.value.field == "limits.ptp_time_law"
+
+
 def test_an_unknown_ptp_time_law_is_bad_input() -> None:
     with pytest.raises(InputError, match=r"limits\.ptp_time_law"):
         plan(_ptp_task("cubic", None))

@@ -29,7 +29,8 @@ from .conftest import ReplayServer
 ROBOT_URDF = Path(__file__).resolve().parents[1] / "robots" / "urdf" / "kuka_kr6_r900_2.urdf"
 START_DEG = [10, -80, 95, 20, 40, 0]
 TARGET = {"xyz": [0.55, -0.08, 0.66], "rpy_deg": [-157.09, 31.93, -172.02]}  # ~40 mm from the start
-OURS = {"trajectory.csv", "trajectory.json", "report.html", "replay.html"}
+OURS = {"trajectory.csv", "trajectory.json", "report.html", "replay.html",
+        "trajectory.urdf", "trajectory.srdf"}  # the last two only for a URDF with continuous joints
 
 
 def _task(folder: Path, name: str = "task.yaml", robot: str = "kuka_kr6_r900_2", **lin: object) -> Path:
@@ -143,7 +144,7 @@ def test_an_interrupted_write_leaves_no_temporary_file_and_the_old_results(proje
     (project / "trajectory.csv").write_text("an earlier result\n")
     before = _listing(project)
 
-    def fail(stream: io.TextIOBase, traj: Trajectory) -> None:
+    def fail(stream: io.TextIOBase, traj: Trajectory, urdf_copy: str | None = None) -> None:
         stream.write('{"format": ')
         raise stop
 
@@ -336,8 +337,9 @@ def _umask() -> int:
 
 def test_output_files_are_the_contracts_four_and_plan_into_checks_only_those_asked_for() -> None:
     assert set(OUTPUT_FILES) == OURS and len(OUTPUT_FILES) == len(OURS)
-    assert output_names(report=False, replay=False) == ("trajectory.csv", "trajectory.json")
-    assert output_names(report=False, replay=True) == ("trajectory.csv", "trajectory.json", "replay.html")
+    copies = ("trajectory.urdf", "trajectory.srdf")
+    assert output_names(report=False, replay=False) == ("trajectory.csv", "trajectory.json", *copies)
+    assert output_names(report=False, replay=True) == ("trajectory.csv", "trajectory.json", *copies, "replay.html")
 
 
 def test_temporary_files_a_killed_writer_left_are_removed_and_nothing_else(tmp_path: Path) -> None:

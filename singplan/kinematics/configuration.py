@@ -24,7 +24,12 @@ arm whatever its joint signs and offsets. With the joint frames of Pinocchio:
   ``N`` (no flip) when positive; 0 where axes 4 and 6 are collinear.
 
 Each label is the sign of its distance, so a label flips exactly where its distance
-crosses zero, and there the Jacobian loses rank (tested).
+crosses zero, and there the Jacobian loses rank (tested). On the singularity itself the sign
+is round-off (the UR5 at q = 0 is wrist-, elbow- and nearly shoulder-singular): a distance
+within :data:`LABEL_ZERO` of zero (an angle also within it of +-pi, where the wrapped value
+jumps) counts as on it, and a configuration on a singularity takes the positive letter (F, U,
+N). :func:`positive_sides` is that rule; every label singplan prints or records (``classify``,
+the IK's list, the planner's configuration checks, trajectory.json) comes from it.
 
 A 7-joint arm (family ``seven``) has none of these: its self-motion joins what would be
 branches of a 6R arm, and its singularities are not the 6R wrist, shoulder and elbow. Its
@@ -52,6 +57,11 @@ from singplan.kinematics.compiled import jit
 from singplan.kinematics.geometry import cross3
 from singplan.kinematics.robot import Robot
 
+# [rad] or [m]: a signed distance this close to its singular value is on it. The closed forms
+# are exact to round-off in the pose, but an angle solved where two branches meet carries its
+# square root: the UR5's q3 at q = 0 comes out +-2.6e-8 rad (elbow up and down, one pose to
+# 1e-16 m), and up to 1.2e-6 rad on random stretched-elbow poses of the UR5 and UR10.
+LABEL_ZERO = 1e-5
 SHOULDER_LABELS = ("F", "B")
 ELBOW_LABELS = ("U", "D")
 WRIST_LABELS = ("N", "F")
@@ -246,8 +256,19 @@ def _signed_distances(ref: _Reference, fr: _Frames) -> tuple[float, float, float
     return wrist, shoulder, elbow
 
 
+def positive_sides(d: np.ndarray) -> np.ndarray:
+    """Which signed (wrist [rad], shoulder [m], elbow [rad]) distances (..., 3) take the positive
+    letter (N, F, U): those above ``-LABEL_ZERO`` (on the singularity counts as positive), and the
+    wrapped angles within ``LABEL_ZERO`` of -pi (the same angle as +pi). NaN is not positive."""
+    d = np.asarray(d, dtype=float)
+    positive = d >= -LABEL_ZERO
+    positive[..., [0, 2]] |= d[..., [0, 2]] <= -math.pi + LABEL_ZERO
+    return positive
+
+
 def _label(wrist: float, shoulder: float, elbow: float) -> Configuration:
-    return Configuration("F" if shoulder >= 0 else "B", "U" if elbow >= 0 else "D", "N" if wrist >= 0 else "F")
+    w, s, e = positive_sides(np.array([wrist, shoulder, elbow])).tolist()
+    return Configuration(SHOULDER_LABELS[0 if s else 1], ELBOW_LABELS[0 if e else 1], WRIST_LABELS[0 if w else 1])
 
 
 def classify(robot: Robot, q: np.ndarray) -> Configuration:
@@ -326,9 +347,10 @@ def _opw_distances(q: np.ndarray, signs: np.ndarray, offsets: np.ndarray, a1: fl
 
 
 # The OPW and UR closed forms of distances_batch agree with the frame-based distances of classify
-# to ~5e-12 (m or rad, measured on the bundled arms); within this margin of a sign change (0, or
-# +-pi for the wrapped angles) a row is classified on its own so the two never disagree on a label.
-_LABEL_BOUNDARY = 1e-9
+# to ~5e-12 (m or rad, measured on the bundled arms); within this margin of where a label changes
+# (+-LABEL_ZERO about 0, or +-pi for the wrapped angles) a row is classified on its own so the two
+# never disagree on a label.
+_LABEL_BOUNDARY = 10 * LABEL_ZERO
 
 
 def labels_batch(robot: Robot, q: np.ndarray) -> list[str]:
@@ -346,10 +368,12 @@ def labels_batch(robot: Robot, q: np.ndarray) -> list[str]:
 
 
 def labels_from_distances(d: np.ndarray) -> list[str]:
-    """Configuration labels of distance rows (N, 3): the sign of each distance; NO_LABEL for an all-NaN row."""
-    shoulder = np.where(d[:, 1] >= 0, "F", "B")
-    elbow = np.where(d[:, 2] >= 0, "U", "D")
-    wrist = np.where(d[:, 0] >= 0, "N", "F")
+    """Configuration labels of distance rows (N, 3): each distance's side (:func:`positive_sides`);
+    NO_LABEL for an all-NaN row."""
+    positive = positive_sides(d)
+    shoulder = np.where(positive[:, 1], "F", "B")
+    elbow = np.where(positive[:, 2], "U", "D")
+    wrist = np.where(positive[:, 0], "N", "F")
     none = np.isnan(d).all(axis=1).tolist()
     return [NO_LABEL if n else f"{s} {e} {w}"
             for s, e, w, n in zip(shoulder.tolist(), elbow.tolist(), wrist.tolist(), none, strict=True)]

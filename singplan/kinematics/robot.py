@@ -21,6 +21,7 @@ import pinocchio as pin
 import yaml
 
 from singplan.errors import RobotModelError, UnknownNameError
+from singplan.kinematics.continuous import UNLIMITED_RAD, as_revolute
 from singplan.kinematics.families import Family, OpwParameters, Recognition, recognise
 from singplan.kinematics.ik.ur import UrParameters
 from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
@@ -119,7 +120,9 @@ class Robot:
         tip: name of the frame the tool hangs on.
         T_tip_tcp: tool transform (TCP in the tip frame).
         joint_names: the chain's joint names, base to tip.
-        lower_rad, upper_rad: joint position limits, shape (n,).
+        lower_rad, upper_rad: joint position limits, shape (n,); -inf and +inf for an unlimited
+            joint (a URDF continuous joint, :mod:`singplan.kinematics.continuous`).
+        unlimited: which joints have no position limit, shape (n,).
         velocity_rad_s: joint speed limits, shape (n,).
         acceleration_rad_s2: joint acceleration limits, shape (n,): the task's, given when the
             robot is made (:meth:`with_acceleration`), else DEFAULT_ACCELERATION_RAD_S2.
@@ -143,8 +146,9 @@ class Robot:
         self.T_tcp_tip_h = T_tip_tcp.inverse().homogeneous  # (4, 4): TCP poses -> tip poses, many at a time
         self.entry = entry
         self.joint_names = tuple(model.names[i] for i in range(1, model.njoints))
-        self.lower_rad = _read_only(np.array(model.lowerPositionLimit, dtype=float))
-        self.upper_rad = _read_only(np.array(model.upperPositionLimit, dtype=float))
+        self.unlimited = _read_only(unlimited_joints(model))
+        self.lower_rad = _read_only(np.where(self.unlimited, -np.inf, np.array(model.lowerPositionLimit, dtype=float)))
+        self.upper_rad = _read_only(np.where(self.unlimited, np.inf, np.array(model.upperPositionLimit, dtype=float)))
         self.velocity_rad_s = _read_only(np.array(model.velocityLimit, dtype=float))
         self.acceleration_rad_s2 = _read_only(np.broadcast_to(np.asarray(acceleration_rad_s2, dtype=float),
                                                               (model.nq,)).copy())
@@ -269,6 +273,11 @@ class Robot:
             steps.append((placement, pin.log3(turn), self.model.joints[j].idx_q))
         return steps
 
+    @cached_property
+    def joint_axes(self) -> np.ndarray:
+        """Each chain joint's unit axis (n, 3) in its own frame (where the next joint's placement is given)."""
+        return np.array([axis for _, axis, _ in self._chain_steps])
+
     def fk_tip(self, q: np.ndarray) -> pin.SE3:
         """Tip-frame pose in the base frame (no tool)."""
         pin.forwardKinematics(self.model, self.data, q)
@@ -313,6 +322,13 @@ class Robot:
         return bool(np.all(q >= self.lower_rad - tol) and np.all(q <= self.upper_rad + tol))
 
 
+def unlimited_joints(model: pin.Model) -> np.ndarray:
+    """(nq,) True for each joint without position limits: limits at or past -/+UNLIMITED_RAD
+    (a URDF continuous joint, read as revolute: :func:`load_full_model`)."""
+    lower, upper = np.asarray(model.lowerPositionLimit, dtype=float), np.asarray(model.upperPositionLimit, dtype=float)
+    return np.asarray((lower <= -UNLIMITED_RAD) & (upper >= UNLIMITED_RAD))
+
+
 def _rotations_about(axis: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
     """Rotation matrices (N, 3, 3) about the unit ``axis`` by ``angle_rad`` (N,) (Rodrigues)."""
     k = pin.skew(axis)
@@ -336,20 +352,35 @@ def _chain_joint_ids(model: pin.Model, frame_id: int) -> list[int]:
     return ids
 
 
-def _load_model(urdf_path: Path) -> tuple[pin.Model, UrdfScan]:
-    """The URDF's whole model, built from the text :func:`~singplan.kinematics.urdf_scan.read_urdf`
-    read and scanned (Pinocchio parses exactly what was checked), and what the scan found."""
+def load_full_model(urdf_path: Path) -> tuple[pin.Model, UrdfScan]:
+    """The whole URDF's Pinocchio model, one coordinate per joint, and what the scan found.
+
+    The model is built from the text :func:`~singplan.kinematics.urdf_scan.read_urdf` read and
+    scanned (Pinocchio parses exactly what was checked); continuous joints are read as unlimited
+    revolute joints (:mod:`singplan.kinematics.continuous`), whose angle has no limit.
+
+    Raises:
+        RobotModelError: the file is missing, unreadable, over :data:`MAX_URDF_BYTES`, refused by
+            the scan, not a URDF, or has no links.
+    """
     scan = read_urdf(urdf_path)
+    model = _build(urdf_path, scan.text)
+    if any(joint.shortname().startswith("JointModelRUB") for joint in model.joints):
+        model = _build(urdf_path, as_revolute(scan.text, str(urdf_path)))
+    if not any(f.type == pin.FrameType.BODY for f in model.frames):
+        raise RobotModelError(str(urdf_path), "has no links")
+    return model, scan
+
+
+def _build(urdf_path: Path, urdf_text: str) -> pin.Model:
+    """Pinocchio's model of ``urdf_text``, its urdfdom messages kept for the error naming the joint."""
     with tempfile.TemporaryFile() as messages:
         try:
-            model = _build_quietly(scan.text, messages.fileno())
+            return _build_quietly(urdf_text, messages.fileno())
         except (RuntimeError, ValueError) as exc:
             messages.seek(0)
             reason = _urdfdom_reason(messages.read(8192).decode("utf-8", "replace")) or str(exc)
             raise RobotModelError(str(urdf_path), f"cannot be read as URDF: {reason}") from None
-    if not any(f.type == pin.FrameType.BODY for f in model.frames):
-        raise RobotModelError(str(urdf_path), "has no links")
-    return model, scan
 
 
 def _build_quietly(urdf_text: str, sink_fd: int) -> pin.Model:
@@ -390,10 +421,12 @@ def default_tip(model: pin.Model) -> str:
     Panda's prismatic fingers), whatever its type; its end links are those fixed to that joint
     (Pinocchio merges fixed joints into the body they hang on), which leaves out fingers and
     other joints branching off. The last link is the one most fixed joints away from that joint
-    (the first in the file among equals). Links whose name another frame carries too (a fixed
-    joint named like its child link, e.g. the Unitree Z1's ``gripperStator``) are passed over
-    while another is left: outputs name the tip, and other tools cannot look up a name that
-    matches two frames.
+    (the first in the file among equals). Outputs name the tip, and other tools (the checker)
+    cannot look up a name that two frames carry: links whose name another frame carries too (a
+    fixed joint named like its child link, e.g. the Unitree Z1's ``gripperStator``) are passed
+    over while another is left, and when none is left the tip is a uniquely named frame at the
+    same place (the SO-100's last link ``gripper`` shares its name with the jaw's joint: its tip
+    is the frame of the joint ``wrist_roll`` that carries it, as the registry names it).
     """
     end = _chain_end(model)
     if end is None:
@@ -406,15 +439,29 @@ def default_tip(model: pin.Model) -> str:
                  if model.frames[k].name == wanted or model.frames[k].name.endswith("_" + wanted)]
         if named:
             return named[0]
-    return model.frames[max(links, key=lambda k: _fixed_depth(model, k))].name
+    return _unique_name_at(model, max(links, key=lambda k: _fixed_depth(model, k)))
+
+
+def _unique_name_at(model: pin.Model, k: int) -> str:
+    """Frame k's name if no other frame carries it, else a uniquely named frame on the same joint
+    at the same placement (the joint's own frame first, then fixed joints' frames), else k's name."""
+    names = [f.name for f in model.frames]
+    frame = model.frames[k]
+    if names.count(frame.name) == 1:
+        return frame.name
+    same = [f for f in model.frames if f.parentJoint == frame.parentJoint and names.count(f.name) == 1
+            and f.placement.isApprox(frame.placement, 1e-12)]
+    order = (pin.FrameType.JOINT, pin.FrameType.FIXED_JOINT, pin.FrameType.BODY, pin.FrameType.OP_FRAME)
+    same.sort(key=lambda f: order.index(f.type) if f.type in order else len(order))
+    return same[0].name if same else frame.name
 
 
 def _chain_end(model: pin.Model) -> int | None:
     """The deepest movable joint that is not an end effector's (None: the URDF has none).
 
-    Joints of every type count, not only the revolute ones singplan plans with: a continuous or
-    prismatic last axis must end the chain so that :func:`_check_chain` refuses it by name;
-    leaving it out would silently plan the arm without its last axis.
+    Joints of every type count, not only the revolute ones singplan plans with: a prismatic last
+    axis must end the chain so that :func:`_check_chain` refuses it by name; leaving it out would
+    silently plan the arm without its last axis.
     """
     arm = [j for j in range(1, model.njoints)
            if not any(word in model.names[j].lower() for word in END_EFFECTOR_JOINT_WORDS)]
@@ -461,19 +508,13 @@ def _rename_clashing_joints(model: pin.Model, joints: list[int]) -> None:
 
 
 def _check_chain(model: pin.Model, chain: list[int], tip: str, urdf_path: Path) -> None:
-    """Every chain joint revolute, and a supported number of them.
-
-    Continuous joints are refused rather than given invented limits: Pinocchio represents them
-    by (cos, sin) pairs, and planning needs a position range to choose among 2*pi variants.
-    """
+    """Every chain joint revolute (continuous ones were read as unlimited revolute joints), and a
+    supported number of them."""
     # a joint past the arm (a tool's spindle or slide) is left out by a tip before it
     tool_hint = f" (a joint of a tool rather than the arm: give the task a `tip` before it; the tip now is {tip})"
     for j in chain:
         kind = model.joints[j].shortname().removeprefix("JointModel")
         name = model.names[j]
-        if kind.startswith("RUB"):
-            raise RobotModelError(str(urdf_path), f"joint {name!r} is continuous; singplan needs position limits: "
-                                                  f"declare it revolute with <limit lower=... upper=...>{tool_hint}")
         if kind in ("PX", "PY", "PZ", "PrismaticUnaligned"):
             raise RobotModelError(str(urdf_path),
                                   f"joint {name!r} is prismatic; singplan plans revolute arms{tool_hint}")
@@ -491,26 +532,36 @@ def _root_link(model: pin.Model) -> str:
 
 
 def _check_limits(model: pin.Model, urdf_path: Path) -> None:
-    """Finite position limits, lower < upper, within 4 turns; a usable velocity limit."""
+    """Finite position limits, lower < upper, within 4 turns (or none: an unlimited joint); a usable
+    velocity limit."""
     v_low, v_high = VELOCITY_LIMIT_RAD_S
+    unlimited = unlimited_joints(model)
     for j in range(model.nq):
         name = model.names[j + 1]
         lower, upper = float(model.lowerPositionLimit[j]), float(model.upperPositionLimit[j])
         velocity = float(model.velocityLimit[j])
+        if velocity == 0.0:  # also a continuous joint given no <limit> (singplan.kinematics.continuous)
+            raise RobotModelError(str(urdf_path), f"joint {name!r} has no velocity limit (<limit velocity=...> "
+                                                  f"missing or 0); singplan needs each joint's speed limit")
+        if not v_low <= velocity <= v_high:
+            raise RobotModelError(str(urdf_path), f"joint {name!r} has velocity limit {velocity:g} rad/s; it must be "
+                                                  f"between {v_low:g} and {v_high:g}")
+        if unlimited[j]:
+            continue
         if not (math.isfinite(lower) and math.isfinite(upper) and lower < upper):
             raise RobotModelError(str(urdf_path), f"joint {name!r} has position limits [{lower:g}, {upper:g}] rad; "
                                                   "they must be finite with lower < upper")
         if max(abs(lower), abs(upper), upper - lower) > MAX_JOINT_SPAN_RAD:
             raise RobotModelError(str(urdf_path), f"joint {name!r} has position limits [{lower:g}, {upper:g}] rad; "
-                                                  f"at most {MAX_JOINT_SPAN_RAD:.4g} rad (4 turns) is supported")
-        if not v_low <= velocity <= v_high:
-            raise RobotModelError(str(urdf_path), f"joint {name!r} has velocity limit {velocity:g} rad/s; it must be "
-                                                  f"between {v_low:g} and {v_high:g}")
+                                                  f"at most {MAX_JOINT_SPAN_RAD:.4g} rad (4 turns) is supported, "
+                                                  f"or none (a continuous joint)")
 
 
 def _check_forward_kinematics(robot: Robot) -> None:
-    """Finite joint and tip coordinates within MAX_REACH_M at the zero, lower, upper and mid joints."""
-    lo, hi = robot.lower_rad, robot.upper_rad
+    """Finite joint and tip coordinates within MAX_REACH_M at the zero, lower, upper and mid joints
+    (an unlimited joint at -pi and pi)."""
+    lo = np.where(robot.unlimited, -math.pi, robot.lower_rad)
+    hi = np.where(robot.unlimited, math.pi, robot.upper_rad)
     for q in (np.clip(np.zeros(robot.n_joints), lo, hi), lo, hi, (lo + hi) / 2):
         points = [T.translation for T in robot.joint_placements(q)] + [robot.fk_tip(q).translation]
         farthest = float(np.max(np.abs(points)))  # a coordinate, not a norm: no overflow on 1e308
@@ -528,9 +579,10 @@ def load_robot(name_or_urdf: str | Path, tip: str | None = None, tool: pin.SE3 |
         tool: ``T_tip_tcp``; default identity.
 
     The chain from the URDF's root link to the tip must have :data:`SUPPORTED_JOINT_COUNTS`
-    revolute joints, each with finite position limits (lower < upper, at most 4 turns) and a
-    velocity limit in :data:`VELOCITY_LIMIT_RAD_S`; continuous, prismatic and other joints on
-    the chain are refused (joints off the chain, e.g. gripper fingers, are locked).
+    revolute or continuous joints, each with finite position limits (lower < upper, at most 4
+    turns) or none (a continuous joint: :mod:`singplan.kinematics.continuous`) and a velocity limit
+    in :data:`VELOCITY_LIMIT_RAD_S`; prismatic and other joints on the chain are refused (joints
+    off the chain, e.g. gripper fingers, are locked).
 
     Raises:
         UnknownNameError: unknown robot name (lists the valid ones) or unknown tip frame.
@@ -545,7 +597,7 @@ def load_robot(name_or_urdf: str | Path, tip: str | None = None, tool: pin.SE3 |
     if entry is None and not text.lower().endswith(".urdf"):
         raise UnknownNameError("robot", text, sorted(registry))
     urdf_path = entry.urdf_path() if entry is not None else Path(text).expanduser().resolve()
-    model, scan = _load_model(urdf_path)
+    model, scan = load_full_model(urdf_path)
     tip_name = tip or (entry.tip if entry is not None else default_tip(model))
     model = _reduce_to_chain(model, tip_name, urdf_path)
     check_no_mimic(scan, (model.names[j] for j in range(1, model.njoints)), str(urdf_path))

@@ -22,11 +22,12 @@ figure is within 1 % of a 10 000-step polyline of forward kinematics (tests/test
 holds it to that). The joint velocities are the trajectory's ``qd`` (central differences of the
 samples); the cost is one batch of Jacobians per sample for slow motion (a few us a sample).
 
-``singplan check`` plans nothing; it shows :func:`path_estimate`: the same figure at every path
-sample of each LIN / CIRC when the TCP moves at the programmed speed along it (slower where a
-joint speed limit would bind, as the timing slows the path there), and for a PTP at the joints'
-synchronised cruise speed. The real motion accelerates and brakes around these states, so the
-estimate is an upper figure for LIN / CIRC cruising at speed, not a planned result.
+``singplan check`` times nothing, so it cannot compute this figure; it gives a bound instead, a
+figure no sample of any plan of the task can exceed: from the joint paths a plan may follow and the
+most any timing can speed them up (:func:`path_rates`, :func:`rest_speed_bounds`), the smaller of two
+bounds, both derived in their docstrings: :func:`scaled_stopping_bound` (the figure at the top speed
+along the path, plus what slower speeds could add) and :func:`stopping_bound` (joint by joint, from
+each joint's reach :func:`reach_bounds`; it also serves where only the joints' speeds are known).
 """
 
 from __future__ import annotations
@@ -132,38 +133,132 @@ def worst_stopping(distances_m: np.ndarray, t: np.ndarray) -> tuple[float, float
     return worst * 1e3, float(t[k]) if len(t) else 0.0
 
 
-def path_velocities(u: np.ndarray, q: np.ndarray, length_m: float, speed_m_s: float,
-                    velocity_rad_s: np.ndarray) -> np.ndarray:
-    """Joint velocities (N, n) [rad/s] at path samples u (N,), q (N, n) of a LIN / CIRC moving at
-    ``speed_m_s`` along its base path, slowed where a joint would exceed ``velocity_rad_s`` (a path
-    with no length, a pure reorientation, moves as fast as the joints allow)."""
-    dq_du = np.gradient(q, u, axis=0)
-    over = np.max(np.abs(dq_du) / velocity_rad_s, axis=1)  # joint speed per unit of du/dt
-    with np.errstate(divide="ignore"):
-        rate = np.minimum(speed_m_s / length_m if length_m > 0 else np.inf, 1.0 / over)  # du/dt
-    return dq_du * np.where(np.isfinite(rate), rate, 0.0)[:, None]
+def reach_bounds(robot: Robot) -> np.ndarray:
+    """rho_bar (n,) [m]: for each chain joint j, a bound on the TCP's distance from joint j's axis in
+    every configuration. From joint j's origin the TCP is at ``t_(j+1) + R (rest of the chain)``;
+    joint j's own turn keeps the distance from its axis, so the first link counts by its part across
+    the axis and every later link (and the tool) by its length (the triangle inequality: a link keeps
+    its length whatever the joints do). A forearm along axis 4 thus adds nothing to axis 4's reach."""
+    model = robot.model
+    tool = (model.frames[robot.tip_frame_id].placement * robot.T_tip_tcp).translation
+    links = [np.asarray(model.jointPlacements[k].translation) for k in range(2, model.njoints)] + [tool]
+    lengths = np.array([float(np.linalg.norm(v)) for v in links])  # link j + 1 .. n, then the tool
+    after = np.concatenate([np.cumsum(lengths[::-1])[::-1][1:], [0.0]])  # the links beyond the first
+    across = [float(np.linalg.norm(v - np.dot(v, a) * a)) for v, a in zip(links, robot.joint_axes, strict=True)]
+    return np.array(across) + after
 
 
-def path_estimate(robot: Robot, u: np.ndarray, q: np.ndarray, length_m: float, speed_m_s: float,
-                  velocity_rad_s: np.ndarray) -> tuple[float, float]:
-    """``singplan check``'s figure for a LIN / CIRC: the largest stopping distance [m] over its path
-    samples u, q moving at the programmed speed (:func:`path_velocities`), and the u where."""
-    d = stopping_distances(robot, q, path_velocities(u, q, length_m, speed_m_s, velocity_rad_s),
-                           robot.acceleration_rad_s2)
-    k = int(np.argmax(d))
-    return float(d[k]), float(u[k])
+def stopping_bound(robot: Robot, q: np.ndarray, speed_rad_s: np.ndarray, acceleration_rad_s2: np.ndarray,
+                   moved_rad: np.ndarray | None = None) -> np.ndarray:
+    """An upper bound [m] (N,) of :func:`stopping_distances` over every state (q', qd) with
+    ``|qd_j| <= speed_rad_s[k, j]`` and ``|q'_j - q_kj| <= moved_rad[j]`` (n,) (default 0), for joint
+    samples q (N, n) and speed bounds (N, n) [rad/s].
+
+    Derivation. While braking, joint j turns ``|qd_j(t)|`` from its speed down to 0 and travels
+    ``delta_j = qd_j^2 / (2 a_j)`` in all. The TCP velocity is ``v = sum_j J_j(q(t)) qd_j(t)``, whose
+    column j (a revolute joint) has the length of ``z_j x (p - o_j)``: the TCP's distance from axis j,
+    ``d_j(q(t))``. The triangle inequality gives
+
+        D = integral |v| dt <= sum_j integral d_j(q(t)) |qd_j(t)| dt <= sum_j rho_j delta_j,
+
+    with rho_j any bound of d_j along the braking motion. d_j depends only on the joints after j
+    (joint j turns the TCP about its own axis; the joints before it move both rigidly), and turning
+    joint k by an angle moves the TCP, in joint j's frame, along arcs no longer than
+    ``rho_bar_k`` times that angle (:func:`reach_bounds`), so
+
+        rho_j = d_j(q) + sum_{k > j} rho_bar_k delta_k
+
+    (plus ``rho_bar_k moved_k`` for a state displaced from q by up to ``moved_rad``).
+
+    Each term grows with |qd_j|, so the bound at the speed bounds holds for every slower state,
+    whatever the joints' directions and the time law. It is loose where joints cancel at the TCP
+    (a swinging wrist whose axes 4 and 6 nearly align), and within a factor of about 1.2 - 3 of the
+    figure where the joints follow a path at speed (measured: tests/test_stopping.py).
+    """
+    acc = np.broadcast_to(np.asarray(acceleration_rad_s2, dtype=float), (q.shape[1],))
+    delta = speed_rad_s**2 / (2.0 * acc)  # (N, n) [rad]
+    shift = np.zeros(q.shape[1]) if moved_rad is None else np.asarray(moved_rad, dtype=float)
+    out = np.empty(len(q))
+    rho_bar = reach_bounds(robot)
+    rows = max(1, _CHUNK_VALUES // (4 * q.shape[1]))
+    for c in range(0, len(q), rows):
+        d = np.linalg.norm(robot.tcp_jacobians(q[c:c + rows]), axis=1)  # (K, n) [m]: TCP from each axis
+        moved = np.cumsum((rho_bar * (delta[c:c + rows] + shift))[:, ::-1], axis=1)[:, ::-1]  # sum over k >= j
+        after = np.concatenate([moved[:, 1:], np.zeros((len(d), 1))], axis=1)  # sum over k > j
+        out[c:c + rows] = np.sum(delta[c:c + rows] * (d + after), axis=1)
+    return out
 
 
-def ptp_estimate(robot: Robot, q_from: np.ndarray, q_to: np.ndarray, velocity_rad_s: np.ndarray,
-                 points: int = 33) -> tuple[float, float]:
-    """``singplan check``'s figure for a PTP: the largest stopping distance [m] at ``points`` states
-    along the joint line, cruising synchronised (the slowest joint at its limit), and the fraction where."""
-    dq = q_to - q_from
-    duration_s = float(np.max(np.abs(dq) / velocity_rad_s))
-    if duration_s == 0.0:
-        return 0.0, 0.0
-    s = np.linspace(0.0, 1.0, points)
-    d = stopping_distances(robot, q_from + s[:, None] * dq, np.tile(dq / duration_s, (points, 1)),
-                           robot.acceleration_rad_s2)
-    k = int(np.argmax(d))
-    return float(d[k]), float(s[k])
+def path_rates(s: np.ndarray, q: np.ndarray, velocity_rad_s: np.ndarray,
+               rate_cap: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The slopes dq/ds (N, n) of a joint path q(s) at its samples (s (N,), q (N, n)), and the most
+    ds/dt (N,) any timing within the joint speed limits ``velocity_rad_s`` (n,) and within ``rate_cap``
+    (N,) (the TCP speed; None: no cap) can have there: ``min(rate_cap, min_k velocity_k / |dq_k/ds|)``.
+
+    A timing of the path moves the joints at ``qd = (dq/ds) ds/dt``: in the slopes' direction, at
+    most at that rate. The slopes are finite differences of the samples; between two samples the
+    rate is held to the larger of the two.
+    """
+    slopes = np.gradient(q, s, axis=0) if len(s) > 1 else np.zeros_like(q)
+    rate = _rate(np.abs(slopes), velocity_rad_s)
+    if rate_cap is not None:
+        rate = np.minimum(rate, rate_cap)
+    rate[1:] = np.maximum(rate[1:], rate[:-1])
+    rate[:-1] = np.maximum(rate[:-1], rate[1:])
+    return slopes, rate
+
+
+def _rate(slopes: np.ndarray, speed_rad_s: np.ndarray) -> np.ndarray:
+    """min over joints of speed / |slope| (N,) for slopes (N, n) and speeds (n,) or (N, n); inf where nothing moves."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.min(np.where(slopes > 0, speed_rad_s / slopes, np.inf), axis=1)
+
+
+def capped_rates(slopes: np.ndarray, rate: np.ndarray, speed_rad_s: np.ndarray) -> np.ndarray:
+    """``rate`` (N,) lowered where a joint would pass its speed bound ``speed_rad_s`` (N, n) at it."""
+    return np.minimum(rate, _rate(np.abs(slopes), speed_rad_s))
+
+
+def scaled_stopping_bound(robot: Robot, q: np.ndarray, qd: np.ndarray, acceleration_rad_s2: np.ndarray) -> np.ndarray:
+    """An upper bound [m] (N,) of :func:`stopping_distances` over the states (q_k, c qd_k), 0 <= c <= 1:
+    a joint path followed at any speed up to qd (N, n) in its direction.
+
+    Derivation. Braking from (q, c qd) traces the joint path ``q + lambda Delta(s)``, ``lambda = c^2``,
+    where Delta(s) is the braking of c = 1 at normalised time s (every joint's braking scales as
+    ``c^2`` in position and c in time). Its TCP length is ``L(lambda) = lambda f(lambda)``,
+    ``f(lambda) = integral |J(q + lambda Delta) Delta'| ds``. The linear Jacobian's column j changes
+    with joint k at most at ``L_jk`` = rho_bar_j (k < j: the column turns with joint k) or
+    rho_bar_k (k >= j) per radian (:func:`reach_bounds`), and joint k is at most delta_k =
+    qd_k^2 / (2 a_k) from where it starts, so ``f(lambda) <= f(1) + (1 - lambda) M`` with
+    ``M = sum_jk L_jk delta_j delta_k``. Hence ``L(lambda) <= lambda L(1) + lambda (1 - lambda) M``,
+    whose largest value on [0, 1] is L(1) when M <= L(1), else ``(L(1) + M)^2 / (4 M)``. L(1) is the
+    figure at qd (:func:`stopping_distances`, within 1 % of the integral: taken 1 % higher).
+    """
+    acc = np.broadcast_to(np.asarray(acceleration_rad_s2, dtype=float), (q.shape[1],))
+    full = 1.01 * stopping_distances(robot, q, qd, acc)
+    delta = qd**2 / (2.0 * acc)  # (N, n)
+    rho_bar = reach_bounds(robot)
+    n = q.shape[1]
+    jk = np.where(np.arange(n)[None, :] < np.arange(n)[:, None], rho_bar[:, None], rho_bar[None, :])  # L_jk
+    M = np.einsum("nj,jk,nk->n", delta, jk, delta)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(full >= M, full, (full + M) ** 2 / (4.0 * np.where(M > 0, M, 1.0)))
+
+
+def rest_speed_bounds(travel_rad: np.ndarray, acceleration_rad_s2: np.ndarray, period_s: float) -> np.ndarray:
+    """Joint speed bounds [rad/s] (like ``travel_rad``, (..., n)) of joints ``travel_rad`` [rad] of
+    joint path away from a point where they are at rest (the total turning since it, or until it).
+
+    From rest, ``d(qd^2)/dt = 2 qd qdd <= 2 a |qd|``, so ``qd^2 <= 2 a integral |qd| dt``: a joint
+    cannot be faster than ``sqrt(2 a travel)`` (a short move never reaches its cruise speed). The
+    samples' differences see the acceleration one period late: ``a * period`` is added.
+    """
+    acc = np.asarray(acceleration_rad_s2, dtype=float)
+    return np.sqrt(2.0 * acc * np.maximum(travel_rad, 0.0)) + acc * period_s
+
+
+def travel(q: np.ndarray) -> np.ndarray:
+    """Each joint's total turning [rad] from the first sample to each sample of q (N, n): (N, n)."""
+    steps = np.abs(np.diff(q, axis=0))
+    return np.concatenate([np.zeros((1, q.shape[1])), np.cumsum(steps, axis=0)])
+

@@ -19,15 +19,17 @@ from singplan.outputs.pages import PAGE_FILES, build_pages, page_names
 from singplan.planning.planner import Progress, plan_moves
 from singplan.results.files import hold_output_folder
 from singplan.results.plan import trajectory_of
-from singplan.results.trajectory import TRAJECTORY_FILES, Trajectory, save
+from singplan.results.trajectory import ROBOT_FILES, TRAJECTORY_FILES, Trajectory, robot_files, save
 from singplan.task.schema import Task
 
-OUTPUT_FILES = (*TRAJECTORY_FILES, *PAGE_FILES)  # every file singplan may write into a task's output folder
+# every file singplan may write into a task's output folder
+OUTPUT_FILES = (*TRAJECTORY_FILES, *ROBOT_FILES, *PAGE_FILES)
 
 
 def output_names(report: bool, replay: bool) -> tuple[str, ...]:
-    """The files a plan writes: the trajectory's, then the pages asked for."""
-    return (*TRAJECTORY_FILES, *page_names(report, replay))
+    """The files a plan may write: the trajectory's, the robot's copy (a URDF with continuous joints),
+    then the pages asked for."""
+    return (*TRAJECTORY_FILES, *ROBOT_FILES, *page_names(report, replay))
 
 
 @dataclass(frozen=True)
@@ -60,4 +62,4 @@ def plan_into(task: Task, out_dir: str | os.PathLike[str], *, method: str | None
         traj = trajectory_of(planned)
         pages, skipped = build_pages(traj, planned.full, report=report, replay=replay)  # the robot the plan loaded
         written = save(traj, folder, extra_files=pages)
-    return PlannedFolder(traj, written, (*TRAJECTORY_FILES, *pages), skipped)
+    return PlannedFolder(traj, written, (*TRAJECTORY_FILES, *robot_files(traj), *pages), skipped)

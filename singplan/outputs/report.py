@@ -104,7 +104,8 @@ def _joints(traj: Trajectory, robot: Robot, shading: _Shading) -> list[Panel]:
         panel = shading.panel(title=name)
         _curve(panel, traj.t, np.degrees(traj.q[:, j]))
         for limit in (robot.lower_rad[j], robot.upper_rad[j]):
-            panel.hline(math.degrees(limit))
+            if math.isfinite(limit):  # an unlimited (continuous) joint has none to draw
+                panel.hline(math.degrees(limit))
         panels.append(panel)
     return panels
 

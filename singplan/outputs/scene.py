@@ -31,8 +31,7 @@ import umsgpack
 from singplan.errors import InputError, RobotModelError
 from singplan.kinematics.files import display_path, read_bounded
 from singplan.kinematics.packages import MeshFile, texture_allowed
-from singplan.kinematics.robot import Robot
-from singplan.kinematics.urdf_scan import read_urdf
+from singplan.kinematics.robot import Robot, load_full_model
 from singplan.outputs.visuals import MAX_MESH_BYTES, VisualMeshes, checked_visuals
 
 logger = logging.getLogger(__name__)
@@ -123,8 +122,7 @@ class RobotScene:
     def of(cls, robot: Robot) -> RobotScene:
         """The scene of the robot's URDF: read and scanned again (it may have changed since it was
         planned with), its visual meshes checked (:func:`~singplan.outputs.visuals.checked_visuals`)."""
-        scan = read_urdf(robot.urdf_path)
-        model = pin.buildModelFromXML(scan.text)
+        model, scan = load_full_model(robot.urdf_path)  # continuous joints as unlimited revolute ones, as planned
         meshes = checked_visuals(scan.text, robot.urdf_path)
         try:
             visual = pin.buildGeomFromUrdfString(model, meshes.urdf_text, pin.GeometryType.VISUAL)

@@ -18,7 +18,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from singplan.kinematics.configuration import distances_batch, labels_from_distances
+from singplan.kinematics.configuration import distances_batch, labels_from_distances, positive_sides
 from singplan.kinematics.dynamics import central_differences, effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.kinematics.robot import Robot
 from singplan.kinematics.stopping import stopping_distances, worst_stopping
@@ -171,7 +171,7 @@ class _Labels:
     """
 
     def __init__(self, distances: np.ndarray) -> None:
-        signs = distances >= 0  # NaN counts as negative, as in labels_from_distances ...
+        signs = positive_sides(distances)  # NaN counts as negative, as in labels_from_distances ...
         self.codes = (signs[:, 0] * 1 + signs[:, 1] * 2 + signs[:, 2] * 4).astype(np.int8)
         self.codes[np.isnan(distances).all(axis=1)] = 8  # ... but a row with no distance has no label
         rows = np.array([[bit & 1, bit & 2, bit & 4] for bit in range(8)] + [[np.nan] * 3], dtype=float) - 0.5

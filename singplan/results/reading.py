@@ -168,6 +168,8 @@ def check_document(doc: Any, name: str, fmt: str) -> FieldChecks:
     n_moves = len(doc["task"]["moves"])
     for key, max_chars in (("robot", MAX_NAME_CHARS), ("urdf", 4096), ("tip", MAX_NAME_CHARS)):
         f.text(key, doc.get(key), max_chars)
+    if doc.get("urdf_source") is not None:  # the URDF planned, when "urdf" names its copy (continuous joints)
+        f.text("urdf_source", doc["urdf_source"], 4096)
     tool = f.mapping("tool", doc.get("tool"))
     doc["tool"] = {"xyz": f.triple("tool.xyz", tool.get("xyz"), TOOL_OFFSET_M),
                    "rpy_deg": f.triple("tool.rpy_deg", tool.get("rpy_deg"), ANGLE_DEG)}

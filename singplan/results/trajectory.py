@@ -21,7 +21,9 @@ from typing import Any, Literal, TextIO
 
 import numpy as np
 
-from singplan.kinematics.files import display_path, read_json
+from singplan.kinematics.continuous import continuous_joint_names, portable_urdf
+from singplan.kinematics.files import FileRefusedError, display_path, read_bounded_text, read_json
+from singplan.kinematics.robot import MAX_URDF_BYTES
 from singplan.results.files import Writer, text_writer, write_files
 from singplan.results.metrics import Metrics, NoFigures, SegmentFigures, figures_from_json
 from singplan.results.reading import MAX_TRAJECTORY_BYTES, check_document
@@ -30,6 +32,12 @@ FORMAT = "singplan.trajectory/1"
 CSV_FILE = "trajectory.csv"
 JSON_FILE = "trajectory.json"
 TRAJECTORY_FILES = (CSV_FILE, JSON_FILE)  # what save() writes into an output folder, in this order
+# beside a trajectory of a URDF with continuous joints: that URDF with one coordinate per joint (and
+# its SRDF), which trajectory.json's "urdf" names (singplan.kinematics.continuous)
+URDF_FILE = "trajectory.urdf"
+SRDF_FILE = "trajectory.srdf"
+ROBOT_FILES = (URDF_FILE, SRDF_FILE)
+_MAX_SRDF_BYTES = 8 * 1024 * 1024
 SegmentKind = Literal["path", "pre", "crossing", "post", "ptp", "blend"]
 _CHUNK_ROWS = 4096  # samples formatted at once when writing (bounds the text held in memory)
 
@@ -283,9 +291,13 @@ def csv_line(fields: Sequence[str]) -> str:
     return buffer.getvalue()[:-2]
 
 
-def write_json(stream: TextIO, traj: Trajectory) -> None:
-    """trajectory.json, the same text as ``json.dumps(traj.to_json())``, streamed chunk by chunk."""
-    _dump(stream, traj.document())
+def write_json(stream: TextIO, traj: Trajectory, urdf_copy: str | None = None) -> None:
+    """trajectory.json, the same text as ``json.dumps(traj.to_json())``, streamed chunk by chunk. With
+    ``urdf_copy`` (:func:`robot_files`), ``urdf`` names that copy and ``urdf_source`` the URDF planned."""
+    document = traj.document()
+    if urdf_copy is not None:
+        document.update(urdf=urdf_copy, urdf_source=traj.urdf)
+    _dump(stream, document)
 
 
 def _dump(stream: TextIO, value: Any) -> None:
@@ -311,17 +323,41 @@ def _holds_array(value: dict[str, Any]) -> bool:
 
 
 def save(traj: Trajectory, out_dir: str | Path, extra_files: Mapping[str, str] | None = None) -> Path:
-    """Write trajectory.csv, trajectory.json (and extra text files) into ``out_dir``.
+    """Write trajectory.csv, trajectory.json (:func:`robot_files` for a URDF with continuous joints,
+    and extra text files) into ``out_dir``.
 
     Only these files are written; the rest of the folder is left alone. All are renamed into
     place together once written; on any failure the folder is as it was (see
     :mod:`singplan.results.files`). An unusable ``out_dir`` raises OutputPathError.
     """
+    folder = Path(os.path.abspath(out_dir))  # absolute, but a symbolic link stays as named
+    copies = robot_files(traj)
+    # tools that need one coordinate per joint read the copy; singplan the URDF planned (load())
+    urdf_copy = str(folder / URDF_FILE) if copies else None
     writers: dict[str, Writer] = {CSV_FILE: lambda stream: write_csv(stream, traj),
-                                  JSON_FILE: lambda stream: write_json(stream, traj)}
-    writers.update({name: text_writer(text) for name, text in (extra_files or {}).items()})
+                                  JSON_FILE: lambda stream: write_json(stream, traj, urdf_copy)}
+    writers.update({name: text_writer(text) for name, text in {**copies, **(extra_files or {})}.items()})
     write_files(out_dir, writers)
-    return Path(os.path.abspath(out_dir))  # absolute, but a symbolic link stays as named
+    return folder
+
+
+def robot_files(traj: Trajectory) -> dict[str, str]:
+    """{file name: text} of the robot files :func:`save` writes beside ``traj``: for a URDF with
+    continuous joints, :data:`URDF_FILE` (:func:`~singplan.kinematics.continuous.portable_urdf`: the
+    joints as unlimited revolute ones, one coordinate each, which other tools such as the
+    independent checker need) and its ``<stem>.srdf`` as :data:`SRDF_FILE`; else none."""
+    urdf = Path(traj.urdf)
+    try:
+        text = read_bounded_text(urdf, MAX_URDF_BYTES, "URDF")
+    except FileRefusedError:
+        return {}  # the URDF is gone: trajectory.json names it as it was planned
+    if "continuous" not in text or not continuous_joint_names(text, traj.urdf):
+        return {}
+    out = {URDF_FILE: portable_urdf(text, urdf)}
+    srdf = urdf.with_suffix(".srdf")
+    if srdf.is_file():
+        out[SRDF_FILE] = read_bounded_text(srdf, _MAX_SRDF_BYTES, "SRDF")
+    return out
 
 
 _SEGMENT_FIELDS = ("move", "kind", "t0", "t1", "config_before", "config_after", "singularity", "method")
@@ -353,6 +389,8 @@ def load(path: str | Path) -> Trajectory:
     moves = tuple(f.record(f"moves[{i}]", partial(MoveRecord, **m)) for i, m in enumerate(doc["moves"]))
     metrics = f.record("metrics", partial(Metrics.from_json, doc["metrics"]))
     samples = f.record("samples", partial(_samples_from_file, doc["samples"]))
-    return Trajectory(doc["robot"], doc["urdf"], doc["tip"], doc["tool"], doc["task"], doc["joint_names"],
+    source = doc.get("urdf_source")  # the URDF planned, when "urdf" is its copy with one coordinate per joint
+    urdf = source if isinstance(source, str) and Path(source).is_file() else doc["urdf"]
+    return Trajectory(doc["robot"], urdf, doc["tip"], doc["tool"], doc["task"], doc["joint_names"],
                       doc["period"], doc["t"], doc["q"], doc["qd"], doc["qdd"], segments, events, metrics, samples,
                       moves)

@@ -30,6 +30,7 @@ from singplan.task.schema import (
     DEFAULT_ORIENTATION_TOLERANCE_DEG,
     DEFAULT_PERIOD_S,
     DEFAULT_POSITION_TOLERANCE_MM,
+    DEFAULT_PTP_TIME_LAW,
     DEFAULT_REDUNDANT_VALUE_DEG,
     DEFAULT_SPEED_M_S,
     DEFAULT_TOOL,
@@ -52,6 +53,7 @@ from singplan.task.schema import (
     ORIENTATION_TOLERANCE_DEG,
     PERIOD_S,
     POSITION_TOLERANCE_MM,
+    PTP_TIME_LAWS,
     SPEED_M_S,
     TOOL_OFFSET_M,
     TORQUE_SCALE,
@@ -308,13 +310,14 @@ def _singularity(value: Any) -> SingularitySettings:
 
 
 def _limits(value: Any) -> Limits:
-    _check_keys("limits", value, optional=("velocity_scale", "acceleration", "jerk", "torque_scale"))
+    _check_keys("limits", value, optional=("velocity_scale", "acceleration", "jerk", "torque_scale", "ptp_time_law"))
     accel = _per_joint("limits.acceleration", value.get("acceleration", DEFAULT_ACCELERATION_RAD_S2),
                        ACCELERATION_RAD_S2)
     jerk = _per_joint("limits.jerk", value["jerk"], JERK_RAD_S3) if "jerk" in value else None
     torque = _number("limits.torque_scale", value["torque_scale"], TORQUE_SCALE) if "torque_scale" in value else None
+    law = _check_choice("limits.ptp_time_law", value.get("ptp_time_law", DEFAULT_PTP_TIME_LAW), PTP_TIME_LAWS)
     return Limits(velocity_scale=_scale("limits.velocity_scale", value.get("velocity_scale", DEFAULT_VELOCITY_SCALE)),
-                  acceleration_rad_s2=accel, torque_scale=torque, jerk_rad_s3=jerk)
+                  acceleration_rad_s2=accel, torque_scale=torque, jerk_rad_s3=jerk, ptp_time_law=law)
 
 
 def _per_joint(where: str, value: Any, bounds: Range) -> tuple[float, ...]:

@@ -101,7 +101,8 @@ VELOCITY_SCALE = Range(1e-3, 1.0, "")
 ACCELERATION_RAD_S2 = Range(1e-2, 1e4, "rad/s^2")
 TORQUE_SCALE = Range(1e-3, 1.0, "")
 JERK_RAD_S3 = Range(0.1, 1e6, "rad/s^3")
-PTP_TIME_LAWS = ("optimal", "quintic")  # Limits.ptp_time_law (Python API only)
+PTP_TIME_LAWS = ("optimal", "quintic")  # limits.ptp_time_law
+DEFAULT_PTP_TIME_LAW = "optimal"
 POSITION_TOLERANCE_MM = Range(1e-4, 1000.0, "mm")
 ORIENTATION_TOLERANCE_DEG = Range(1e-3, 180.0, "deg")
 ZONE_ANGLE_DEG = Range(1e-3, 90.0, "deg")
@@ -198,9 +199,9 @@ class Limits:
     acceleration_rad_s2: tuple[float, ...] = (DEFAULT_ACCELERATION_RAD_S2,)
     torque_scale: float | None = None  # fraction of the URDF efforts, enforced; None: torques not limited
     jerk_rad_s3: tuple[float, ...] | None = None  # one value for all joints, or one per joint; None: not limited
-    # Python API only (no YAML key in format v1): "quintic" times every PTP move by SEEDS 003's
-    # 10t^3 - 15t^4 + 6t^5 law instead of the time-optimal one.
-    ptp_time_law: str = "optimal"
+    # limits.ptp_time_law: "quintic" times every PTP move by SEEDS 003's 10t^3 - 15t^4 + 6t^5 law
+    # instead of the time-optimal one ("optimal")
+    ptp_time_law: str = DEFAULT_PTP_TIME_LAW
 
     def __post_init__(self) -> None:
         """The per-joint ranges and the time law, checked once however the record is made (parsed,
@@ -271,7 +272,8 @@ class Task:
                        **({"torque_scale": self.limits.torque_scale} if self.limits.torque_scale is not None
                           else {}),
                        **({"jerk": _one_or_list(self.limits.jerk_rad_s3)} if self.limits.jerk_rad_s3 is not None
-                          else {})},
+                          else {}),
+                       "ptp_time_law": self.limits.ptp_time_law},
             "output": {"period": self.period_s},
         }
         if self.tip:

@@ -225,11 +225,13 @@ def _stalled(robot: Robot, err: np.ndarray, J: np.ndarray) -> bool:
 
 
 def into_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """Each joint moved by whole turns next to the middle of its range, then clamped to it.
+    """Each joint moved by whole turns next to the middle of its range, then clamped to it (an
+    unlimited joint left as it is).
 
     The variant nearest the middle is the one inside the range whenever one exists.
     """
-    middle = 0.5 * (lower + upper)
+    limited = np.isfinite(lower) & np.isfinite(upper)
+    middle = np.where(limited, 0.5 * (np.where(limited, lower, 0.0) + np.where(limited, upper, 0.0)), q)
     return np.clip(shifted_toward(q, middle), lower, upper)
 
 
@@ -343,8 +345,9 @@ def _distance(q: np.ndarray, seed: np.ndarray) -> float:
 
 
 def _box_seeds(robot: Robot, options: NumericIkOptions) -> Iterator[np.ndarray]:
-    # a joint wider than a turn is sampled over one turn around its middle: the rest repeats it
-    middle = 0.5 * (robot.lower_rad + robot.upper_rad)
+    # a joint wider than a turn is sampled over one turn around its middle (an unlimited one's: 0)
+    middle = np.where(robot.unlimited, 0.0, 0.5 * (np.where(robot.unlimited, 0.0, robot.lower_rad)
+                                                   + np.where(robot.unlimited, 0.0, robot.upper_rad)))
     half = np.minimum(0.5 * (robot.upper_rad - robot.lower_rad), math.pi)
     for u in halton(options.max_seeds, robot.n_joints):
         yield middle + (2.0 * u - 1.0) * half

@@ -32,7 +32,7 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.kinematics.angles import TWO_PI, nearest_shifted, wrap_to_pi
-from singplan.kinematics.configuration import classify, labels_batch
+from singplan.kinematics.configuration import LABEL_ZERO, classify, labels_batch
 from singplan.kinematics.ik import numeric as ik_numeric
 from singplan.kinematics.ik import opw
 from singplan.kinematics.ik.ur import ur_batch
@@ -118,9 +118,13 @@ def _to_opw(params: OpwParameters, q_robot: np.ndarray) -> np.ndarray:
 
 
 def _shift_variants(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> list[np.ndarray]:
-    """Every q + 2*pi*k (per joint) inside the limits."""
+    """Every q + 2*pi*k (per joint) inside the limits; an unlimited joint's angle in (-pi, pi] only
+    (its other turns are the same solution: a seed picks the turn, :func:`_nearest_variant`)."""
     options = []
     for j, value in enumerate(q):
+        if not (math.isfinite(lower[j]) and math.isfinite(upper[j])):
+            options.append([float(wrap_to_pi(np.array([value]))[0])])
+            continue
         k_lo = math.ceil((lower[j] - value) / TWO_PI - 1e-12)
         k_hi = math.floor((upper[j] - value) / TWO_PI + 1e-12)
         options.append([value + TWO_PI * k for k in range(k_lo, k_hi + 1)])
@@ -144,8 +148,11 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
     """Every IK solution of a TCP pose inside the joint limits.
 
     Without a seed, every 2*pi-shifted variant inside the limits is listed (joints whose
-    range exceeds +-180 deg have several). With a seed, each branch gives the variant nearest
-    the seed, and at a wrist singularity the seed's q4 is kept.
+    range exceeds +-180 deg have several; an unlimited joint's angle is given in (-pi, pi]). With
+    a seed, each branch gives the variant nearest the seed (the shortest turn), and at a wrist
+    singularity the seed's q4 is kept; solutions equal up to whole
+    turns are one solution, listed once (branches meet on a singular pose: the UR5 at q = 0 has
+    two solver branches 360 deg apart in q2 and q4), as the variant nearest the seed.
     """
     if robot.family in ("opw", "ur"):
         rows, branches = _closed_form_candidates(robot, T_base_tcp, seed)
@@ -156,7 +163,7 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
         variants = ([_nearest_variant(q, seed, robot.lower_rad, robot.upper_rad)] if seed is not None
                     else _shift_variants(q, robot.lower_rad, robot.upper_rad))
         found += [(v, branch) for v in variants if v is not None]
-    kept = _distinct([v for v, _ in found])
+    kept = _distinct([v for v, _ in found]) if seed is None else _distinct_turns([v for v, _ in found], seed)
     q_all = np.array([found[k][0] for k in kept]).reshape(-1, robot.n_joints)
     branch_list = [found[k][1] for k in kept]
     labels = tuple(labels_batch(robot, q_all))
@@ -175,6 +182,21 @@ def _distinct(rows: list[np.ndarray]) -> list[int]:
         earlier = table[kept]
         if not np.any(np.all(np.abs(row - earlier) <= 1e-9 + 1e-5 * np.abs(earlier), axis=1)):
             kept.append(k)
+    return kept
+
+
+def _distinct_turns(rows: list[np.ndarray], seed: np.ndarray) -> list[int]:
+    """Indices of the rows that differ from every other up to whole turns by more than
+    :data:`~singplan.kinematics.configuration.LABEL_ZERO` in some joint, in order; of rows equal up to
+    whole turns the one nearest ``seed`` (max norm; the first among equals) stands for them. (Where
+    branches meet, a pose's solver branches differ by the round-off LABEL_ZERO absorbs.)"""
+    kept: list[int] = []
+    for k, row in enumerate(rows):
+        same = [i for i, m in enumerate(kept) if np.max(np.abs(wrap_to_pi(row - rows[m]))) <= LABEL_ZERO]
+        if not same:
+            kept.append(k)
+        elif np.max(np.abs(row - seed)) < np.max(np.abs(rows[kept[same[0]]] - seed)):
+            kept[same[0]] = k
     return kept
 
 

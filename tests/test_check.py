@@ -1,0 +1,133 @@
+"""``singplan check`` against ``singplan plan`` on tasks written from outside (tests/singular_battery.py).
+
+Wherever some crossing method plans a task, check exits 0 and lists the zones; its stopping distance
+is at or above every plan's, move by move. The battery's tasks pass exactly through (or a small
+joint offset past) wrist, shoulder and elbow singularities found as roots of Pinocchio's Jacobian
+determinant, on bundled arms and on example-robot-data's UR5 and UR10, as LINs and CIRCs.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+from singplan.cli import main
+from singplan.errors import SingplanError
+from singplan.planning.detect import MoveZones, detect
+from singplan.results.plan import plan
+from singplan.results.trajectory import Trajectory
+from singplan.task.load import parse_task
+
+from .singular_battery import SingularTask, battery
+
+METHODS = ("auto", "exact", "wrist-joint", "axis", "null-space", "dls", "average", "ptp")
+
+
+def _check(mapping: dict[str, Any], tmp_path: Path) -> tuple[int, str, str]:
+    path = tmp_path / "task.yaml"
+    path.write_text(yaml.safe_dump(mapping))
+    out, err = io.StringIO(), io.StringIO()
+    return main(["check", str(path)], out=out, err=err), out.getvalue(), err.getvalue()
+
+
+def _plans(mapping: dict[str, Any], methods: tuple[str, ...]) -> dict[str, Trajectory]:
+    """The plans of the methods that plan the task."""
+    out = {}
+    for method in methods:
+        try:
+            out[method] = plan(parse_task(mapping), method=method)
+        except SingplanError:
+            continue
+    return out
+
+
+def _per_move_stopping_m(traj: Trajectory) -> list[float]:
+    d = traj.samples["stopping_distance_m"]
+    return [float(d[round(m.t0 / traj.period):round(m.t1 / traj.period) + 1].max()) for m in traj.moves]
+
+
+def _holds(task: SingularTask, tmp_path: Path, methods: tuple[str, ...]) -> int:
+    """check exits 0 when some method plans; each plan's per-move stopping distance is within the
+    bound of that move. Returns how many methods planned."""
+    code, out, err = _check(task.mapping, tmp_path)
+    plans = _plans(task.mapping, methods)
+    if plans:
+        assert code == 0, f"{task.name}: check exits {code} ({err.strip()}) but {sorted(plans)} plan"
+        found = detect(parse_task(task.mapping))
+        assert f"{sum(len(m.zones) for m in found)} singular zone(s)" in out
+        for method, traj in plans.items():
+            for k, (planned, move) in enumerate(zip(_per_move_stopping_m(traj), found, strict=True)):
+                assert planned <= move.stopping.bound_m, (
+                    f"{task.name} {method} move {k}: planned {planned * 1e3:.3f} mm over the bound "
+                    f"{move.stopping.bound_m * 1e3:.3f} mm")
+    else:
+        assert code in (0, 3), err
+    return len(plans)
+
+
+_QUICK = battery(3, arms=("abb_irb2400", "erd:ur5"), kinds=("wrist", "shoulder"), misses_deg=(0.0,))
+
+
+@pytest.mark.parametrize("task", _QUICK, ids=[t.name for t in _QUICK])
+def test_check_exits_0_wherever_a_method_plans_and_bounds_the_stopping_distance(task: SingularTask,
+                                                                                 tmp_path: Path) -> None:
+    _holds(task, tmp_path, ("auto", "dls"))
+
+
+_ISSUE = battery(1, arms=("abb_irb2400",), kinds=("shoulder",), misses_deg=(0.0,))
+
+
+@pytest.mark.parametrize("task", _ISSUE, ids=[t.name for t in _ISSUE])
+def test_abb_shoulder_hits_that_plan_are_checked(task: SingularTask, tmp_path: Path) -> None:
+    """The issue's case: LINs and CIRCs through the ABB's shoulder singularity, which check refused
+    ("no continuous joint motion ... the inverse kinematics jumps") while several methods plan them."""
+    assert _holds(task, tmp_path, ("auto", "exact", "wrist-joint")) >= 2
+    (move,) = detect(parse_task(task.mapping))
+    assert [z.kind for z in move.zones] == ["shoulder"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [11, 12])
+def test_the_whole_battery_every_method(seed: int, tmp_path: Path) -> None:
+    """Every arm, kind, hit and near miss, LIN and CIRC; every method's plan against the bound."""
+    tasks = battery(seed)
+    assert len(tasks) >= 50
+    planned = sum(_holds(task, tmp_path, METHODS) > 0 for task in tasks)
+    assert planned >= len(tasks) // 2  # the battery is not vacuous: most of its tasks plan
+
+
+def test_check_lists_zones_in_the_branch_the_planner_tracks() -> None:
+    """A move through a wrist hit lists one wrist zone around the hit, as the planner's first stretch
+    finds it (the zone the crossing methods are asked about)."""
+    (task,) = battery(2, arms=("kuka_kr6_r900_2",), kinds=("wrist",), misses_deg=(0.0,), moves=("lin",), held=True)
+    (move,) = detect(parse_task(task.mapping))
+    assert isinstance(move, MoveZones) and move.kind == "lin"
+    (zone,) = move.zones
+    assert zone.kind == "wrist" and zone.u_entry < 0.5 < zone.u_exit
+    assert zone.min_distance < 1e-6 and zone.u_closest == pytest.approx(0.5, abs=1e-3)
+    traj = plan(parse_task(task.mapping))
+    (crossing,) = [s for s in traj.segments if s.kind == "crossing"]
+    assert crossing.singularity == "wrist"
+
+
+def test_a_path_out_of_reach_is_exit_3_for_check_and_plan(tmp_path: Path) -> None:
+    (task,) = battery(4, arms=("abb_irb2400",), kinds=("wrist",), misses_deg=(0.0,), moves=("lin",))
+    mapping = {**task.mapping, "moves": [{"lin": {"to": {"xyz": [3.0, 0.0, 1.0]}}}]}
+    code, _, err = _check(mapping, tmp_path)
+    assert code == 3 and "leaves the workspace" in err
+    assert not _plans(mapping, METHODS)
+
+
+def test_the_bound_holds_for_a_flown_program(tmp_path: Path) -> None:
+    """Fly-by corners superpose two moves' motions: the corner's figure is bounded too."""
+    example = Path(__file__).resolve().parents[1] / "examples" / "flyby_pick_place.yaml"
+    found = detect(example)
+    traj = plan(example)
+    planned = _per_move_stopping_m(traj)
+    assert all(p <= m.stopping.bound_m for p, m in zip(planned, found, strict=True))
+    assert np.max(planned) > 0.05  # a real figure, not a trivial one

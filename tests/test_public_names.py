@@ -1,0 +1,50 @@
+"""Every public name of ``singplan`` resolves, from the module its table names."""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import singplan
+
+
+@pytest.mark.parametrize("name", singplan.__all__)
+def test_every_name_in_all_resolves(name: str) -> None:
+    value = getattr(singplan, name)
+    if name == "__version__":
+        assert isinstance(value, str)
+        return
+    home = singplan._HOMES[name]
+    assert getattr(importlib.import_module(home), name) is value
+
+
+def test_all_and_the_table_list_the_same_names() -> None:
+    assert sorted(singplan.__all__) == sorted([*singplan._HOMES, "__version__"])
+
+
+def test_the_type_checking_imports_match_the_table() -> None:
+    """The names mypy sees (the TYPE_CHECKING block) come from the modules the table loads them from."""
+    tree = ast.parse(Path(singplan.__file__).read_text())
+    block = next(node for node in tree.body if isinstance(node, ast.If)
+                 and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING")
+    seen = {alias.name: node.module for node in block.body if isinstance(node, ast.ImportFrom)
+            for alias in node.names}
+    assert seen == singplan._HOMES
+
+
+def test_a_fresh_interpreter_resolves_them_all() -> None:
+    """In a new process (nothing imported yet), each name loads on first use."""
+    code = "import singplan\nfor n in singplan.__all__: getattr(singplan, n)\nprint('ok')"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "ok"
+
+
+def test_an_unknown_name_is_an_attribute_error() -> None:
+    with pytest.raises(AttributeError, match="no attribute 'detectt'"):
+        singplan.detectt  # noqa: B018

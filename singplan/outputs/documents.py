@@ -79,9 +79,9 @@ def check_document(task: str, found: Sequence[MoveZones]) -> dict[str, Any]:
         zones = [{"singularity": z.kind, "s_entry_mm": z.u_entry * scale_mm, "s_exit_mm": z.u_exit * scale_mm,
                   "s_closest_mm": z.u_closest * scale_mm, "min_distance": z.min_distance,
                   "min_distance_unit": z.unit, "threshold": z.threshold} for z in m.zones]
-        where = {"at_fraction": m.stopping[1]} if m.kind == "ptp" else {"at_s_mm": m.stopping[1] * scale_mm}
+        where = {"at_fraction": m.stopping.at} if m.kind == "ptp" else {"at_s_mm": m.stopping.at * scale_mm}
         moves.append({"move": m.index, "kind": m.kind, "length_mm": scale_mm, "zones": zones,
-                      "stopping_distance_estimate_mm": m.stopping[0] * 1e3, **where})
+                      "stopping_distance_bound_mm": m.stopping.bound_m * 1e3, **where})
     return {**_success("check"), "task": task, "zones": sum(len(m.zones) for m in found), "moves": moves}
 
 

@@ -21,13 +21,16 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from singplan.errors import PlanningError
+from singplan.errors import CollisionError, PlanningError
+from singplan.kinematics.collision import CollisionModel
+from singplan.kinematics.configuration import classify
 from singplan.kinematics.robot import Robot
 from singplan.planning.blending import RAMPS, Blend, corners, side_of, stopped
 from singplan.planning.bound import duration_bound_s
 from singplan.planning.budget import BudgetError, check_task
 from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
 from singplan.planning.checks import check_config, check_tolerances, refusal
+from singplan.planning.collide import check_move
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.nullspace import time_with_pauses
@@ -35,7 +38,7 @@ from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_mov
 from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint
 from singplan.planning.select import Candidate, Rank, best_of
-from singplan.planning.targets import task_arm
+from singplan.planning.targets import ptp_targets, task_arm
 from singplan.planning.timing import GiveUp, Scale, TimedMove, TimingError, TimingPath, time_move, timing_path
 from singplan.task.load import load_task
 from singplan.task.schema import Move, Task
@@ -55,6 +58,7 @@ class PlannedTask:
     moves: tuple[PlannedMove, ...]
     timed: tuple[TimedMove, ...]  # moves joined by fly-by corners were timed together, then split
     planning_s: float  # wall time from the call to the last move timed
+    collision: CollisionModel  # the bodies and pairs checked (``robot``'s)
     blends: tuple[Blend, ...] = ()  # every corner that asked for a fly-by, with the radius it got
 
 
@@ -84,7 +88,11 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     left = allowance - 1  # output samples the remaining moves may add (they share their boundary samples)
     for i, move in enumerate(task.moves):
         methods = registry.candidates(task.singularity.method, move) if chosen is None else [chosen]
-        pm, tm = _best_of(robot, arm_task, i, arm_task.moves[i], T, q, methods, left)
+        place = _Place(arm.collision, allowance - 1 - left)
+        if move.kind == "ptp" and move.to_joints_deg is None and place.collision.active:
+            pm, tm = _best_end(robot, arm_task, i, arm_task.moves[i], T, q, methods, left, place)
+        else:
+            pm, tm = _best_of(robot, arm_task, i, arm_task.moves[i], T, q, methods, left, place)
         left -= len(tm.q) - 1
         planned.append(pm)
         timed.append(tm)
@@ -96,7 +104,7 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
                             allowance)
     return PlannedTask(task, task.singularity.method if chosen is None else chosen.name,
                        arm.full, robot, arm.held, tuple(planned), tuple(timed), time.perf_counter() - started,
-                       tuple(blends.values()))
+                       arm.collision, tuple(blends.values()))
 
 
 def _fly_by(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], requested_m: list[float],
@@ -195,12 +203,58 @@ def _located(pm: PlannedMove, exc: TimingError) -> TimingError:
     return TimingError(pm.index, exc.u, exc.reason, kind=pm.kind, where=pm.describe(exc.u))
 
 
+@dataclass(frozen=True)
+class _Place:
+    """Where a move's candidates are checked for collisions: the bodies, and the trajectory sample the move
+    starts at (its samples' times in messages; the first move's first sample starts the trajectory)."""
+
+    collision: CollisionModel
+    offset: int
+
+
 def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
-             methods: list[CrossingMethod], max_samples: int) -> tuple[PlannedMove, TimedMove]:
+             methods: list[CrossingMethod], max_samples: int, place: _Place,
+             q_target: np.ndarray | None = None) -> tuple[PlannedMove, TimedMove]:
     """Plan each method's joint map, then time and check the candidates that can still win;
-    :func:`select.best_of` keeps the fastest."""
-    candidates = _MoveCandidates(robot, task, i, move, T, q, len(methods), max_samples)
+    :func:`select.best_of` keeps the fastest. ``q_target``: a PTP's end joints (default: the preferred)."""
+    candidates = _MoveCandidates(robot, task, i, move, T, q, len(methods), max_samples, place, q_target)
     return best_of(robot, i, move.kind, methods, candidates.prepare, candidates.finish)
+
+
+def _best_end(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
+              methods: list[CrossingMethod], max_samples: int, place: _Place) -> tuple[PlannedMove, TimedMove]:
+    """A PTP to a pose with collision checking on: the preferred end configuration (the nearest,
+    :func:`~singplan.planning.targets.ptp_targets`) where its motion is clear, else the fastest clear
+    one of the others the move's ``config`` allows.
+
+    Raises:
+        CollisionError: no end configuration is clear (each one's collision named).
+    """
+    targets = ptp_targets(robot, i, move, q)
+    try:
+        return _best_of(robot, task, i, move, T, q, methods, max_samples, place, targets[0])
+    except CollisionError as exc:
+        first = exc
+    refused: list[tuple[np.ndarray, PlanningError | BudgetError]] = []
+    clear: list[tuple[PlannedMove, TimedMove]] = []
+    for target in targets[1:]:
+        try:
+            clear.append(_best_of(robot, task, i, move, T, q, methods, max_samples, place, target))
+        except (PlanningError, BudgetError) as other:
+            refused.append((target, other))
+    if clear:
+        return min(clear, key=lambda found: found[1].duration_s)  # a tie: the nearer end
+    others = "; ".join(f"{classify(robot, target).label}: {_reason(error)}" for target, error in refused)
+    message = (f"{first} (every end configuration of the pose collides or fails: " + others + ")" if others
+               else str(first))
+    raise CollisionError(message, first.move, first.sample, first.t_s, first.bodies, first.distance_m,
+                         first.clearance_m) from first
+
+
+def _reason(error: Exception) -> str:
+    """An error's message without its move prefix and the free-space note (listed after the first's)."""
+    text = str(error).split("): ", 1)[-1]
+    return text.split("; singplan keeps", 1)[0]
 
 
 class _MoveCandidates:
@@ -210,8 +264,9 @@ class _MoveCandidates:
     takes that one's timing path, bound, refusal and outcome."""
 
     def __init__(self, robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray, count: int,
-                 max_samples: int) -> None:
+                 max_samples: int, place: _Place, q_target: np.ndarray | None = None) -> None:
         self.robot, self.task, self.index, self.move, self.T, self.q = robot, task, i, move, T, q
+        self.place, self.q_target = place, q_target
         self.compared = count > 1  # one candidate alone needs no bound or refusal
         self.max_samples = max_samples
         self.tracking: MoveTracking | None = None  # made by the first candidate (a bad piece fails every method alike)
@@ -222,7 +277,8 @@ class _MoveCandidates:
         """The method's joint map, with what lets it be skipped before timing."""
         if self.move.kind != "ptp" and self.tracking is None:
             self.tracking = MoveTracking(self.robot, self.task, self.index, self.move, self.T)
-        pm = plan_move(self.robot, self.task, self.index, self.move, self.T, self.q, method, self.tracking)
+        pm = plan_move(self.robot, self.task, self.index, self.move, self.T, self.q, method, self.tracking,
+                       self.q_target)
         same = next((c for c in self.prepared if _same_motion(c.pm, pm)), None)
         if same is not None:
             return replace(same, method=method, order=order, pm=pm)
@@ -252,7 +308,11 @@ class _MoveCandidates:
         try:
             timed = _timed(c.pm, period_s, self.max_samples, c.path, give_up)
             check_config(self.robot, self.move, c.pm, timed.u, timed.q)
-            return replace(c.pm, deviations=check_tolerances(self.robot, self.task, c.pm, timed, c.screened)), timed
+            deviations = check_tolerances(self.robot, self.task, c.pm, timed, c.screened)
+            if self.place.collision.active:
+                check_move(self.place.collision, timed.q, self.index, c.pm.kind, self.place.offset, period_s,
+                           lambda k: c.pm.describe(float(timed.u[k])))
+            return replace(c.pm, deviations=deviations), timed
         except (PlanningError, BudgetError) as exc:
             return c.pm, exc
 

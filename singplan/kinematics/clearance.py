@@ -23,18 +23,21 @@ so memory stays bounded on long programs.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from singplan.kinematics.collision import CollisionModel, Distance, Pair
+from singplan.kinematics.collision import CollisionModel, Distance, Pair, support
+from singplan.kinematics.geometry import rotation_angles
 
 BETWEEN_TOLERANCE_M = 2e-4  # between samples a pair may come this much closer than the clearance
-EXACT_M = 2.5e-4  # the least clearance reported is at most this above the true least sample distance
+EXACT_M = 4e-4  # the least clearance reported is at most this above the true least sample distance
 BLOCK = 4096  # samples whose frames and bounds are formed at once (~1 kB each)
-_SEEDS = 2  # pairs measured first in each span, where their bound is least: an early least distance
+_PLANES = 8  # separating planes a pair's bounds take per block ...
+_PLANE_GAIN_M = 1e-3  # ... each from a measurement this far above the bound there
 
 
 @dataclass(frozen=True)
@@ -122,7 +125,8 @@ def check_clearance(model: CollisionModel, q: np.ndarray, spans: Sequence[tuple[
         return Clearance(model.clearance_m, tuple(None for _ in spans))
     calls = model.distance_calls
     walk = _Walk(model, q, spans, offset, start, exact)
-    walk.run()
+    with contextlib.suppress(_CollidesError):  # only whether it is clear was asked: the first contact answers it
+        walk.run()
     contacts = sorted(walk.contacts.values(), key=lambda c: c.distance_m)
     return Clearance(model.clearance_m, tuple(walk.least), tuple(contacts), model.distance_calls - calls)
 
@@ -136,7 +140,8 @@ def clearance_curve(model: CollisionModel, q: np.ndarray, count: int) -> tuple[n
     if not model.active:
         return picks, np.full(len(picks), np.nan)
     R, P = model.robot.joint_frames(q[picks])
-    bounds = np.array([_lower_bounds(pair, R, P) for pair in model.pairs])  # (pairs, K)
+    found = capsule_bounds(model.pairs, R, P)
+    bounds = np.array([found[pair] for pair in model.pairs])  # (pairs, K)
     out = np.empty(len(picks))
     for i in range(len(picks)):
         best = math.inf
@@ -149,7 +154,7 @@ def clearance_curve(model: CollisionModel, q: np.ndarray, count: int) -> tuple[n
 
 
 class _Walk:
-    """One clearance check: the pairs walked over the samples, block by block."""
+    """One clearance check: the samples block by block, each pair proven or measured."""
 
     def __init__(self, model: CollisionModel, q: np.ndarray, spans: list[tuple[int, int]], offset: int,
                  start: bool, exact: bool) -> None:
@@ -169,38 +174,11 @@ class _Walk:
     def run(self) -> None:
         n = len(self.q)
         for s in range(0, max(n - 1, 1), BLOCK):
-            e = min(s + BLOCK, n - 1)
-            self._block(s, e)
-
-    # -- one block of samples s .. e (consecutive blocks share a sample) ---------------------------------
-
-    def _block(self, s: int, e: int) -> None:
-        R, P = self.model.robot.joint_frames(self.q[s:e + 1])
-        dq = np.abs(np.diff(self.q[s:e + 1], axis=0))
-        lower = {pair: _lower_bounds(pair, R, P) for pair in self.model.pairs}
-        order = sorted(self.model.pairs, key=lambda pair: float(lower[pair].min()))
-        block = _Block(self, s, R, P)
-        if self.exact:
-            self._seed(block, order, lower, s, e)
-        for pair in order:
-            M = np.concatenate([[0.0], np.cumsum(dq @ pair.weights)])
-            block.pair(pair, lower[pair], M)
-
-    def _seed(self, block: _Block, order: list[Pair], lower: dict[Pair, np.ndarray], s: int, e: int) -> None:
-        """A first least distance of each span in the block: its closest pairs where their bound is least."""
-        for span in np.unique(self.first[s:e + 1]):
-            local = np.nonzero(self.first[s:e + 1] == span)[0]
-            for pair in sorted(order, key=lambda p: float(lower[p][local].min()))[:_SEEDS]:
-                block.sample(pair, int(local[np.argmin(lower[pair][local])]))
-
-    def threshold(self, k: np.ndarray) -> np.ndarray:
-        """What a sample's distance must be proven to be (global indices k): the clearance, and the least
-        found in its spans less EXACT_M (so that the least reported is within EXACT_M of the true)."""
-        return np.maximum(self.c, np.minimum(self.best[self.first[k]], self.best[self.last[k]]) - EXACT_M)
+            _Block(self, s, min(s + BLOCK, n - 1)).check()
 
     def record(self, pair: Pair, k: int, found: Distance) -> None:
         d = found.distance_m
-        if not found.exact:  # a lower bound past the threshold: proven, and not the least
+        if not found.exact:  # a lower bound past what was asked: proven, and not the least
             return
         for span in {int(self.first[k]), int(self.last[k])}:
             if span < len(self.least) and d < self.best[span]:
@@ -214,99 +192,310 @@ class _Walk:
         seen = self.contacts.get(pair.names)
         if seen is None or contact.distance_m < seen.distance_m:
             self.contacts[pair.names] = contact
+        if not self.exact:
+            raise _CollidesError
+
+
+class _CollidesError(Exception):
+    """A check of whether the motion is clear found a contact: nothing more to measure."""
+
+
+class _PairState:
+    """One pair over a block: its motion bounds, and its lower bounds at the samples, tightened as it goes.
+
+    Attributes:
+        M: (m,) the bound of the bodies' relative motion along the joint motion from the block's first
+            sample [m] (between samples only this one holds).
+        lower: (m,) lower bounds of its distance at the samples: a sphere around each body, then the
+            capsules around their shapes, then the separating planes of its measurements.
+        S: (m,) from sample to sample the relative displacement of the two bodies' frames bounds the
+            motion too, often far closer (a pose kept while the wrist turns): the smaller of the two per
+            step, made with ``relative`` when the pair needs more than its capsules.
+        E: (m - 1,) how far the bodies' points move relative to each other along the joint motion from a
+            sample to the next, seen from both ends: the smaller of M's step and the displacement plus
+            twice the sagitta (:func:`sagittas`), so that the motion between samples k and k + 1 keeps at
+            least (d_k + d_{k+1} - E_k) / 2.
+        found: its measurements, by sample.
+    """
+
+    def __init__(self, pair: Pair, sphere: np.ndarray, M: np.ndarray, dq: np.ndarray) -> None:
+        self.pair, self.lower, self.M, self.dq = pair, sphere, M, dq
+        self.E = np.diff(M)
+        self.capsules = False
+        self.relative: _Relative | None = None
+        self.S: np.ndarray | None = None
+        self.found: dict[int, Distance] = {}
+        self._bound: np.ndarray | None = None
+
+    def bound(self) -> np.ndarray:
+        """Lower bounds at every sample, each carried to the others by the motion (cached until tightened)."""
+        if self._bound is None:
+            bound = self.lower.copy()
+            if self.found:
+                at = np.fromiter(self.found, dtype=int)
+                bound[at] = np.maximum(bound[at], [self.found[i].distance_m for i in self.found])
+            steps = self.S if self.S is not None else self.M
+            forward = np.maximum.accumulate(bound + steps) - steps
+            backward = np.maximum.accumulate((bound - steps)[::-1])[::-1] + steps
+            self._bound = np.maximum(bound, np.maximum(forward, backward))
+        return self._bound
+
+    def tightened(self) -> None:
+        self._bound = None
 
 
 class _Block:
-    """The samples s .. s + m - 1 of a check, their joint frames, and the walk of each pair over them."""
+    """The samples s .. e of a check (consecutive blocks share a sample) and their joint frames: each pair
+    proven clear by bounds or walked (:meth:`_clear`), then, for the least clearance, measured where its
+    bound is least until no bound is below the least found (:meth:`_least`)."""
 
-    def __init__(self, walk: _Walk, s: int, rotations: np.ndarray, origins: np.ndarray) -> None:
-        self.walk, self.s, self.R, self.P = walk, s, rotations, origins
-        self.measured: dict[tuple[Pair, int], float] = {}
+    def __init__(self, walk: _Walk, s: int, e: int) -> None:
+        self.walk, self.s = walk, s
+        self.R, self.P = walk.model.robot.joint_frames(walk.q[s:e + 1])
+        dq = np.abs(np.diff(walk.q[s:e + 1], axis=0))
+        spheres = sphere_bounds(walk.model.pairs, self.R, self.P)
+        self.states = [_PairState(pair, spheres[pair], np.concatenate([[0.0], np.cumsum(dq @ pair.weights)]), dq)
+                       for pair in walk.model.pairs]
+        self.states.sort(key=lambda st: float(st.lower.min()))
+        self.k = s + np.arange(e - s + 1)
+        self.ends: dict[int, np.ndarray] = {}  # capsule ends placed at the block's samples, by shape
 
-    def sample(self, pair: Pair, i: int) -> float:
-        """The pair's distance at local sample i (measured once)."""
-        key = (pair, i)
-        if key not in self.measured:
-            model, k = self.walk.model, self.s + i
-            found = model.pair_distance(pair, self.R[i], self.P[i], float(self.walk.threshold(np.array([k]))[0]))
-            if k == 0 and self.walk.start and found.distance_m > 0 and model.inside_mesh(pair, self.R[i], self.P[i]):
+    def check(self) -> None:
+        unproven = [st for st in self.states if not self._proven(st)]
+        capsules = capsule_bounds([st.pair for st in unproven], self.R, self.P, self.ends)  # in one pass
+        for st in unproven:
+            st.lower = np.maximum(st.lower, capsules[st.pair])
+            st.capsules = True
+            st.tightened()
+        for st in unproven:
+            self._clear(st)
+        if self.walk.exact:
+            self._least()
+
+    # -- measurements ------------------------------------------------------------------------------------
+
+    def sample(self, st: _PairState, i: int, enough: float) -> float:
+        """The pair's distance at local sample i (``enough``: a bound past this will do), measured once;
+        a measurement well above its bound adds the separating plane it found to the pair's bounds."""
+        seen = st.found.get(i)
+        if seen is None or (not seen.exact and seen.distance_m < enough):
+            walk, k = self.walk, self.s + i
+            found = walk.model.pair_distance(st.pair, self.R[i], self.P[i], enough)
+            if k == 0 and walk.start and found.distance_m > 0 and walk.model.inside_mesh(st.pair, self.R[i],
+                                                                                         self.P[i]):
                 found = Distance(-math.inf, found.point_a, found.point_b)
-            self.walk.record(pair, k, found)
-            self.measured[key] = found.distance_m
-        return self.measured[key]
+            st.found[i] = found
+            walk.record(st.pair, k, found)
+            self._tighten(st, i, found)
+            st.tightened()
+        return st.found[i].distance_m
 
-    def between(self, pair: Pair, x: float) -> float:
+    def _tighten(self, st: _PairState, i: int, found: Distance) -> None:
+        """Raise the pair's lower bounds by the separating plane of a measurement (when its bound there was
+        poor and the pair has not used up its planes)."""
+        if not found.exact or found.distance_m - st.lower[i] <= _PLANE_GAIN_M:
+            return
+        self._relative(st)
+        assert st.relative is not None
+        if st.relative.planes < _PLANES:
+            plane = st.relative.plane_bounds(i, found)
+            if plane is not None:
+                st.lower = np.maximum(st.lower, plane)
+
+    def _relative(self, st: _PairState) -> None:
+        if st.relative is None:
+            st.relative = _Relative(st.pair, self.R, self.P)
+            steps, dM = st.relative.steps(), np.diff(st.M)
+            st.S = np.concatenate([[0.0], np.cumsum(np.minimum(dM, steps))])
+            st.E = np.minimum(dM, steps + 2.0 * sagittas(st.dq, st.pair.arms))
+            st.tightened()
+
+    def _capsules(self, st: _PairState) -> None:
+        if not st.capsules:
+            st.lower = np.maximum(st.lower, capsule_bounds([st.pair], self.R, self.P, self.ends)[st.pair])
+            st.capsules = True
+            st.tightened()
+
+    def between(self, st: _PairState, x: float) -> float:
         """The pair's distance at local position x between samples (joint values interpolated)."""
         walk = self.walk
         i = min(math.floor(x), len(self.R) - 2)
         f = x - i
         q = walk.q[self.s + i] + f * (walk.q[self.s + i + 1] - walk.q[self.s + i])
         R, P = walk.model.robot.joint_frames(q[None])
-        d = walk.model.pair_distance(pair, R[0], P[0], walk.c - BETWEEN_TOLERANCE_M / 2).distance_m
-        if d < walk.c - BETWEEN_TOLERANCE_M / 2:
-            walk.contact(pair, Contact(d, pair.names, self.s + i + walk.offset, f))
+        limit = walk.c - BETWEEN_TOLERANCE_M / 2
+        d = walk.model.pair_distance(st.pair, R[0], P[0], limit).distance_m
+        if d < limit:
+            walk.contact(st.pair, Contact(d, st.pair.names, self.s + i + walk.offset, f))
         return d
 
-    def pair(self, pair: Pair, lower: np.ndarray, M: np.ndarray) -> None:
-        """Prove or measure one pair over the block: bounds first, the walk only where they fall short."""
-        walk = self.walk
-        m = len(lower)
-        k = self.s + np.arange(m)
-        known = np.array([self.measured.get((pair, i), -math.inf) for i in range(m)]) if self.measured else None
-        bound = lower if known is None else np.maximum(lower, known)
-        forward = np.maximum.accumulate(bound + M) - M
-        backward = np.maximum.accumulate((bound - M)[::-1])[::-1] + M
-        bound = np.maximum(bound, np.maximum(forward, backward))
-        short = bound < walk.threshold(k)
-        if m == 1:
-            if short[0]:
-                self.sample(pair, 0)
-            return
-        gap = (bound[:-1] + bound[1:] - np.diff(M)) / 2 < walk.floor  # the motion to the next sample unproven
-        touched = gap | short[:-1] | short[1:]  # intervals i .. i + 1 to walk
-        for a, b in _runs(touched):
-            self._walk(pair, a, b + 1, float(bound[a]), lower, M)
+    # -- clear: every sample at least the clearance, the motion between at least the floor ---------------
 
-    def _walk(self, pair: Pair, i_from: int, i_to: int, v: float, lower: np.ndarray, M: np.ndarray) -> None:
-        """Conservative advancement from sample i_from (distance at least v) to sample i_to."""
-        walk = self.walk
-        floor, c = walk.floor, walk.c
-        step_min = BETWEEN_TOLERANCE_M / 2
-        x = float(i_from)
-        if v < walk.threshold(np.array([self.s + i_from]))[0]:
-            v = self.sample(pair, i_from)
-        while x < i_to:
-            i = math.floor(x)
-            if v < floor:  # too close here (recorded): on to the next sample
-                x, v = float(i + 1), self.sample(pair, i + 1)
+    def _proven(self, st: _PairState) -> bool:
+        """Whether its bounds alone prove the pair over the block."""
+        lower, walk = st.bound(), self.walk
+        return bool(lower.min() >= walk.c and (len(lower) == 1 or (
+            (lower[:-1] + lower[1:] - st.E) / 2).min() >= walk.floor))
+
+    def _clear(self, st: _PairState) -> None:
+        """Prove or measure one pair over the block: spheres, capsules, the relative displacement and a
+        first separating plane, then the walk only where they fall short."""
+        if self._proven(st):
+            return
+        self._capsules(st)
+        if self._proven(st):
+            return
+        self._relative(st)
+        if not st.found and st.lower.min() < self.walk.c + _PLANE_GAIN_M:  # a first plane where the bound is least
+            self.sample(st, int(np.argmin(st.lower)), self.walk.c)
+        bound = st.bound()
+        short = bound < self.walk.c
+        if len(bound) == 1:
+            if short[0]:
+                self.sample(st, 0, self.walk.c)
+            return
+        gap = (bound[:-1] + bound[1:] - st.E) / 2 < self.walk.floor  # the motion to the next sample unproven
+        for a, b in _runs(gap | short[:-1] | short[1:]):  # intervals a .. b
+            self._walk(st, a, b + 1)
+
+    def _walk(self, st: _PairState, a: int, end: int) -> None:
+        """Prove samples a .. end and the motion between them, interval by interval: a measured sample's
+        distance carries along S to the samples after it; an interval whose two ends (measured if need
+        be) cannot prove it through E is sub-sampled (:meth:`_inside`)."""
+        walk, S, E, base = self.walk, st.S, st.E, st.bound()
+        assert S is not None
+        c, floor = walk.c, walk.floor
+        anchor = (-math.inf, 0.0)  # the last distance measured and S there
+
+        def bound(k: int) -> float:
+            return max(float(base[k]), anchor[0] - abs(S[k] - anchor[1]))
+
+        def measure(k: int) -> float:
+            nonlocal anchor
+            d = self.sample(st, k, c)
+            anchor = (d, float(S[k]))
+            return d
+
+        d0 = bound(a)
+        if d0 < c:
+            d0 = measure(a)
+        for k in range(a, end):
+            d1 = bound(k + 1)
+            if d1 >= c and (d0 + d1 - E[k]) / 2 >= floor:
+                d0 = d1
                 continue
-            Mx = M[i] + (x - i) * (M[min(i + 1, len(M) - 1)] - M[i])
-            cover = Mx + (v - floor)  # everything up to this motion is proven at least `floor`
-            hi = min(i_to, int(np.searchsorted(M, cover, side="right")))
-            ks = np.arange(i + 1, hi + 1)
-            bound = np.maximum(lower[ks], v - (M[ks] - Mx))
-            need = bound < walk.threshold(self.s + ks)
-            if need.any() and M[ks[np.argmax(need)]] <= cover:  # proven stretch, but the sample needs more
-                x = float(ks[np.argmax(need)])
-                v = self.sample(pair, int(x))
-                continue
-            if M[hi] <= cover:  # proven to the walk's end
+            exact0 = k in st.found and st.found[k].exact
+            if not exact0 and (d0 + d1 - E[k]) / 2 < floor:
+                d0 = measure(k)
+            if d1 < c or (d0 + d1 - E[k]) / 2 < floor:
+                d1 = measure(k + 1)
+            if min(d0, d1) >= floor and (d0 + d1 - E[k]) / 2 < floor:
+                self._inside(st, k, d0, d1)
+            d0 = d1
+
+    def _inside(self, st: _PairState, k: int, d0: float, d1: float) -> None:
+        """The motion from sample k to k + 1 sub-sampled by conservative advancement along M (which bounds
+        the path itself): each sub-sample proves the stretch its distance over the floor covers."""
+        walk, floor = self.walk, self.walk.floor
+        length = float(st.M[k + 1] - st.M[k])
+        right = length - (d1 - floor)  # sample k + 1 proves the motion from here on
+        m, v = 0.0, d0
+        while m + (v - floor) < right:
+            m += max(v - floor, BETWEEN_TOLERANCE_M / 2)
+            if m >= length:
                 return
-            v_hi = self.sample(pair, hi) if need[-1] else float(bound[-1])
-            if M[hi] - (v_hi - floor) > cover and not need[-1]:
-                v_hi = self.sample(pair, hi)  # a measurement may close the gap from the right
-            if M[hi] - (v_hi - floor) <= cover:
-                x, v = float(hi), v_hi
+            v = self.between(st, k + m / length)
+            if v < walk.c - BETWEEN_TOLERANCE_M / 2:
+                return  # too close between samples (recorded)
+
+    # -- least: each span's closest approach to within EXACT_M -------------------------------------------
+
+    def _least(self) -> None:
+        """Each span's least distance: measure where the least bound of any pair is, tightening that pair,
+        until no pair's bound anywhere in the span is below the least measured less EXACT_M."""
+        walk = self.walk
+        first, last = walk.first[self.k], walk.last[self.k]
+        for span in np.unique(np.concatenate([first, last])):
+            if span >= len(walk.least):
                 continue
-            target = Mx + max(cover - Mx, step_min)  # a sub-sample where the proven stretch ends
-            j = int(np.searchsorted(M, target, side="right")) - 1
-            if j >= hi or M[j + 1] <= M[j]:
-                x, v = float(hi), v_hi
-                continue
-            x = j + (target - M[j]) / (M[j + 1] - M[j])
-            v = self.between(pair, x)
-            if v < c - BETWEEN_TOLERANCE_M / 2:  # too close between samples (recorded): on to the next sample
-                x, v = float(j + 1), self.sample(pair, j + 1)
+            local = np.nonzero((first == span) | (last == span))[0]
+            while True:
+                st, j, low = min(((st, int(np.argmin(st.bound()[local])), float(st.bound()[local].min()))
+                                  for st in self.states), key=lambda x: x[2])
+                if low >= walk.best[span] - EXACT_M:
+                    break
+                i = int(local[j])
+                if not st.capsules:
+                    self._capsules(st)
+                elif st.relative is None:
+                    self._relative(st)
+                elif i in st.found and st.found[i].exact:
+                    break  # measured exactly: its bound is its distance (round-off)
+                else:
+                    self.sample(st, i, walk.best[span] - EXACT_M)
+
+
+class _Relative:
+    """One pair over a block: the body on the later joint (``b``) placed in the other's joint frame (``a``:
+    the cell, or the body nearer the base) at every sample, for separating-plane bounds.
+
+    A measurement's closest points give a plane between the bodies; at every other sample the least of
+    ``n . x`` over b less the most over a (each a support function, :func:`support`) is a lower bound of
+    their distance, exact while b slides along the plane (a tool over a table).
+    """
+
+    def __init__(self, pair: Pair, rotations: np.ndarray, origins: np.ndarray) -> None:
+        a, b = pair.a, pair.b
+        self.swapped = a.joint is not None and (b.joint is None or b.joint < a.joint)
+        if self.swapped:
+            a, b = b, a
+        assert b.joint is not None
+        n = len(rotations)
+        self.a, self.b = a, b
+        self.Ra = rotations[:, a.joint] if a.joint is not None else np.broadcast_to(np.eye(3), (n, 3, 3))
+        self.pa = origins[:, a.joint] if a.joint is not None else np.zeros((n, 3))
+        Ra_t = np.swapaxes(self.Ra, 1, 2)
+        self.R = Ra_t @ rotations[:, b.joint]  # (N, 3, 3): b's frame in a's
+        self.t = (Ra_t @ (origins[:, b.joint] - self.pa)[:, :, None])[:, :, 0]  # (N, 3)
+        self.planes = 0
+
+    def steps(self) -> np.ndarray:
+        """How far any point of b moves relative to a from each sample to the next (N - 1,) [m]: its frame's
+        displacement plus the turn [rad] times b's extent from its frame's origin."""
+        turn = rotation_angles(self.R[:-1], self.R[1:])
+        return np.linalg.norm(np.diff(self.t, axis=0), axis=1) + turn * self.b.extent_m
+
+    def plane_bounds(self, i: int, found: Distance) -> np.ndarray | None:
+        """Lower bounds (N,) from the plane through a measurement's closest points at sample i (None when
+        they coincide: touching bodies give no plane)."""
+        point_a, point_b = (found.point_b, found.point_a) if self.swapped else (found.point_a, found.point_b)
+        normal = self.Ra[i].T @ (point_b - point_a)  # from a towards b, in a's frame
+        length = float(np.linalg.norm(normal))
+        if found.distance_m <= 0.0 or length < 1e-9:
+            return None
+        self.planes += 1
+        return self._bounds(normal / length)
+
+    def _bounds(self, n: np.ndarray) -> np.ndarray:
+        nb = n @ self.R  # (N, 3): n in b's frame (R^T n per sample)
+        base = self.t @ n
+        low_b = np.min([base + nb @ g.translation + support(g, nb @ g.rotation) for g in self.b.geoms], axis=0)
+        high_a = max(float(n @ g.translation - support(g, -(g.rotation.T @ n)[None])[0]) for g in self.a.geoms)
+        return low_b - high_a
+
+
+def sagittas(dq: np.ndarray, arms: np.ndarray) -> np.ndarray:
+    """How far (N,) any body point strays from the straight line between its positions at two samples while
+    the joints move straight from one sample to the next (dq (N, n): the joint steps, ``arms`` (n,): its
+    points' distances from the joints' origins at most [m], 0 for joints that do not move it).
+
+    Along q(t) = q_k + t dq a point's acceleration is, over the joints j that move it (axes a_j through
+    origins o_j), sum_j dq_j [d(a_j)/dt x (p - o_j) + a_j x (dp/dt - d(o_j)/dt)], at most
+    3 (sum_j |dq_j|)(sum_j |dq_j| arm_j); a curve with acceleration at most A strays at most A / 8 from its
+    chord over t in [0, 1].
+    """
+    moving = (arms > 0).astype(float)
+    return 3.0 * (dq @ moving) * (dq @ arms) / 8.0
 
 
 def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
@@ -322,26 +511,60 @@ def _triple(v: np.ndarray) -> tuple[float, float, float]:
     return float(v[0]), float(v[1]), float(v[2])
 
 
-def _lower_bounds(pair: Pair, rotations: np.ndarray, origins: np.ndarray) -> np.ndarray:
-    """A lower bound of the pair's distance at each sample (N,): the least distance of the capsules
-    enclosing their shapes. ``rotations`` (N, J, 3, 3), ``origins`` (N, J, 3): the joint frames."""
-    ends_a = [_capsule_ends(g.segment, pair.a.joint, rotations, origins) for g in pair.a.geoms]
-    ends_b = [_capsule_ends(g.segment, pair.b.joint, rotations, origins) for g in pair.b.geoms]
-    out = np.full(len(rotations), math.inf)
-    for ga, (a0, a1) in zip(pair.a.geoms, ends_a, strict=True):
-        for gb, (b0, b1) in zip(pair.b.geoms, ends_b, strict=True):
-            out = np.minimum(out, segment_distances(a0, a1, b0, b1) - ga.radius_m - gb.radius_m)
+_ROWS = 200_000  # segment pairs measured at once by capsule_bounds (~1 kB of temporaries each)
+
+
+def sphere_bounds(pairs: Sequence[Pair], rotations: np.ndarray, origins: np.ndarray) -> dict[Pair, np.ndarray]:
+    """A lower bound of each pair's distance at each sample (N,) from one sphere enclosing each body:
+    cheap enough for every pair at every sample, and enough for the pairs that stay far apart.
+    ``rotations`` (N, J, 3, 3), ``origins`` (N, J, 3): the joint frames."""
+    centres: dict[int, np.ndarray] = {}
+    out = {}
+    for pair in pairs:
+        for body in (pair.a, pair.b):
+            if id(body) not in centres:
+                centre = body.sphere[0]
+                centres[id(body)] = (np.broadcast_to(centre, (len(rotations), 3)) if body.joint is None else
+                                     rotations[:, body.joint] @ centre + origins[:, body.joint])
+        gap = centres[id(pair.a)] - centres[id(pair.b)]
+        out[pair] = np.sqrt(np.einsum("ij,ij->i", gap, gap)) - pair.a.sphere[1] - pair.b.sphere[1]
     return out
 
 
-def _capsule_ends(segment: np.ndarray, joint: int | None, rotations: np.ndarray,
-                  origins: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A capsule axis's ends (N, 3) each in the base frame."""
+def capsule_bounds(pairs: Sequence[Pair], rotations: np.ndarray, origins: np.ndarray,
+                   ends: dict[int, np.ndarray] | None = None) -> dict[Pair, np.ndarray]:
+    """A lower bound of each pair's distance at each sample (N,): the least distance of the capsules
+    enclosing their shapes, every shape pair of the pairs in a few numpy passes. ``ends``: the capsules'
+    axis ends already placed at these samples, by shape (filled in as they are made)."""
+    n = len(rotations)
+    ends = ends if ends is not None else {}  # id(geom) -> (2, N, 3): its capsule's axis ends in the base frame
+    rows: list[tuple[int, int, int]] = []  # (pair index, id of a's shape, id of b's shape)
+    radii: list[float] = []
+    for p, pair in enumerate(pairs):
+        for body in (pair.a, pair.b):
+            for g in body.geoms:
+                if id(g) not in ends:
+                    ends[id(g)] = _capsule_ends(g.segment, body.joint, rotations, origins)
+        for ga in pair.a.geoms:
+            for gb in pair.b.geoms:
+                rows.append((p, id(ga), id(gb)))
+                radii.append(ga.radius_m + gb.radius_m)
+    out = np.full((len(pairs), n), math.inf)
+    step = max(1, _ROWS // max(n, 1))
+    for c in range(0, len(rows), step):
+        chunk = rows[c:c + step]
+        a = np.stack([ends[ga] for _, ga, _ in chunk], axis=1).reshape(2, -1, 3)  # (2, len(chunk) * N, 3)
+        b = np.stack([ends[gb] for _, _, gb in chunk], axis=1).reshape(2, -1, 3)
+        d = segment_distances(a[0], a[1], b[0], b[1]).reshape(len(chunk), n) - np.array(radii[c:c + step])[:, None]
+        np.minimum.at(out, np.array([p for p, _, _ in chunk]), d)
+    return {pair: out[p] for p, pair in enumerate(pairs)}
+
+
+def _capsule_ends(segment: np.ndarray, joint: int | None, rotations: np.ndarray, origins: np.ndarray) -> np.ndarray:
+    """A capsule axis's ends (2, N, 3) in the base frame."""
     if joint is None:
-        n = len(rotations)
-        return np.broadcast_to(segment[0], (n, 3)), np.broadcast_to(segment[1], (n, 3))
-    R, P = rotations[:, joint], origins[:, joint]
-    return (np.einsum("nij,j->ni", R, segment[0]) + P, np.einsum("nij,j->ni", R, segment[1]) + P)
+        return np.broadcast_to(segment[:, None, :], (2, len(rotations), 3))
+    return np.moveaxis(rotations[:, joint] @ segment.T, 2, 0) + origins[:, joint]
 
 
 def segment_distances(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray) -> np.ndarray:

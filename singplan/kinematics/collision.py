@@ -26,7 +26,7 @@ import math
 import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import Literal
 
@@ -61,6 +61,8 @@ class Geom:
         radius_m: that capsule's radius.
         hull: a mesh's convex hull (None for a primitive): coal's GJK measures it in microseconds where
             the mesh takes up to milliseconds, and its distance is a lower bound of the mesh's.
+        corners: (V, 3) the hull's vertices in the shape's frame (meshes; None for a primitive): the
+            least of ``n . x`` over them is the mesh's (:func:`support`).
     """
 
     geometry: coal.CollisionGeometry
@@ -70,6 +72,7 @@ class Geom:
     segment: np.ndarray  # (2, 3)
     radius_m: float
     hull: coal.CollisionGeometry | None = None
+    corners: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,8 +86,11 @@ class Body:
         group: its rigid group in the URDF's tree (links joined by fixed joints share one); None for the cell.
         geoms: its shapes.
         reach_m: (n,) how far any of its points moves per radian of each joint [m/rad]: the joint
-            origins' offsets from that joint out to the body plus the body's extent; 0 for joints
-            that do not move it.
+            origins' offsets from that joint out to the body plus the body's extent (for its own
+            joint, its points' distance from that joint's axis); 0 for joints that do not move it.
+        extent_m: how far its points reach from its joint frame's origin [m].
+        arm_m: (n,) how far its points are from each joint's origin at most [m] (0 for joints that do not
+            move it): the curvature bound of :mod:`~singplan.kinematics.clearance` needs it.
     """
 
     name: str
@@ -93,16 +99,28 @@ class Body:
     group: int | None
     geoms: tuple[Geom, ...]
     reach_m: np.ndarray
+    extent_m: float = 0.0
+    arm_m: np.ndarray | None = None
+
+    @cached_property
+    def sphere(self) -> tuple[np.ndarray, float]:
+        """A sphere enclosing the body: its centre in the joint frame (the base frame for the cell) and radius."""
+        ends = np.concatenate([g.segment for g in self.geoms])
+        centre = 0.5 * (ends.min(axis=0) + ends.max(axis=0))
+        radius = max(float(np.linalg.norm(g.segment - centre, axis=1).max()) + g.radius_m for g in self.geoms)
+        return centre, radius
 
 
 @dataclass(frozen=True, eq=False)
 class Pair:
     """Two bodies that are checked, and the bound of their relative motion per radian of each joint
-    [m/rad] (joints that carry both bodies do not change their distance: 0)."""
+    [m/rad] (joints that carry both bodies do not change their distance: 0); ``arms``: the same with
+    the distances from the joints' origins (:attr:`Body.arm_m`)."""
 
     a: Body
     b: Body
     weights: np.ndarray  # (n,)
+    arms: np.ndarray  # (n,)
 
     @property
     def names(self) -> tuple[str, str]:
@@ -243,13 +261,13 @@ def collision_model(robot: Robot, tool: tuple[Shape, ...] = (), cell: tuple[Shap
     if tool_geoms:
         joint = int(robot.model.frames[robot.tip_frame_id].parentJoint)
         bodies.append(Body(TOOL_BODY, "tool", joint, urdf.groups[_tip_link(robot, urdf)], tuple(tool_geoms),
-                           _reach(robot, joint, tool_geoms)))
+                           *_reach(robot, joint, tool_geoms)))
     for shape in cell:
         if shape.name in urdf.groups:
             raise TaskError(f"{shape.field}.name", f"{shape.name!r} is a link of {robot.name}; give the shape "
                                                    "another name")
         bodies.append(Body(shape.name, "cell", None, None, (_shape_geom(shape, pin.SE3.Identity()),),
-                           np.zeros(robot.n_joints)))
+                           np.zeros(robot.n_joints), 0.0, np.zeros(robot.n_joints)))
     srdf = _srdf_path(robot, settings)
     disabled = _srdf_pairs(srdf, settings.srdf is not None) if srdf is not None else set()
     allowed = _allowed(settings, set(urdf.groups) | {TOOL_BODY} | {s.name for s in cell})
@@ -407,7 +425,7 @@ def _link_bodies(robot: Robot, urdf: _UrdfCollisions) -> list[Body]:
         joints[shape.link] = int(frame.parentJoint)
         geometry = _coal_shape(shape.kind, shape.values, shape.mesh, f"link {shape.link!r} of {robot.urdf_path.name}")
         geoms.setdefault(shape.link, []).append(_geom(geometry, frame.placement * shape.placement))
-    return [Body(link, "link", joints[link], urdf.groups[link], tuple(g), _reach(robot, joints[link], g))
+    return [Body(link, "link", joints[link], urdf.groups[link], tuple(g), *_reach(robot, joints[link], g))
             for link, g in geoms.items()]
 
 
@@ -462,18 +480,35 @@ def _geom(geometry: coal.CollisionGeometry, placement: pin.SE3) -> Geom:
     segment, radius = _capsule(geometry)
     R, t = np.array(placement.rotation), np.array(placement.translation)
     is_mesh = isinstance(geometry, coal.BVHModelBase)
-    return Geom(geometry, R, t, is_mesh, segment @ R.T + t, radius, _hull(geometry) if is_mesh else None)
+    hull, corners = _hull(geometry) if is_mesh else (None, None)
+    return Geom(geometry, R, t, is_mesh, segment @ R.T + t, radius, hull, corners)
+
+
+def support(g: Geom, n: np.ndarray) -> np.ndarray:
+    """The least of ``n . x`` over the points x of a shape (its own frame) for directions n (N, 3): its
+    support function at -n, closed form for primitives, over the hull's vertices for a mesh."""
+    shape = g.geometry
+    if isinstance(shape, coal.Sphere):
+        return -float(shape.radius) * np.linalg.norm(n, axis=1)
+    if isinstance(shape, coal.Box):
+        return -np.abs(n) @ np.array(shape.halfSide, dtype=float)
+    if isinstance(shape, coal.Cylinder):
+        return -float(shape.halfLength) * np.abs(n[:, 2]) - float(shape.radius) * np.hypot(n[:, 0], n[:, 1])
+    assert g.corners is not None
+    return np.min(n @ g.corners.T, axis=1)
 
 
 @lru_cache(maxsize=256)
-def _hull(mesh: coal.BVHModelBase) -> coal.CollisionGeometry | None:
-    """A mesh's convex hull (qhull through coal). Built from the vertex list: coal's
+def _hull(mesh: coal.BVHModelBase) -> tuple[coal.CollisionGeometry | None, np.ndarray]:
+    """A mesh's convex hull (qhull through coal; None for a flat mesh, which qhull refuses) and its corners
+    (V, 3) (the mesh's vertices without a hull). Built from the vertex list: coal's
     ``buildConvexRepresentation`` gives hulls whose distances exceed the mesh's on some meshes."""
-    vertices = [np.array(v, dtype=float) for v in np.array(mesh.vertices(), dtype=float)]
+    vertices = np.array(mesh.vertices(), dtype=float)
     try:
-        return coal.ConvexBase.convexHull(vertices, False, "")
-    except (ValueError, RuntimeError):  # a flat mesh (qhull needs volume): measured as a mesh only
-        return None
+        hull = coal.ConvexBase.convexHull([np.array(v) for v in vertices], False, "")
+    except (ValueError, RuntimeError):
+        return None, vertices
+    return hull, np.array([hull.point(i) for i in range(hull.num_points)], dtype=float)
 
 
 def _capsule(geometry: coal.CollisionGeometry) -> tuple[np.ndarray, float]:
@@ -493,7 +528,13 @@ def _capsule(geometry: coal.CollisionGeometry) -> tuple[np.ndarray, float]:
         end = np.zeros(3)
         end[axis] = half[axis]
         return np.array([-end, end]), float(np.linalg.norm(np.delete(half, axis)))
-    vertices = np.array(geometry.vertices(), dtype=float)
+    return _mesh_capsule(geometry)
+
+
+@lru_cache(maxsize=256)
+def _mesh_capsule(mesh: coal.BVHModelBase) -> tuple[np.ndarray, float]:
+    """:func:`_capsule` of a mesh (made once per mesh, which the loader caches)."""
+    vertices = np.array(mesh.vertices(), dtype=float)
     centre = vertices.mean(axis=0)
     _, _, vt = np.linalg.svd(vertices - centre, full_matrices=False)
     along = (vertices - centre) @ vt[0]
@@ -585,15 +626,32 @@ def _inside(g: Geom, point: np.ndarray) -> bool:
 # -- reach, pairs, SRDF -------------------------------------------------------------------------------
 
 
-def _reach(robot: Robot, joint: int, geoms: list[Geom]) -> np.ndarray:
-    """A body's reach per joint [m/rad]: for each joint between the base and the body's, the offsets of
-    the joint origins from it out to the body's joint, plus how far the body extends from its joint."""
-    extent = max(float(np.linalg.norm(g.segment, axis=1).max()) + g.radius_m for g in geoms)
-    reach = np.zeros(robot.n_joints)
+def _extent(geoms: list[Geom]) -> float:
+    """How far a body's points reach from its joint frame's origin [m] (its capsules' ends plus radius)."""
+    return max(float(np.linalg.norm(g.segment, axis=1).max()) + g.radius_m for g in geoms)
+
+
+def _reach(robot: Robot, joint: int, geoms: list[Geom]) -> tuple[np.ndarray, float, np.ndarray]:
+    """A body's reach per joint [m/rad], its extent [m] and its arms per joint [m] (:class:`Body`).
+
+    For each joint between the base and the body's, the offsets of the joint origins from it out to the
+    body's joint plus the body's extent bound how far its points are from that joint's origin (its arm),
+    and so how far they move per radian; for its own joint, their distance from that joint's axis.
+    """
+    reach, arm = np.zeros(robot.n_joints), np.zeros(robot.n_joints)
+    extent = _extent(geoms)
+    if joint == 0:
+        return reach, extent, arm
     offsets = [float(np.linalg.norm(robot.model.jointPlacements[i].translation)) for i in range(joint + 1)]
     for j in range(1, joint + 1):
-        reach[robot.model.joints[j].idx_q] = sum(offsets[j + 1:joint + 1]) + extent
-    return reach
+        arm[robot.model.joints[j].idx_q] = sum(offsets[j + 1:joint + 1]) + extent
+    reach[:] = arm
+    axis = robot.joint_axes[joint - 1]
+    ends = np.concatenate([g.segment for g in geoms])
+    across = np.linalg.norm(ends - np.outer(ends @ axis, axis), axis=1)  # the capsules' ends from the axis
+    reach[robot.model.joints[joint].idx_q] = max(float(a) + g.radius_m for a, g in
+                                                 zip(across, [g for g in geoms for _ in (0, 1)], strict=True))
+    return reach, extent, arm
 
 
 def _pairs(bodies: list[Body], adjacent: frozenset[frozenset[int]], disabled: set[frozenset[str]],
@@ -610,7 +668,7 @@ def _pairs(bodies: list[Body], adjacent: frozenset[frozenset[int]], disabled: se
         if why:
             skipped[why] += 1
         else:
-            pairs.append(Pair(a, b, _weights(a, b)))
+            pairs.append(Pair(a, b, *_weights(a, b)))
     return pairs, skipped
 
 
@@ -628,10 +686,12 @@ def _skip(a: Body, b: Body, adjacent: frozenset[frozenset[int]], disabled: set[f
     return "allow" if names in allowed else ""
 
 
-def _weights(a: Body, b: Body) -> np.ndarray:
-    """The pair's relative motion bound per joint: joints carrying both bodies move them together."""
+def _weights(a: Body, b: Body) -> tuple[np.ndarray, np.ndarray]:
+    """The pair's relative motion bounds per joint (reach, arms): joints carrying both bodies move them
+    together and count 0."""
+    assert a.arm_m is not None and b.arm_m is not None
     both = (a.reach_m > 0) & (b.reach_m > 0)
-    return np.where(both, 0.0, a.reach_m + b.reach_m)
+    return np.where(both, 0.0, a.reach_m + b.reach_m), np.where(both, 0.0, a.arm_m + b.arm_m)
 
 
 def _srdf_path(robot: Robot, settings: CollisionSettings) -> Path | None:

@@ -7,6 +7,7 @@ exactly what it would put in the trajectory, and the straight joint motion betwe
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -14,6 +15,8 @@ import numpy as np
 from singplan.errors import CollisionError
 from singplan.kinematics.clearance import Clearance, Contact, check_clearance
 from singplan.kinematics.collision import CollisionModel, describe_distance
+from singplan.planning.records import PlannedMove
+from singplan.planning.timing import TimingPath
 
 NO_FREE_SPACE = "singplan keeps the programmed path and does not plan around obstacles (free-space planning is " \
                 "not part of it)"
@@ -33,6 +36,56 @@ def check_move(model: CollisionModel, q: np.ndarray, move: int, kind: str, offse
     if not found.clear:
         raise refusal(model, found.contacts[0], move, kind, period_s, describe, offset)
     return found
+
+
+def screen(model: CollisionModel, pm: PlannedMove, path: TimingPath | None = None) -> CollisionError | None:
+    """A move's joint path checked before it is timed: its reference samples (``path``'s when made, the
+    joint map's otherwise; a PTP's two ends) and the straight motion between them. Timing only chooses
+    where on that path the output samples fall, so a path that collides is out whatever its timing.
+
+    Returns the collision found (its place named on the path; no time yet), or None when the path is clear.
+    """
+    if pm.jmap.straight:
+        q_ends = pm.jmap.evaluate(np.array([0.0, 1.0]))
+        u = np.linspace(0.0, 1.0, line_samples(q_ends[0], q_ends[1]))
+        q = pm.jmap.evaluate(u)
+    else:
+        u, q = (path.u, path.q) if path is not None else pm.jmap.reference()
+    found = check_clearance(model, q, exact=False)
+    if found.clear:
+        return None
+    contact = found.contacts[0]
+    a, b = contact.bodies
+    k = contact.sample
+    at = float(u[k] + contact.fraction * (u[min(k + 1, len(u) - 1)] - u[k]))
+    return CollisionError(f"move {pm.index} ({pm.kind}): {a} and {b} are {describe_distance(contact.distance_m)} "
+                          f"at {pm.describe(at)}, closer than the clearance {model.clearance_m * 1e3:g} mm",
+                          move=pm.index, sample=-1, t_s=math.nan, bodies=(a, b), distance_m=contact.distance_m,
+                          clearance_m=model.clearance_m)
+
+
+LINE_STEP_RAD = 0.01  # a straight joint line is checked at samples this far apart (the largest joint's step)
+
+
+def line_samples(q_from: np.ndarray, q_to: np.ndarray) -> int:
+    """How many samples a straight joint line is checked at (its ends included): a long line as one step
+    would be sub-sampled pair by pair, where the samples' bounds prove most of it at once."""
+    return 2 + math.ceil(float(np.max(np.abs(np.asarray(q_to) - q_from), initial=0.0)) / LINE_STEP_RAD)
+
+
+def screen_line(model: CollisionModel, q_from: np.ndarray, q_to: np.ndarray, move: int) -> CollisionError | None:
+    """A PTP's straight joint line checked before it is timed (every timing keeps to that line)."""
+    n = line_samples(q_from, q_to)
+    found = check_clearance(model, np.linspace(q_from, q_to, n), exact=False)
+    if found.clear:
+        return None
+    contact = found.contacts[0]
+    a, b = contact.bodies
+    at = (contact.sample + contact.fraction) / (n - 1)
+    return CollisionError(f"move {move} (ptp): {a} and {b} are {describe_distance(contact.distance_m)} at "
+                          f"{at:.3f} of the joint motion, closer than the clearance "
+                          f"{model.clearance_m * 1e3:g} mm", move=move, sample=-1, t_s=math.nan, bodies=(a, b),
+                          distance_m=contact.distance_m, clearance_m=model.clearance_m)
 
 
 def check_trajectory(model: CollisionModel, q: np.ndarray, spans: Sequence[tuple[int, int]], kinds: Sequence[str],

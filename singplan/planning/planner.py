@@ -30,16 +30,25 @@ from singplan.planning.bound import duration_bound_s
 from singplan.planning.budget import BudgetError, check_task
 from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
 from singplan.planning.checks import check_config, check_tolerances, refusal
-from singplan.planning.collide import check_move
+from singplan.planning.collide import check_move, screen, screen_line
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.nullspace import time_with_pauses
 from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_move
 from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint
-from singplan.planning.select import Candidate, Rank, best_of
-from singplan.planning.targets import ptp_targets, task_arm
-from singplan.planning.timing import GiveUp, Scale, TimedMove, TimingError, TimingPath, time_move, timing_path
+from singplan.planning.select import Candidate, Rank, Refused, best_of
+from singplan.planning.targets import move_limits, ptp_targets, task_arm
+from singplan.planning.timing import (
+    GiveUp,
+    MoveLimits,
+    Scale,
+    TimedMove,
+    TimingError,
+    TimingPath,
+    time_move,
+    timing_path,
+)
 from singplan.task.load import load_task
 from singplan.task.schema import Move, Task
 
@@ -224,31 +233,57 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
 def _best_end(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
               methods: list[CrossingMethod], max_samples: int, place: _Place) -> tuple[PlannedMove, TimedMove]:
     """A PTP to a pose with collision checking on: the preferred end configuration (the nearest,
-    :func:`~singplan.planning.targets.ptp_targets`) where its motion is clear, else the fastest clear
-    one of the others the move's ``config`` allows.
+    :func:`~singplan.planning.targets.ptp_targets`) where its joint line is clear, else the fastest clear
+    one of the others the move's ``config`` allows. Each line is checked before it is timed
+    (:func:`~singplan.planning.collide.screen_line`), the others fastest bound first
+    (:func:`ptp_duration_bound_s`), and none is timed whose bound cannot beat the fastest clear one.
 
     Raises:
-        CollisionError: no end configuration is clear (each one's collision named).
+        CollisionError: no end configuration is clear (the nearest's collision with its time and sample,
+            each other's reason).
     """
     targets = ptp_targets(robot, i, move, q)
-    try:
+    blocked = screen_line(place.collision, q, targets[0], i)
+    if blocked is None:
         return _best_of(robot, task, i, move, T, q, methods, max_samples, place, targets[0])
-    except CollisionError as exc:
-        first = exc
+    limits = move_limits(robot, task, move, 0.0)
     refused: list[tuple[np.ndarray, PlanningError | BudgetError]] = []
-    clear: list[tuple[PlannedMove, TimedMove]] = []
-    for target in targets[1:]:
-        try:
-            clear.append(_best_of(robot, task, i, move, T, q, methods, max_samples, place, target))
-        except (PlanningError, BudgetError) as other:
-            refused.append((target, other))
-    if clear:
-        return min(clear, key=lambda found: found[1].duration_s)  # a tie: the nearer end
-    others = "; ".join(f"{classify(robot, target).label}: {_reason(error)}" for target, error in refused)
-    message = (f"{first} (every end configuration of the pose collides or fails: " + others + ")" if others
-               else str(first))
-    raise CollisionError(message, first.move, first.sample, first.t_s, first.bodies, first.distance_m,
-                         first.clearance_m) from first
+    best: tuple[PlannedMove, TimedMove] | None = None
+    for target in sorted(targets[1:], key=lambda target: ptp_duration_bound_s(q, target, limits)):
+        if best is not None and ptp_duration_bound_s(q, target, limits) >= best[1].duration_s:
+            break  # neither this nor a later one can be faster (a tie: the nearer end, tried first)
+        error: PlanningError | BudgetError | None = screen_line(place.collision, q, target, i)
+        if error is None:
+            try:
+                found = _best_of(robot, task, i, move, T, q, methods, max_samples, place, target)
+            except (PlanningError, BudgetError) as exc:
+                error = exc
+            else:
+                if best is None or found[1].duration_s < best[1].duration_s:
+                    best = found
+                continue
+        refused.append((target, error))
+    if best is not None:
+        return best
+    pm, tm = _best_of(robot, task, i, move, T, q, methods, max_samples, place, targets[0])
+    reasons = "; ".join(f"{classify(robot, target).label}: {_reason(error)}" for target, error in refused)
+    try:
+        check_move(place.collision, tm.q, i, "ptp", place.offset, task.period_s,
+                   lambda k: pm.describe(float(tm.u[k])))
+    except CollisionError as first:
+        message = f"{first} (no end configuration of the pose is clear: {reasons})" if reasons else str(first)
+        raise CollisionError(message, first.move, first.sample, first.t_s, first.bodies, first.distance_m,
+                             first.clearance_m) from first
+    raise blocked  # its output samples clear where its line is not (within the line's sub-sampling)
+
+
+def ptp_duration_bound_s(q_from: np.ndarray, q_to: np.ndarray, limits: MoveLimits) -> float:
+    """No timing of the straight joint motion q_from -> q_to ends sooner [s]: each joint alone needs at
+    least its rest-to-rest time at its own speed and acceleration limits (bang-bang, or bang-coast-bang)."""
+    d = np.abs(np.asarray(q_to, dtype=float) - q_from)
+    v, a = limits.velocity_rad_s, limits.acceleration_rad_s2
+    triangle = d <= v * v / a
+    return float(np.max(np.where(triangle, 2.0 * np.sqrt(d / a), d / v + v / a)))
 
 
 def _reason(error: Exception) -> str:
@@ -305,12 +340,17 @@ class _MoveCandidates:
                            ) -> tuple[PlannedMove, TimedMove | PlanningError | BudgetError]:
         period_s = self.task.period_s
         give_up = None if best is None or c.path is None else _cannot_beat(c, c.path, best, period_s)
+        collision = self.place.collision
+        if collision.active and self.compared and c.refusal is None and self.move.kind != "ptp":
+            error = screen(collision, c.pm, c.path)  # before timing: a joint path that collides is out
+            if error is not None:
+                raise Refused(error)
         try:
             timed = _timed(c.pm, period_s, self.max_samples, c.path, give_up)
             check_config(self.robot, self.move, c.pm, timed.u, timed.q)
             deviations = check_tolerances(self.robot, self.task, c.pm, timed, c.screened)
-            if self.place.collision.active:
-                check_move(self.place.collision, timed.q, self.index, c.pm.kind, self.place.offset, period_s,
+            if collision.active and c.refusal is not None:  # refused, timed for the full error
+                check_move(collision, timed.q, self.index, c.pm.kind, self.place.offset, period_s,
                            lambda k: c.pm.describe(float(timed.u[k])))
             return replace(c.pm, deviations=deviations), timed
         except (PlanningError, BudgetError) as exc:

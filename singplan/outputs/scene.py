@@ -35,7 +35,7 @@ _Y_TO_Z = np.array([[1.0, 0, 0, 0], [0, 0, -1.0, 0], [0, 1.0, 0, 0], [0, 0, 0, 1
 _COLLADA = "{http://www.collada.org/2005/11/COLLADASchema}"
 
 
-class _ZCylinder(mg.Cylinder):
+class ZCylinder(mg.Cylinder):
     """A cylinder (or cone, radiusTop 0) along z, as URDF and coal have it."""
 
     def intrinsic_transform(self) -> np.ndarray:
@@ -166,9 +166,9 @@ def _meshcat_object(g: pin.GeometryObject) -> tuple[Any, ...] | _ColladaObject |
     suffix = Path(g.meshPath).suffix.lower() if g.meshPath else ""
     shape = g.geometry
     if isinstance(shape, (coal.Cylinder, coal.Capsule)):  # a capsule drawn as its cylinder
-        return _ZCylinder(2.0 * shape.halfLength, shape.radius), material
+        return ZCylinder(2.0 * shape.halfLength, shape.radius), material
     if isinstance(shape, coal.Cone):
-        return _ZCylinder(2.0 * shape.halfLength, radiusTop=0.0, radiusBottom=shape.radius), material
+        return ZCylinder(2.0 * shape.halfLength, radiusTop=0.0, radiusBottom=shape.radius), material
     if isinstance(shape, coal.Box):
         return mg.Box((2.0 * shape.halfSide).tolist()), material
     if isinstance(shape, coal.Sphere):

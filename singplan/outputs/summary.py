@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from pathlib import Path
 
 from singplan.planning.alternatives import Alternative
-from singplan.results.metrics import BlendFigures, CrossingFigures
+from singplan.results.metrics import BlendFigures, ClearanceFigures, CrossingFigures
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.schema import Task
 
@@ -36,9 +37,26 @@ def summary(traj: Trajectory, task: Task) -> str:
         lines.append(f"jerk: {jerk}{law}{m.jerk.jerk_time_lost_s:.3f} s longer than the acceleration-limited "
                      f"{m.jerk.acceleration_limited_duration_s:.3f} s")
     lines += [f"fly-by after move {b.move} ({b.requested_mm:g} mm asked): {b.reduced}" for b in m.blends if not b.flown]
+    lines += _collision_lines(m.clearance)
     lines.append(f"stopping distance: up to {m.max_stopping_distance_mm:.3f} mm at "
                  f"t = {m.max_stopping_distance_at_s:.3f} s (every joint braking at its acceleration limit)")
     return "\n".join(lines) + "\n"
+
+
+def _collision_lines(c: ClearanceFigures | None) -> list[str]:
+    """The closest approach and what was checked, or why nothing was (none when neither the task nor the
+    robot has anything to check)."""
+    if c is None:
+        return []
+    notes = [f"collision: {note}" for note in c.notes]
+    if c.min_clearance_mm is None or c.min_clearance_pair is None or c.min_clearance_t is None:
+        return [*notes, "collision: no pair of bodies to check"]
+    skipped = ", ".join(f"{n} {why.replace('_', ' ')}" for why, n in c.skipped.items() if n)
+    srdf = f", SRDF {Path(c.srdf).name}" if c.srdf else ""
+    a, b = c.min_clearance_pair
+    return [f"collision: closest approach {c.min_clearance_mm:.2f} mm ({a} / {b}) at t = {c.min_clearance_t:.3f} s, "
+            f"clearance {c.clearance_mm:g} mm; {c.pairs} pairs checked{srdf}"
+            f"{f' ({skipped} left out)' if skipped else ''}", *notes]
 
 
 def _torque_line(traj: Trajectory, task: Task) -> str:

@@ -6,9 +6,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
+from singplan.kinematics.clearance import Clearance, check_clearance
 from singplan.kinematics.stopping import path_estimate, ptp_estimate
 from singplan.planning.budget import check_task
 from singplan.planning.checks import check_tracked
+from singplan.planning.collide import line_samples
 from singplan.planning.jointmap import JointMap, JointPart
 from singplan.planning.move_plan import STEP_M, STEP_RAD, refiner
 from singplan.planning.pieces import move_piece
@@ -28,13 +32,22 @@ class MoveZones:
     length_m: float
     zones: tuple[Zone, ...]
     stopping: tuple[float, float] = (0.0, 0.0)  # an estimate at the programmed speed [m], and the u where
+    clearance: Clearance | None = None  # along the programmed path in the start branch (None: nothing checked)
+    u: tuple[float, ...] = ()  # the path parameters of the samples the clearance was checked at
+
+    def where(self, sample: int, fraction: float = 0.0) -> str:
+        """A checked sample (and a fraction of the way to the next) as a point of the move, for messages."""
+        u = self.u[sample] + fraction * (self.u[min(sample + 1, len(self.u) - 1)] - self.u[sample])
+        return f"{u:.2f} of the joint motion" if self.kind == "ptp" else f"s {u * self.length_m * 1e3:.1f} mm"
 
 
 def detect(task: Task | str | Path) -> list[MoveZones]:
     """Zones along every LIN/CIRC move, in the branch the start configuration leads to.
 
     Geometry only: no crossing method, no timing, no limit checks; each move's stopping distance is
-    an estimate at the programmed speed (:func:`singplan.kinematics.stopping.path_estimate`, ``ptp_estimate``).
+    an estimate at the programmed speed (:func:`singplan.kinematics.stopping.path_estimate`, ``ptp_estimate``),
+    and, with collision checking on, its least clearance along the path in that branch (the straight
+    joint line of a PTP; a crossing or a configuration change the planner makes may differ).
     """
     if not isinstance(task, Task):
         task = load_task(task)
@@ -44,12 +57,15 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     check_task(task, robot, q, STEP_M, STEP_RAD, timed=False)  # before any path is sampled
     T = robot.fk(q)
     out = []
+    model = arm.collision
     for i, move in enumerate(task.moves):
         if move.kind == "ptp":
             q_from, q = q, ptp_target(robot, i, move, q)
             T = robot.fk(q)
             vmax = robot.velocity_rad_s * task.joint_speed_scale(move)
-            out.append(MoveZones(i, "ptp", 0.0, (), ptp_estimate(robot, q_from, q, vmax)))
+            u = np.linspace(0.0, 1.0, line_samples(q_from, q))
+            clearance = check_clearance(model, q_from + np.outer(u, q - q_from), start=i == 0) if model.active else None
+            out.append(MoveZones(i, "ptp", 0.0, (), ptp_estimate(robot, q_from, q, vmax), clearance, tuple(u)))
             continue
         piece = move_piece(i, move, T)
         grid = piece.grid(STEP_M, STEP_RAD)
@@ -58,8 +74,10 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
         dist, _ = distances_along(robot, tracked.q)
         ref = JointMap(robot, piece.poses, [JointPart("track", tracked.u, tracked.q)])
         zones = find_zones(tracked.u, dist, thresholds, refiner(robot, ref))
+        clearance = check_clearance(model, tracked.q, start=i == 0) if model.active else None
         out.append(MoveZones(i, move.kind, piece.length_m, tuple(zones),
                              path_estimate(robot, tracked.u, tracked.q, piece.length_m, move.speed_m_s,
-                                           robot.velocity_rad_s * task.joint_speed_scale(move))))
+                                           robot.velocity_rad_s * task.joint_speed_scale(move)),
+                             clearance, tuple(tracked.u)))
         q, T = tracked.q[-1], piece.T_end
     return out

@@ -22,7 +22,8 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.errors import CollisionError, PlanningError
-from singplan.kinematics.collision import CollisionModel
+from singplan.kinematics.clearance import check_clearance
+from singplan.kinematics.collision import CollisionModel, describe_distance
 from singplan.kinematics.configuration import classify
 from singplan.kinematics.robot import Robot
 from singplan.planning.blending import RAMPS, Blend, corners, side_of, stopped
@@ -110,14 +111,14 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
         if progress is not None:
             progress(i + 1, len(task.moves))
     timed, blends = _fly_by(robot, planned, timed, [m.blend_mm / 1e3 for m in arm_task.moves], task.period_s,
-                            allowance)
+                            allowance, arm.collision)
     return PlannedTask(task, task.singularity.method if chosen is None else chosen.name,
                        arm.full, robot, arm.held, tuple(planned), tuple(timed), time.perf_counter() - started,
                        arm.collision, tuple(blends.values()))
 
 
 def _fly_by(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], requested_m: list[float],
-            period_s: float, allowance: int) -> tuple[list[TimedMove], dict[int, Blend]]:
+            period_s: float, allowance: int, collision: CollisionModel) -> tuple[list[TimedMove], dict[int, Blend]]:
     """The fly-by corners, and the moves timed through them: with each ramp shape of
     :func:`~singplan.planning.blending.ramps` (the quartic's smooth seams win on some corners, the
     quadratic's tighter curve on others), the one whose program ends sooner kept."""
@@ -128,7 +129,7 @@ def _fly_by(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], re
         blends = corners(robot, sides, at_rest, requested_m, ramp)
         if not any(b.jmap is not None for b in blends.values()):
             return timed, blends  # nothing flown: the ramp makes no difference
-        flown = _time_chains(planned, timed, blends, period_s, allowance)
+        flown = _time_chains(planned, timed, blends, period_s, allowance, collision)
         total_s = sum(tm.duration_s for tm in flown)
         if best is None or total_s < best[0]:
             best = (total_s, flown, blends)
@@ -146,22 +147,23 @@ def _at_rest(pm: PlannedMove) -> str:
 
 
 def _time_chains(planned: list[PlannedMove], timed: list[TimedMove], blends: dict[int, Blend], period_s: float,
-                 allowance: int) -> list[TimedMove]:
+                 allowance: int, collision: CollisionModel) -> list[TimedMove]:
     """Moves joined by flown corners timed in one pass each (the others keep their timing);
     ``blends`` is updated in place where a corner is stopped at after all (:func:`_time_chain`)."""
     out: list[TimedMove] = []
     for group in chains(planned, blends):
-        out.extend(_time_chain(planned, timed, blends, group, period_s, allowance))
+        out.extend(_time_chain(planned, timed, blends, group, period_s, allowance, collision))
     return out
 
 
 def _time_chain(planned: list[PlannedMove], timed: list[TimedMove], blends: dict[int, Blend], group: list[int],
-                period_s: float, allowance: int) -> list[TimedMove]:
+                period_s: float, allowance: int, collision: CollisionModel) -> list[TimedMove]:
     """One chain timed in one pass. Where a move between two corners gets no sample of its own
     path, the corner into it is stopped at, and so is a corner with no sample inside (:func:`starved`);
     where the chain ends later than its moves stopping at
-    every corner (a jerk limit's uniform stretch spans the whole chain), its middle corner is;
-    either way each part is timed again, and the corner's reason reported."""
+    every corner (a jerk limit's uniform stretch spans the whole chain), its middle corner is; where
+    the flown motion is not clear of collisions, the corner nearest the contact is (each move stopping
+    at its corners was clear); either way each part is timed again, and the corner's reason reported."""
     if len(group) == 1:
         return [timed[group[0]]]
     members = [planned[i] for i in group]
@@ -175,8 +177,12 @@ def _time_chain(planned: list[PlannedMove], timed: list[TimedMove], blends: dict
     stop_s = sum(timed[i].duration_s for i in group)
     short = starved(cmap, tm)
     if short is None and tm.duration_s <= stop_s:
-        return split(cmap, tm, limits, period_s)
-    if short is not None:
+        parts = split(cmap, tm, limits, period_s)
+        blocked = _blocked_corner(collision, group, parts, period_s) if collision.active else None
+        if blocked is None:
+            return parts
+        cut, reason = blocked
+    elif short is not None:
         cut, reason = group.index(short[0]) + 1, short[1]
     else:
         cut = len(group) // 2
@@ -184,8 +190,27 @@ def _time_chain(planned: list[PlannedMove], timed: list[TimedMove], blends: dict
         reason = (f"moves {group[0]}-{group[-1]} flown through take {tm.duration_s:.3f} s, stopping at every corner "
                   f"{stop_s:.3f} s{why}: stopped here and the parts timed apart")
     blends[group[cut - 1]] = stopped(blends[group[cut - 1]], reason)
-    return (_time_chain(planned, timed, blends, group[:cut], period_s, allowance)
-            + _time_chain(planned, timed, blends, group[cut:], period_s, allowance))
+    return (_time_chain(planned, timed, blends, group[:cut], period_s, allowance, collision)
+            + _time_chain(planned, timed, blends, group[cut:], period_s, allowance, collision))
+
+
+def _blocked_corner(collision: CollisionModel, group: list[int], parts: list[TimedMove],
+                    period_s: float) -> tuple[int, str] | None:
+    """Where a flown chain is not clear: the place in ``group`` after the corner nearest the first contact
+    found, and why it is stopped at; None when the chain's samples and the motion between them are clear."""
+    q = np.concatenate([parts[0].q] + [tm.q[1:] for tm in parts[1:]])
+    found = check_clearance(collision, q, exact=False)
+    if found.clear:
+        return None
+    contact = found.contacts[0]
+    ends = np.cumsum([len(tm.q) - 1 for tm in parts])  # each move's last sample in the chain
+    corners = [(int(ends[m]) if parts[m].blend_from is None else int(ends[m] - len(parts[m].q) + 1
+                                                                      + parts[m].blend_from), m)
+               for m in range(len(parts) - 1)]  # where each corner starts, and its incoming move
+    _, m = min(corners, key=lambda corner: abs(corner[0] - contact.sample))
+    a, b = contact.bodies
+    return m + 1, (f"flown by, {a} and {b} would be {describe_distance(contact.distance_m)}, closer than the "
+                   f"clearance {collision.clearance_m * 1e3:g} mm: stopped here")
 
 
 def _timed(pm: PlannedMove, period_s: float, max_samples: int, path: TimingPath | None = None,

@@ -192,12 +192,13 @@ def disabled_pairs(urdf: str) -> dict[tuple[str, str], str]:
     """The link pairs of a URDF (its text) to disable, with the reason, in link order."""
     from singplan.kinematics.collision import collision_model  # only the SRDF needs singplan
     from singplan.kinematics.robot import load_robot
+    from singplan.kinematics.shapes import CollisionSettings
 
     with tempfile.TemporaryDirectory() as folder:  # no SRDF beside it: every non-adjacent pair is checked
         path = Path(folder) / "arm.urdf"
         path.write_text(urdf)
         robot = load_robot(path)
-        model = collision_model(robot)
+        model = collision_model(robot, settings=CollisionSettings())  # every pair but the adjacent ones
         links = [b.name for b in model.bodies]
         checked = {frozenset(p.names) for p in model.pairs}
         reasons = {(a, b): "Adjacent" for i, a in enumerate(links) for b in links[i + 1:]

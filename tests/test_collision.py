@@ -171,7 +171,7 @@ def test_panda_fingers_are_their_own_groups_as_in_the_urdf() -> None:
     names = {frozenset(p.names) for p in model.pairs}
     assert frozenset(("panda_leftfinger", "panda_rightfinger")) in names
     assert frozenset(("panda_hand", "panda_leftfinger")) not in names  # one (prismatic) joint apart
-    default = collision_model(panda, resting=(np.zeros(7),))  # no collision key, no SRDF: contacts at rest left out
+    default = collision_model(panda, start=np.zeros(7))  # no collision key, no SRDF: contacts at rest left out
     assert frozenset(("panda_leftfinger", "panda_rightfinger")) not in {frozenset(p.names) for p in default.pairs}
     assert default.skipped["resting"] >= 1 and "touching at the zero or start" in default.notes[-1]
 

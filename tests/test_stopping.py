@@ -125,7 +125,8 @@ def test_plan_and_check_print_the_worst_figure(tmp_path: Path, capsys: pytest.Ca
     planned = load(tmp_path).metrics["max_stopping_distance_mm"]
     assert f"stopping distance: up to {planned:.3f} mm" in capsys.readouterr().out
     assert main(["check", str(task)]) == 0
-    line = capsys.readouterr().out.strip().splitlines()[-1]
+    lines = capsys.readouterr().out.strip().splitlines()
+    line = next(x for x in lines if x.startswith("stopping distance (estimate"))
     assert line.startswith("stopping distance (estimate at the programmed speed, not planned): up to ")
     estimate = float(line.split("up to ")[1].split(" mm")[0])
     # the estimate cruises at the programmed speeds the plan reaches only in part: the same order, not less

@@ -238,14 +238,14 @@ def _placed(g: Geom, joint: int | None, rotations: np.ndarray, origins: np.ndarr
 
 
 def collision_model(robot: Robot, tool: tuple[Shape, ...] = (), cell: tuple[Shape, ...] = (),
-                    settings: CollisionSettings | None = None, resting: tuple[np.ndarray, ...] = ()) -> CollisionModel:
+                    settings: CollisionSettings | None = None, start: np.ndarray | None = None) -> CollisionModel:
     """The bodies and checked pairs of ``robot`` with the task's tool shapes, cell and ``collision`` key
     (None: the task has none; the robot's own links are still checked against each other).
 
-    ``resting``: joint values [rad] the robot rests in (its zero configuration, the task's start). A task
-    without a ``collision`` key on a URDF without an SRDF says nothing of which of its shapes touch by
-    construction; as MoveIt's setup assistant leaves out the pairs in contact by default, the pairs in
-    contact at any of these are not checked (``skipped["resting"]``, named in ``notes``). With a
+    ``start``: the task's start joints [rad]. A task without a ``collision`` key on a URDF without an
+    SRDF says nothing of which of its shapes touch by construction; as MoveIt's setup assistant leaves
+    out the pairs in contact by default, the pairs in contact at the robot's zero joints (clipped to
+    its limits) or at ``start`` are not checked (``skipped["resting"]``, named in ``notes``). With a
     ``collision`` key (or an SRDF) the pairs are exactly DESIGN.md's.
 
     Raises:
@@ -276,7 +276,10 @@ def collision_model(robot: Robot, tool: tuple[Shape, ...] = (), cell: tuple[Shap
         notes.append("collision.self is false: robot bodies are not checked against each other")
     model = CollisionModel(robot, bodies, pairs, settings.clearance_mm / 1e3, settings.self_collision and
                            any(b.kind == "link" for b in bodies), srdf, skipped, tuple(notes))
-    return _without_resting_contacts(model, resting) if given is None and srdf is None and resting else model
+    if given is not None or srdf is not None:
+        return model
+    zero = np.clip(np.zeros(robot.n_joints), robot.lower_rad, robot.upper_rad)
+    return _without_resting_contacts(model, (zero,) if start is None else (zero, np.asarray(start, dtype=float)))
 
 
 def _without_resting_contacts(model: CollisionModel, resting: tuple[np.ndarray, ...]) -> CollisionModel:

@@ -19,13 +19,13 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from singplan.kinematics.clearance import clearance_curve
+from singplan.kinematics.collision import collision_model
 from singplan.kinematics.dynamics import trajectory_torques
 from singplan.kinematics.robot import Robot
+from singplan.kinematics.shapes import task_shapes
 from singplan.outputs.svgplot import Panel, envelope, figure_svg
 from singplan.outputs.timeline import SHADED_OPACITY, PageBasis, Stretch, page_basis
-from singplan.planning.targets import task_collision_model
 from singplan.results.trajectory import Segment, Trajectory
-from singplan.task.load import parse_task
 from singplan.task.schema import (
     DEFAULT_ORIENTATION_TOLERANCE_DEG,
     DEFAULT_POSITION_TOLERANCE_MM,
@@ -188,8 +188,7 @@ def _clearance(traj: Trajectory, robot: Robot, shading: _Shading) -> list[Panel]
     the closest approach), against the clearance asked for."""
     figures = traj.metrics.clearance
     assert figures is not None and figures.min_clearance_mm is not None and figures.min_clearance_t is not None
-    task = parse_task(traj.task)
-    model = task_collision_model(robot, task, traj.q[0])
+    model = collision_model(robot, *task_shapes(traj.task), traj.q[0])  # as planned (planning.targets)
     picks, distance_m = clearance_curve(model, traj.q, _CLEARANCE_POINTS)
     panel = shading.panel(xlabel="t [s]", ylabel="least distance [mm]")
     _curve(panel, traj.t[picks], distance_m * 1e3, label="closest pair")

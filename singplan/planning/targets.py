@@ -61,14 +61,8 @@ def task_arm(task: Task) -> TaskArm:
     held = hold_for_task(task, full)  # with `redundancy`, the 6R chain is planned like any 6-joint arm
     robot, arm_task = (held.reduced, held.reduce_task(task)) if held is not None else (full, task)
     q_start = start_joints(arm_task, robot)
-    return TaskArm(full, held, robot, arm_task, q_start, task_collision_model(robot, task, q_start))
-
-
-def task_collision_model(robot: Robot, task: Task, q_start: np.ndarray) -> CollisionModel:
-    """The bodies and checked pairs of a task on ``robot`` (its cell, tool shapes and ``collision`` key;
-    without a key or an SRDF, the pairs touching at its zero or start joints ``q_start`` are left out)."""
-    zero = np.clip(np.zeros(robot.n_joints), robot.lower_rad, robot.upper_rad)
-    return collision_model(robot, task.tool_geometry, task.cell, task.collision, (zero, q_start))
+    collision = collision_model(robot, task.tool_geometry, task.cell, task.collision, q_start)
+    return TaskArm(full, held, robot, arm_task, q_start, collision)
 
 
 def start_joints(task: Task, robot: Robot) -> np.ndarray:

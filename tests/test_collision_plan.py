@@ -3,7 +3,6 @@ bench/cell_scenarios.py; tests/data/cell_kinds), fly-by corners, and what the ou
 
 from __future__ import annotations
 
-import importlib.util
 import io
 import json
 import sys
@@ -22,11 +21,10 @@ from singplan.results.plan import plan
 from singplan.results.trajectory import load
 from singplan.task.load import load_task
 
-from .shared import SHARED, require, run_checker
+from .shared import SHARED, bench_module, require, run_checker
 
 KINDS = Path(__file__).resolve().parent / "data" / "cell_kinds"
 EXPECT: dict[str, dict[str, Any]] = yaml.safe_load((KINDS / "expect.yaml").read_text())
-BENCH = Path(__file__).resolve().parents[1] / "bench" / "cell_scenarios.py"
 
 
 def _plan(task: Path, out: Path, *extra: str) -> tuple[int, str, str]:
@@ -71,15 +69,6 @@ def test_the_checker_passes_each_planned_kind(name: str, tmp_path: Path) -> None
     assert run.returncode == 0, run.stdout[-2000:]
 
 
-def _generator() -> Any:
-    spec = importlib.util.spec_from_file_location("cell_scenarios", BENCH)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["cell_scenarios"] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 def _erd(name: str, srdf: str) -> str:
     import example_robot_data.robots_loader as loaders
 
@@ -96,7 +85,7 @@ def test_example_robot_data_arms_with_their_meshes_plan_each_kind(arm: str, kind
     pytest.importorskip("example_robot_data")
     srdf = {"ur5": "ur5.srdf", "ur10": "ur5.srdf", "panda": "panda.srdf"}[arm]
     robot_name = {"ur5": "ur5", "ur10": "ur10", "panda": "panda"}[arm]
-    expect = _generator().generate(_erd(robot_name, srdf), tmp_path, seed=0, tries=8, kinds=kinds)
+    expect = bench_module("cell_scenarios").generate(_erd(robot_name, srdf), tmp_path, seed=0, tries=8, kinds=kinds)
     assert len(expect) == len(kinds), sorted(expect)
     for name, want in expect.items():
         task = tmp_path / f"{name}.yaml"

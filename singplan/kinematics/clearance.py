@@ -253,9 +253,11 @@ class _Block:
         self.walk, self.s = walk, s
         self.R, self.P = walk.model.robot.joint_frames(walk.q[s:e + 1])
         dq = np.abs(np.diff(walk.q[s:e + 1], axis=0))
-        spheres = sphere_bounds(walk.model.pairs, self.R, self.P)
-        self.states = [_PairState(pair, spheres[pair], np.concatenate([[0.0], np.cumsum(dq @ pair.weights)]), dq)
-                       for pair in walk.model.pairs]
+        pairs = walk.model.pairs
+        spheres = sphere_bounds(pairs, self.R, self.P)
+        M = np.zeros((len(dq) + 1, len(pairs)))  # each pair's motion bound from the first sample, one column each
+        np.cumsum(dq @ np.array([pair.weights for pair in pairs]).T, axis=0, out=M[1:])
+        self.states = [_PairState(pair, spheres[pair], M[:, p], dq) for p, pair in enumerate(pairs)]
         self.states.sort(key=lambda st: float(st.lower.min()))
         self.k = s + np.arange(e - s + 1)
         self.ends: dict[int, np.ndarray] = {}  # capsule ends placed at the block's samples, by shape
@@ -418,13 +420,16 @@ class _Block:
         for span in np.unique(np.concatenate([first, last])):
             if span >= len(walk.least):
                 continue
-            local = np.nonzero((first == span) | (last == span))[0]
+            inside = np.nonzero((first == span) | (last == span))[0]
+            local = slice(int(inside[0]), int(inside[-1]) + 1)  # a span's samples are consecutive
+            lows = {id(st): _span_low(st, local) for st in self.states}  # each pair's least bound, and where
+            states = {id(st): st for st in self.states}
             while True:
-                st, j, low = min(((st, int(np.argmin(st.bound()[local])), float(st.bound()[local].min()))
-                                  for st in self.states), key=lambda x: x[2])
+                key = min(lows, key=lambda s: lows[s][0])
+                low, j = lows[key]
                 if low >= walk.best[span] - EXACT_M:
                     break
-                i = int(local[j])
+                st, i = states[key], local.start + j
                 if not st.capsules:
                     self._capsules(st)
                 elif st.relative is None:
@@ -433,6 +438,14 @@ class _Block:
                     break  # measured exactly: its bound is its distance (round-off)
                 else:
                     self.sample(st, i, walk.best[span] - EXACT_M)
+                lows[key] = _span_low(st, local)
+
+
+def _span_low(st: _PairState, local: slice) -> tuple[float, int]:
+    """A pair's least bound over a span's samples, and where (relative to the span's first sample)."""
+    bound = st.bound()[local]
+    j = int(np.argmin(bound))
+    return float(bound[j]), j
 
 
 class _Relative:
@@ -518,17 +531,17 @@ def sphere_bounds(pairs: Sequence[Pair], rotations: np.ndarray, origins: np.ndar
     """A lower bound of each pair's distance at each sample (N,) from one sphere enclosing each body:
     cheap enough for every pair at every sample, and enough for the pairs that stay far apart.
     ``rotations`` (N, J, 3, 3), ``origins`` (N, J, 3): the joint frames."""
-    centres: dict[int, np.ndarray] = {}
-    out = {}
-    for pair in pairs:
-        for body in (pair.a, pair.b):
-            if id(body) not in centres:
-                centre = body.sphere[0]
-                centres[id(body)] = (np.broadcast_to(centre, (len(rotations), 3)) if body.joint is None else
-                                     rotations[:, body.joint] @ centre + origins[:, body.joint])
-        gap = centres[id(pair.a)] - centres[id(pair.b)]
-        out[pair] = np.sqrt(np.einsum("ij,ij->i", gap, gap)) - pair.a.sphere[1] - pair.b.sphere[1]
-    return out
+    bodies = list({id(b): b for pair in pairs for b in (pair.a, pair.b)}.values())
+    index = {id(b): i for i, b in enumerate(bodies)}
+    centres = np.empty((len(bodies), len(rotations), 3))  # (B, N, 3) in the base frame
+    for i, body in enumerate(bodies):
+        centre = body.sphere[0]
+        centres[i] = centre if body.joint is None else rotations[:, body.joint] @ centre + origins[:, body.joint]
+    a = np.array([index[id(pair.a)] for pair in pairs])
+    b = np.array([index[id(pair.b)] for pair in pairs])
+    radii = np.array([pair.a.sphere[1] + pair.b.sphere[1] for pair in pairs])
+    gap = np.linalg.norm(centres[a] - centres[b], axis=2) - radii[:, None]  # (P, N)
+    return {pair: gap[p] for p, pair in enumerate(pairs)}
 
 
 def capsule_bounds(pairs: Sequence[Pair], rotations: np.ndarray, origins: np.ndarray,

@@ -599,6 +599,7 @@ def _probe_point(g: Geom) -> np.ndarray:
 _RAY_DIRECTIONS = np.array([[0.36, 0.48, 0.8], [-0.6, 0.64, -0.48], [0.8, -0.36, 0.48]])
 
 
+@lru_cache(maxsize=32)
 def _triangles(mesh: coal.BVHModelBase) -> np.ndarray:
     """(T, 3, 3) triangle corners of a mesh in its own frame."""
     vertices = np.array(mesh.vertices(), dtype=float)
@@ -707,13 +708,19 @@ def _srdf_path(robot: Robot, settings: CollisionSettings) -> Path | None:
 def _srdf_pairs(path: Path, given: bool) -> set[frozenset[str]]:
     """The ``<disable_collisions link1=".." link2=".."/>`` pairs of a MoveIt SRDF."""
     try:
-        root = ET.fromstring(read_bounded_text(path, MAX_SRDF_BYTES, "SRDF"))
-    except (ET.ParseError, FileRefusedError) as exc:
+        info = path.stat()
+        return set(_srdf_pairs_cached(path, (info.st_mtime_ns, info.st_size)))
+    except (ET.ParseError, FileRefusedError, OSError) as exc:
         reason = f"cannot be read as an SRDF ({exc})"
         if given:
             raise TaskError("collision.srdf", f"{display_path(path)} {reason}") from None
         raise RobotModelError(str(path), reason) from None
-    return {frozenset((e.get("link1", ""), e.get("link2", ""))) for e in root.iter("disable_collisions")}
+
+
+@lru_cache(maxsize=16)
+def _srdf_pairs_cached(path: Path, _stamp: tuple[int, int]) -> frozenset[frozenset[str]]:
+    root = ET.fromstring(read_bounded_text(path, MAX_SRDF_BYTES, "SRDF"))
+    return frozenset(frozenset((e.get("link1", ""), e.get("link2", ""))) for e in root.iter("disable_collisions"))
 
 
 def _allowed(settings: CollisionSettings, names: set[str]) -> set[frozenset[str]]:

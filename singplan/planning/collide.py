@@ -64,7 +64,7 @@ def screen(model: CollisionModel, pm: PlannedMove, path: TimingPath | None = Non
                           clearance_m=model.clearance_m)
 
 
-LINE_STEP_RAD = 0.01  # a straight joint line is checked at samples this far apart (the largest joint's step)
+LINE_STEP_RAD = 0.03  # a straight joint line is checked at samples this far apart (the largest joint's step)
 
 
 def line_samples(q_from: np.ndarray, q_to: np.ndarray) -> int:

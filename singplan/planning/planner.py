@@ -366,7 +366,7 @@ class _MoveCandidates:
         period_s = self.task.period_s
         give_up = None if best is None or c.path is None else _cannot_beat(c, c.path, best, period_s)
         collision = self.place.collision
-        if collision.active and self.compared and c.refusal is None and self.move.kind != "ptp":
+        if collision.active and len(self.prepared) > 1 and c.refusal is None and self.move.kind != "ptp":
             error = screen(collision, c.pm, c.path)  # before timing: a joint path that collides is out
             if error is not None:
                 raise Refused(error)

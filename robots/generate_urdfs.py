@@ -91,13 +91,18 @@ def _rpy_matrix(rpy_rad: list[float]) -> np.ndarray:
     return rz @ ry @ rx
 
 
-def _link(index: int, axis: np.ndarray | None, to_next: np.ndarray, radius: float) -> ud.Link:
-    """A link drawn as a joint housing (along its axis) plus one cylinder per offset leg."""
+def _link(index: int, axis: np.ndarray | None, to_next: np.ndarray, radius: float,
+          flange: np.ndarray | None = None) -> ud.Link:
+    """A link drawn as a joint housing (along its axis) plus one cylinder per offset leg; the flange's
+    link (``flange``: the direction the tool points in) has its housing behind the flange face, where
+    the tool is mounted, not through it."""
     name = LINK_NAMES[index]
     material = ud.Material(name=f"{name}_colour", color=ud.Color(rgba=np.array([*COLOURS[index], 1.0])))
     cylinders: list[tuple[str, np.ndarray, float, float]] = []  # (name, origin, radius, length)
     if axis is not None:
-        cylinders.append((f"{name}_housing", _frame(_rotation_z_to(axis), np.zeros(3)), 1.3 * radius, 3.0 * radius))
+        length = 3.0 * radius
+        centre = np.zeros(3) if flange is None else -0.5 * length * flange
+        cylinders.append((f"{name}_housing", _frame(_rotation_z_to(axis), centre), 1.3 * radius, length))
     corner = np.zeros(3)
     legs = [np.array([0.0, 0.0, to_next[2]]), np.array([to_next[0], to_next[1], 0.0])]
     for k, leg in enumerate(legs):
@@ -139,16 +144,16 @@ def build_robot(name: str, spec: dict) -> ud.Robot:
     offsets = [np.asarray(j["xyz"], dtype=float) for j in chain] + [np.asarray(tool0["xyz"], dtype=float)]
     links = [_link(0, None, offsets[0], radius * 1.4)]
     joints = []
+    tool_rotation = _rpy_matrix([math.radians(a) for a in tool0["rpy_deg"]])
     for i, j in enumerate(chain):
         axis = np.asarray(j["axis"], dtype=float)
         shrink = 1.0 if i < 3 else 0.6
-        links.append(_link(i + 1, axis, offsets[i + 1], radius * shrink))
+        links.append(_link(i + 1, axis, offsets[i + 1], radius * shrink, tool_rotation[:, 2] if i == 5 else None))
         joints.append(ud.Joint(name=f"joint_{i + 1}", type="revolute", parent=LINK_NAMES[i],
                                child=LINK_NAMES[i + 1], origin=_frame(np.eye(3), offsets[i]), axis=axis,
                                limit=ud.Limit(effort=float(effort[i]), velocity=velocity[i],
                                               lower=lower[i], upper=upper[i])))
     links.append(ud.Link(name="tool0"))
-    tool_rotation = _rpy_matrix([math.radians(a) for a in tool0["rpy_deg"]])
     joints.append(ud.Joint(name="joint_6-tool0", type="fixed", parent="link_6", child="tool0",
                            origin=_frame(tool_rotation, offsets[6])))
     return ud.Robot(name=name, links=links, joints=joints)

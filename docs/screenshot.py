@@ -1,6 +1,10 @@
 """Regenerate docs/img/replay.png: the demo's replay in Debian's chromium, paused in its crossing.
 
     python docs/screenshot.py [--chromium /usr/bin/chromium] [--out docs/img/replay.png]
+    python docs/screenshot.py --task examples/cell_torch_program.yaml --out docs/img/cell_replay.png
+
+With ``--task`` the task is planned instead of the demo and the replay is paused at its closest
+approach (its collision check's), or in its first crossing when it has none.
 
 Needs the test extra (Playwright's Python package) and the Debian ``chromium`` package; no
 browser is downloaded.
@@ -27,12 +31,22 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--chromium", default="/usr/bin/chromium")
     parser.add_argument("--out", type=Path, default=HERE / "img" / "replay.png")
+    parser.add_argument("--task", type=Path, default=None, help="plan this task instead of the demo")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "demo"
-        if singplan_main(["demo", "-o", str(out)]) != 0:
+        command = ["plan", str(args.task), "-o", str(out), "--quiet"] if args.task else ["demo", "-o", str(out)]
+        if singplan_main(command) != 0:
             return 1
-        crossing = next(s for s in load(out).segments if s.kind == "crossing")
+        traj = load(out)
+        crossing = next((s for s in traj.segments if s.kind == "crossing"), None)
+        clearance = traj.metrics.clearance
+        if args.task and clearance is not None and clearance.min_clearance_t is not None:
+            at = clearance.min_clearance_t
+        elif crossing is not None:
+            at = 0.5 * (crossing.t0 + crossing.t1)
+        else:
+            at = 0.5 * traj.duration_s
         from playwright.sync_api import sync_playwright  # the test extra's; png_text needs none of it
 
         with sync_playwright() as p:
@@ -40,12 +54,12 @@ def main(argv: list[str] | None = None) -> int:
             page = browser.new_page(viewport={"width": 1200, "height": 760})
             page.goto((out / "replay.html").as_uri())
             page.wait_for_function("window.singplan && window.singplan.ready", timeout=60_000)
-            page.evaluate("(t) => window.singplan.seek(t)", 0.5 * (crossing.t0 + crossing.t1))
+            page.evaluate("(t) => window.singplan.seek(t)", at)
             page.wait_for_timeout(500)
             args.out.parent.mkdir(parents=True, exist_ok=True)
             png = page.screenshot()
             browser.close()
-        duration_s = load(out).duration_s
+        duration_s = traj.duration_s
     args.out.write_bytes(with_text(png, DURATION_KEY, f"{duration_s:.3f}"))
     print(f"wrote {args.out}")
     return 0

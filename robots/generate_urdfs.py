@@ -1,4 +1,4 @@
-"""Write robots/urdf/<name>.urdf for every bundled OPW arm of robots/urdf/robots.yaml.
+"""Write robots/urdf/<name>.urdf and <name>.srdf for every bundled OPW arm of robots/urdf/robots.yaml.
 
 The kinematics (joint origins, axes, the link_6 -> tool0 transform) and the limits are the
 published numbers of the registry, written with full precision. Visual geometry is simple
@@ -7,8 +7,18 @@ of steel-like density scaled to the link length), good enough for a viewer, not 
 Each file's header says so in a line singplan reads (:data:`NO_DYNAMICS_MARK`): these arms have
 no published dynamics, so singplan reports no torques for them and refuses ``limits.torque_scale``.
 
-    python robots/generate_urdfs.py            # rewrite all URDFs
-    python robots/generate_urdfs.py --check    # exit 1 if a URDF on disk is out of date
+Collision geometry: each visual cylinder again, :data:`COLLISION_MARGIN_M` wider and longer at each
+end, so the collision shapes enclose the visuals (tests/test_collision_bundled.py samples the
+visuals' surfaces to show it). The SRDF (MoveIt's format) disables the pairs MoveIt's setup
+assistant would: links one joint apart ("Adjacent"), pairs touching in the zero configuration
+("Default") and pairs touching in nearly every configuration ("Always": the shapes overlap at the
+joint between them), and the pairs MoveIt's setup assistant found never in contact from the real
+meshes of this family of arms (:data:`NEVER_PAIRS`, "Never": the stand-ins, fatter than the real
+links, touch in some legal configurations where the arms do not). The wrist and the tool against the
+base and link_1 stay checked: that is where these arms do hit themselves.
+
+    python robots/generate_urdfs.py            # rewrite all URDFs and SRDFs
+    python robots/generate_urdfs.py --check    # exit 1 if a file on disk is out of date
 """
 
 from __future__ import annotations
@@ -16,6 +26,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +46,18 @@ COLOURS = [
     (0.65, 0.40, 0.80),
     (0.85, 0.30, 0.30),
 ]
+COLLISION_MARGIN_M = 0.002  # collision cylinders: this much wider, and longer at each end, than the visuals
+# Pairs that cannot touch within the joint limits of these arms: MoveIt's setup assistant found them "Never"
+# in contact from the real meshes in the ros-industrial configurations of this family of arms
+# (ros-industrial/abb@6c06f5b2a0:irb_2400_moveit_config/config/irb_2400.srdf,
+#  ros-industrial/kuka_experimental@7f86e2ba99:kuka_kr16_moveit_config/config/kuka_kr16_2.srdf). The stand-in
+# cylinders, fatter than the real links, touch in some legal configurations (the elbow bent far, the flange
+# folded through the wrist centre): those contacts are the stand-ins', not the arms'. The wrist and the tool
+# against the base, link_1 and (for the tool) every link stay checked.
+NEVER_PAIRS = (("base_link", "link_2"), ("link_1", "link_3"), ("link_2", "link_4"), ("link_2", "link_5"),
+               ("link_2", "link_6"), ("link_3", "link_5"), ("link_3", "link_6"), ("link_4", "link_6"))
+SRDF_SAMPLES = 2000  # random joint values per arm for the SRDF's "Always" pairs (seeded)
+ALWAYS_FRACTION = 0.95  # a pair touching in at least this fraction of them is disabled, as MoveIt does
 EFFORT_DEFAULT_NM = 1000.0  # placeholder where the data sheet gives none (marked in the header)
 # read by singplan/kinematics/dynamics.py (same text there): estimated inertias are no basis for torques
 NO_DYNAMICS_MARK = "singplan: no published dynamics"
@@ -68,26 +91,32 @@ def _rpy_matrix(rpy_rad: list[float]) -> np.ndarray:
     return rz @ ry @ rx
 
 
-def _link(index: int, axis: np.ndarray | None, to_next: np.ndarray, radius: float) -> ud.Link:
-    """A link drawn as a joint housing (along its axis) plus one cylinder per offset leg."""
+def _link(index: int, axis: np.ndarray | None, to_next: np.ndarray, radius: float,
+          flange: np.ndarray | None = None) -> ud.Link:
+    """A link drawn as a joint housing (along its axis) plus one cylinder per offset leg; the flange's
+    link (``flange``: the direction the tool points in) has its housing behind the flange face, where
+    the tool is mounted, not through it."""
     name = LINK_NAMES[index]
     material = ud.Material(name=f"{name}_colour", color=ud.Color(rgba=np.array([*COLOURS[index], 1.0])))
-    visuals = []
+    cylinders: list[tuple[str, np.ndarray, float, float]] = []  # (name, origin, radius, length)
     if axis is not None:
-        visuals.append(ud.Visual(name=f"{name}_housing", origin=_frame(_rotation_z_to(axis), np.zeros(3)),
-                                 geometry=ud.Geometry(cylinder=ud.Cylinder(radius=1.3 * radius, length=3.0 * radius)),
-                                 material=material))
+        length = 3.0 * radius
+        centre = np.zeros(3) if flange is None else -0.5 * length * flange
+        cylinders.append((f"{name}_housing", _frame(_rotation_z_to(axis), centre), 1.3 * radius, length))
     corner = np.zeros(3)
     legs = [np.array([0.0, 0.0, to_next[2]]), np.array([to_next[0], to_next[1], 0.0])]
     for k, leg in enumerate(legs):
         length = float(np.linalg.norm(leg))
         if length < 1e-6:
             continue
-        visuals.append(ud.Visual(name=f"{name}_leg{k}", origin=_frame(_rotation_z_to(leg), corner + leg / 2),
-                                 geometry=ud.Geometry(cylinder=ud.Cylinder(radius=radius, length=length)),
-                                 material=material))
+        cylinders.append((f"{name}_leg{k}", _frame(_rotation_z_to(leg), corner + leg / 2), radius, length))
         corner = corner + leg
-    return ud.Link(name=name, inertial=_inertial(to_next, radius), visuals=visuals)
+    visuals = [ud.Visual(name=n, origin=origin, geometry=ud.Geometry(cylinder=ud.Cylinder(radius=r, length=length)),
+                         material=material) for n, origin, r, length in cylinders]
+    collisions = [ud.Collision(name=n, origin=origin, geometry=ud.Geometry(cylinder=ud.Cylinder(
+                      radius=r + COLLISION_MARGIN_M, length=length + 2 * COLLISION_MARGIN_M)))
+                  for n, origin, r, length in cylinders]
+    return ud.Link(name=name, inertial=_inertial(to_next, radius), visuals=visuals, collisions=collisions)
 
 
 def _inertial(to_next: np.ndarray, radius: float) -> ud.Inertial:
@@ -115,16 +144,16 @@ def build_robot(name: str, spec: dict) -> ud.Robot:
     offsets = [np.asarray(j["xyz"], dtype=float) for j in chain] + [np.asarray(tool0["xyz"], dtype=float)]
     links = [_link(0, None, offsets[0], radius * 1.4)]
     joints = []
+    tool_rotation = _rpy_matrix([math.radians(a) for a in tool0["rpy_deg"]])
     for i, j in enumerate(chain):
         axis = np.asarray(j["axis"], dtype=float)
         shrink = 1.0 if i < 3 else 0.6
-        links.append(_link(i + 1, axis, offsets[i + 1], radius * shrink))
+        links.append(_link(i + 1, axis, offsets[i + 1], radius * shrink, tool_rotation[:, 2] if i == 5 else None))
         joints.append(ud.Joint(name=f"joint_{i + 1}", type="revolute", parent=LINK_NAMES[i],
                                child=LINK_NAMES[i + 1], origin=_frame(np.eye(3), offsets[i]), axis=axis,
                                limit=ud.Limit(effort=float(effort[i]), velocity=velocity[i],
                                               lower=lower[i], upper=upper[i])))
     links.append(ud.Link(name="tool0"))
-    tool_rotation = _rpy_matrix([math.radians(a) for a in tool0["rpy_deg"]])
     joints.append(ud.Joint(name="joint_6-tool0", type="fixed", parent="link_6", child="tool0",
                            origin=_frame(tool_rotation, offsets[6])))
     return ud.Robot(name=name, links=links, joints=joints)
@@ -138,7 +167,8 @@ def urdf_text(name: str, spec: dict) -> str:
     header = ["<!-- Generated by robots/generate_urdfs.py from robots/urdf/robots.yaml; do not edit.",
               f"     {spec['display_name']}: kinematics and limits from public sources:"]
     header += [f"       {s}" for s in spec.get("sources", [])]
-    header.append("     Masses and inertias are ESTIMATES (solid cylinders); visuals are simple cylinders.")
+    header.append("     Masses and inertias are ESTIMATES (solid cylinders); visuals are simple cylinders,")
+    header.append(f"     collision shapes the same cylinders {COLLISION_MARGIN_M * 1e3:g} mm larger all round.")
     if not spec.get("effort_Nm"):
         header.append(f"     Effort limits are placeholders ({EFFORT_DEFAULT_NM:g} N m): no published figure. -->")
     else:
@@ -148,9 +178,54 @@ def urdf_text(name: str, spec: dict) -> str:
     return body[:first_newline] + "\n".join(header) + "\n" + body[first_newline:]
 
 
+def srdf_text(name: str, urdf: str) -> str:
+    """The SRDF of one bundled arm (its URDF's text given): the pairs never checked, with MoveIt's reasons."""
+    reasons = disabled_pairs(urdf)
+    lines = ["<?xml version='1.0' encoding='utf-8'?>",
+             "<!-- Generated by robots/generate_urdfs.py from robots/urdf/robots.yaml; do not edit.",
+             "     The link pairs singplan never checks for self-collision, with MoveIt's reasons: Adjacent (one",
+             "     joint apart), Default (touching in the zero configuration), Always (touching in at least",
+             f"     {ALWAYS_FRACTION:.0%} of {SRDF_SAMPLES} seeded random configurations), Never (never in contact in",
+             "     the ros-industrial MoveIt configurations of this family, made from the real meshes; the fatter",
+             "     stand-in cylinders touch in some legal configurations where the arms do not). -->",
+             f'<robot name="{name}">']
+    lines += [f'  <disable_collisions link1="{a}" link2="{b}" reason="{why}"/>' for (a, b), why in reasons.items()]
+    return "\n".join([*lines, "</robot>", ""])
+
+
+def disabled_pairs(urdf: str) -> dict[tuple[str, str], str]:
+    """The link pairs of a URDF (its text) to disable, with the reason, in link order."""
+    from singplan.kinematics.collision import collision_model  # only the SRDF needs singplan
+    from singplan.kinematics.robot import load_robot
+    from singplan.kinematics.shapes import CollisionSettings
+
+    with tempfile.TemporaryDirectory() as folder:  # no SRDF beside it: every non-adjacent pair is checked
+        path = Path(folder) / "arm.urdf"
+        path.write_text(urdf)
+        robot = load_robot(path)
+        model = collision_model(robot, settings=CollisionSettings())  # every pair but the adjacent ones
+        links = [b.name for b in model.bodies]
+        checked = {frozenset(p.names) for p in model.pairs}
+        reasons = {(a, b): "Adjacent" for i, a in enumerate(links) for b in links[i + 1:]
+                   if frozenset((a, b)) not in checked}
+        rng = np.random.default_rng(20250101)
+        samples = np.vstack([np.clip(np.zeros(robot.n_joints), robot.lower_rad, robot.upper_rad),
+                             rng.uniform(robot.lower_rad, robot.upper_rad, (SRDF_SAMPLES, robot.n_joints))])
+        R, P = robot.joint_frames(samples)
+        for pair in model.pairs:
+            touching = np.array([model.pair_distance(pair, R[k], P[k]).distance_m <= 0.0 for k in range(len(samples))])
+            if touching[0]:
+                reasons[pair.names] = "Default"
+            elif touching[1:].mean() >= ALWAYS_FRACTION:
+                reasons[pair.names] = "Always"
+            elif pair.names in NEVER_PAIRS:
+                reasons[pair.names] = "Never"
+    return dict(sorted(reasons.items(), key=lambda item: (links.index(item[0][0]), links.index(item[0][1]))))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--check", action="store_true", help="only report URDFs that are out of date")
+    parser.add_argument("--check", action="store_true", help="only report files that are out of date")
     args = parser.parse_args(argv)
     registry = yaml.safe_load((URDF_DIR / "robots.yaml").read_text())["robots"]
     stale = []
@@ -159,12 +234,13 @@ def main(argv: list[str] | None = None) -> int:
             continue
         path = URDF_DIR / spec["urdf"]
         text = urdf_text(name, spec)
-        if args.check:
-            if not path.exists() or path.read_text() != text:
-                stale.append(path.name)
-        else:
-            path.write_text(text)
-            sys.stdout.write(f"wrote {path}\n")
+        for target, content in ((path, text), (path.with_suffix(".srdf"), srdf_text(name, text))):
+            if args.check:
+                if not target.exists() or target.read_text() != content:
+                    stale.append(target.name)
+            else:
+                target.write_text(content)
+                sys.stdout.write(f"wrote {target}\n")
     if stale:
         sys.stdout.write("out of date: " + ", ".join(stale) + "\n")
     return 1 if stale else 0

@@ -46,6 +46,7 @@ if TYPE_CHECKING:
     import pinocchio as pin
 
     from singplan.kinematics.robot import Robot, RobotEntry
+    from singplan.planning.detect import MoveZones
     from singplan.planning.redundancy import HeldJoint
 
 
@@ -360,7 +361,28 @@ def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
              else f"s {worst.stopping.at * worst.length_m * 1e3:.1f} mm")
     out.write(f"stopping distance: at most {worst.stopping.bound_m * 1e3:.3f} mm (a bound for every plan of the "
               f"task), reached in move {worst.index} ({worst.kind}) at {where}\n")
+    _write_clearances(found, out)
     return 0
+
+
+def _write_clearances(found: Sequence[MoveZones], out: TextIO) -> None:
+    """``singplan check``'s least clearance of each move along its programmed path (collision checking on)."""
+    from singplan.kinematics.collision import describe_distance
+
+    checked = [(m, m.clearance) for m in found if m.clearance is not None]
+    if not checked:
+        return
+    out.write(f"clearance along the programmed path (start branch, not planned; clearance "
+              f"{checked[0][1].clearance_m * 1e3:g} mm):\n")
+    for m, clearance in checked:
+        least = clearance.closest
+        text = (f"closest {least.bodies[0]} / {least.bodies[1]} {describe_distance(least.distance_m)} at "
+                f"{m.where(least.sample)}" if least is not None else "no pair checked")
+        if clearance.contacts:
+            c = clearance.contacts[0]
+            text += (f"; collides: {c.bodies[0]} and {c.bodies[1]} {describe_distance(c.distance_m)} at "
+                     f"{m.where(c.sample, c.fraction)}")
+        out.write(f"  move {m.index} ({m.kind}) {text}\n")
 
 
 def cmd_demo(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:

@@ -98,3 +98,26 @@ class SingularityError(PlanningError):
         self.kind = kind
         self.s_m = s_m
         super().__init__(message)
+
+
+class CollisionError(PlanningError):
+    """Two bodies (robot links, the tool, cell shapes) come closer than the clearance.
+
+    Attributes:
+        move: the move where it happens.
+        sample: the output sample (between samples: the one before).
+        t_s: the time [s].
+        bodies: the two bodies.
+        distance_m: their distance there [m] (negative: penetration depth; -inf: meshes intersect).
+        clearance_m: the clearance asked for [m].
+    """
+
+    def __init__(self, message: str, move: int, sample: int, t_s: float, bodies: tuple[str, str], distance_m: float,
+                 clearance_m: float) -> None:
+        self.move = move
+        self.sample = sample
+        self.t_s = t_s
+        self.bodies = bodies
+        self.distance_m = distance_m
+        self.clearance_m = clearance_m
+        super().__init__(message)

@@ -4,10 +4,12 @@ except under CI=true, where it must be present (missing is an error, not a skip)
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import subprocess
 import sys
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
@@ -31,3 +33,13 @@ def run_checker(task: Path, out: Path, *options: str) -> subprocess.CompletedPro
     """``verify_trajectory.py TASK OUT [options]``: exit code 0 when every check holds."""
     return subprocess.run([sys.executable, str(require(CHECKER)), str(task), str(out), *options],
                           capture_output=True, text=True, timeout=600, check=False)
+
+
+def bench_module(stem: str) -> ModuleType:
+    """A script of bench/ imported as a module (``sys.modules[stem]``: its dataclasses look it up)."""
+    spec = importlib.util.spec_from_file_location(stem, Path(__file__).resolve().parents[1] / "bench" / f"{stem}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[stem] = module
+    spec.loader.exec_module(module)
+    return module

@@ -155,7 +155,8 @@ def test_report_renders_every_plot(browser: Browser, planned: Path) -> None:
     page, errors = _open(browser, planned / "report.html")
     page.wait_for_load_state("load")
     figures = page.locator("figure")
-    assert figures.count() == 6  # joints, speed, distances, deviation, TCP speed, stopping distance
+    # joints, speed, distances, deviation, TCP speed, stopping distance, least distance (self-collision)
+    assert figures.count() == 7
     for i in range(figures.count()):
         svg = figures.nth(i).locator("svg")
         box = svg.bounding_box()

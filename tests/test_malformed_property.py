@@ -13,6 +13,7 @@ import io
 import json
 import math
 import os
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -220,6 +221,7 @@ def run(mutant: Mutant, command: str) -> tuple[int, str]:
     with tempfile.TemporaryDirectory() as folder:
         task = Path(folder) / "task.yaml"
         task.write_text(mutant.text)
+        shutil.copytree(ROOT / "examples" / "meshes", Path(folder) / "meshes")  # a cell's meshes, task-relative
         out, err = io.StringIO(), io.StringIO()
         argv = ["plan", str(task), "-o", str(Path(folder) / "out")] if command == "plan" else ["check", str(task)]
         code = main(argv, out=out, err=err)

@@ -168,9 +168,9 @@ def test_check_lists_the_zone_and_demo_writes_its_folder(tmp_path: Path, monkeyp
 
 def test_report_is_self_contained_with_every_plot(demo_cli: tuple[Path, str], tmp_path: Path) -> None:
     page = (demo_cli[0] / "report.html").read_text()
-    for key in ("joints", "speed", "distances", "deviation", "tcp", "stopping"):
+    for key in ("joints", "speed", "distances", "deviation", "tcp", "stopping", "clearance"):
         assert f'id="plot-{key}"' in page
-    assert page.count("<svg") == 6
+    assert page.count("<svg") == 7
     assert "<script" not in page and "src=" not in page and "href=\"http" not in page  # nothing to fetch
     assert "Crossings" in page and "wrist" in page
     assert main(["plan", str(DEMO), "-o", str(tmp_path / "bare"), "--no-report", "--quiet"], out=io.StringIO()) == 0

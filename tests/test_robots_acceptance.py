@@ -10,13 +10,10 @@ CI=true where it must run). About 8 s on 2 cores: it runs with the default suite
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import shutil
-import sys
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -28,24 +25,14 @@ from singplan.cli import main
 from singplan.kinematics.configuration import distances_batch
 from singplan.kinematics.robot import bundled_robots, load_robot
 
-from .shared import run_checker
+from .shared import bench_module, run_checker
 
-BENCH = Path(__file__).resolve().parents[1] / "bench" / "robots_acceptance.py"
 ARM = "fanuc_m10ia"
 TWIN_TOL = 0.02
 FK_TOL_M = 1e-12
 
 
-def _bench() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("robots_acceptance", BENCH)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["robots_acceptance"] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-ra = _bench()
+ra = bench_module("robots_acceptance")
 
 
 def _plan(task: dict[str, Any], tmp_path: Path, name: str) -> tuple[int, Path, Path]:

@@ -141,7 +141,8 @@ def test_plan_and_check_print_the_worst_figure(tmp_path: Path, capsys: pytest.Ca
     planned = load(tmp_path).metrics["max_stopping_distance_mm"]
     assert f"stopping distance: up to {planned:.3f} mm" in capsys.readouterr().out
     assert main(["check", str(task)]) == 0
-    line = capsys.readouterr().out.strip().splitlines()[-1]
+    lines = capsys.readouterr().out.strip().splitlines()
+    line = next(x for x in lines if x.startswith("stopping distance: at most "))
     assert line.startswith("stopping distance: at most ") and "a bound for every plan of the task" in line
     bound = float(line.split("at most ")[1].split(" mm")[0])
     assert planned <= bound <= 1.1 * planned  # a bound, and a close one where the plan cruises

@@ -178,7 +178,9 @@ def test_move_records_carry_vendor_config(planned_kuka: Path) -> None:
     doc = json.loads((planned_kuka / "trajectory.json").read_text())
     assert doc["moves"], "every task move is listed"
     for m in doc["moves"]:
-        assert set(m) == {"move", "kind", "t0", "t1", "config_end", "vendor_config"}
+        # the bundled KUKA has collision shapes and an SRDF: each move also carries its closest approach
+        assert set(m) == {"move", "kind", "t0", "t1", "config_end", "vendor_config", "min_clearance_mm",
+                          "min_clearance_pair"}
         kuka = m["vendor_config"]["kuka"]
         assert 0 <= kuka["status"] <= 7 and 0 <= kuka["turn"] <= 63
         assert (m["config_end"].endswith("F")) == bool(kuka["status"] & 4)

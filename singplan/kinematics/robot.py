@@ -257,6 +257,29 @@ class Robot:
         tool = self.model.frames[self.tip_frame_id].placement * self.T_tip_tcp
         return position + rotation @ tool.translation, rotation @ tool.rotation
 
+    def joint_frames(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rotations (N, J, 3, 3) and origins (N, J, 3) [m] in the base frame of the model's joint
+        frames 0 (the base) .. J-1 (Pinocchio's ``oMi``) for joint samples q (N, n), composed in numpy
+        like :meth:`tcp_positions` (the model is the base -> tip chain: joint i is the chain's i-th)."""
+        q = np.asarray(q, dtype=float).reshape(-1, self.n_joints)
+        rotation = np.empty((len(q), self.model.njoints, 3, 3))
+        origin = np.empty((len(q), self.model.njoints, 3))
+        if len(q) == 1:  # one sample: Pinocchio's own pass costs a tenth of the numpy one
+            pin.forwardKinematics(self.model, self.data, q[0])
+            for i, placement in enumerate(self.data.oMi):
+                rotation[0, i], origin[0, i] = placement.rotation, placement.translation
+            return rotation, origin
+        rotation[:, 0], origin[:, 0] = np.eye(3), 0.0
+        for i, (placement, axis, iq) in enumerate(self._chain_steps, start=1):
+            origin[:, i] = origin[:, i - 1] + rotation[:, i - 1] @ placement.translation
+            rotation[:, i] = rotation[:, i - 1] @ placement.rotation @ _rotations_about(axis, q[:, iq])
+        return rotation, origin
+
+    @cached_property
+    def joint_axes(self) -> np.ndarray:
+        """(n, 3) each chain joint's unit axis in its own joint frame."""
+        return np.array([axis for _, axis, _ in self._chain_steps])
+
     @cached_property
     def _chain_steps(self) -> list[tuple[pin.SE3, np.ndarray, int]]:
         """Base to tip: each joint's placement in its parent's frame, its unit axis and its q index.
@@ -272,11 +295,6 @@ class Robot:
             turn = placement.rotation.T @ data.liMi[j].rotation
             steps.append((placement, pin.log3(turn), self.model.joints[j].idx_q))
         return steps
-
-    @cached_property
-    def joint_axes(self) -> np.ndarray:
-        """Each chain joint's unit axis (n, 3) in its own frame (where the next joint's placement is given)."""
-        return np.array([axis for _, axis, _ in self._chain_steps])
 
     def fk_tip(self, q: np.ndarray) -> pin.SE3:
         """Tip-frame pose in the base frame (no tool)."""

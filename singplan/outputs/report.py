@@ -18,8 +18,11 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from singplan.kinematics.clearance import clearance_curve
+from singplan.kinematics.collision import collision_model
 from singplan.kinematics.dynamics import trajectory_torques
 from singplan.kinematics.robot import Robot
+from singplan.kinematics.shapes import task_shapes
 from singplan.outputs.svgplot import Panel, envelope, figure_svg
 from singplan.outputs.timeline import SHADED_OPACITY, PageBasis, Stretch, page_basis
 from singplan.results.trajectory import Segment, Trajectory
@@ -178,6 +181,24 @@ def _stopping(traj: Trajectory, shading: _Shading) -> list[Panel]:
     return [panel]
 
 
+_CLEARANCE_POINTS = 600  # samples at which the report measures the least distance of all pairs
+
+
+def _clearance(traj: Trajectory, robot: Robot, shading: _Shading) -> list[Panel]:
+    """The least distance of all checked pairs over time (measured at a few hundred samples, and at
+    the closest approach), against the clearance asked for."""
+    figures = traj.metrics.clearance
+    assert figures is not None and figures.min_clearance_mm is not None and figures.min_clearance_t is not None
+    model = collision_model(robot, *task_shapes(traj.task), traj.q[0])  # as planned (planning.targets)
+    picks, distance_m = clearance_curve(model, traj.q, _CLEARANCE_POINTS)
+    panel = shading.panel(xlabel="t [s]", ylabel="least distance [mm]")
+    _curve(panel, traj.t[picks], distance_m * 1e3, label="closest pair")
+    panel.hline(figures.clearance_mm)
+    a, b = figures.min_clearance_pair or ("", "")
+    panel.point(figures.min_clearance_t, figures.min_clearance_mm, f"{figures.min_clearance_mm:.1f} mm ({a} / {b})")
+    return [panel]
+
+
 def _timeline(traj: Trajectory, stretches: list[Stretch]) -> str:
     """A strip of the stretches coloured by kind (each names itself on hover; at most one a plot
     bucket per kind) and their legend."""
@@ -275,6 +296,11 @@ def _figures(traj: Trajectory, robot: Robot, basis: PageBasis) -> list[_Figure]:
     if "stopping_distance_m" in traj.samples:
         figures.append(_Figure("stopping", "Stopping distance: how far the TCP would travel if every joint braked now "
                                            "at its acceleration limit (the worst marked).", _stopping(traj, shading)))
+    clearance = traj.metrics.clearance
+    if clearance is not None and clearance.min_clearance_mm is not None:
+        figures.append(_Figure("clearance", f"Least distance between the checked bodies (robot links, tool, cell) "
+                                            f"against the clearance asked for ({clearance.clearance_mm:g} mm, "
+                                            f"dashed); the closest approach marked.", _clearance(traj, robot, shading)))
     torques = traj.metrics.torques
     if not isinstance(torques, str):  # the metrics' limits: efforts x limits.torque_scale (1 if unset)
         limit = ("effort x torque_scale" if traj.task.get("limits", {}).get("torque_scale") is not None

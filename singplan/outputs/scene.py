@@ -42,7 +42,7 @@ _COLLADA = "{http://www.collada.org/2005/11/COLLADASchema}"
 _UINT8_ARRAY = mg.threejs_type(np.uint8)[1]  # msgpack extension code of a byte array, as meshcat's STL loader sends it
 
 
-class _ZCylinder(mg.Cylinder):
+class ZCylinder(mg.Cylinder):
     """A cylinder (or cone, radiusTop 0) along z, as URDF and coal have it."""
 
     def intrinsic_transform(self) -> np.ndarray:
@@ -241,9 +241,9 @@ def _primitive(g: pin.GeometryObject) -> tuple[Any, ...] | None:
     material = _material(g)
     shape = g.geometry
     if isinstance(shape, (coal.Cylinder, coal.Capsule)):  # a capsule drawn as its cylinder
-        return _ZCylinder(2.0 * shape.halfLength, shape.radius), material
+        return ZCylinder(2.0 * shape.halfLength, shape.radius), material
     if isinstance(shape, coal.Cone):
-        return _ZCylinder(2.0 * shape.halfLength, radiusTop=0.0, radiusBottom=shape.radius), material
+        return ZCylinder(2.0 * shape.halfLength, radiusTop=0.0, radiusBottom=shape.radius), material
     if isinstance(shape, coal.Box):
         return mg.Box((2.0 * shape.halfSide).tolist()), material
     if isinstance(shape, coal.Sphere):

@@ -5,9 +5,10 @@ from __future__ import annotations
 import math
 from collections import Counter
 from collections.abc import Iterable, Sequence
+from pathlib import Path
 
 from singplan.planning.alternatives import Alternative
-from singplan.results.metrics import BlendFigures, CrossingFigures
+from singplan.results.metrics import BlendFigures, ClearanceFigures, CrossingFigures
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.schema import Task
 
@@ -44,6 +45,7 @@ def summary(traj: Trajectory, task: Task, full: bool = False) -> str:
                if not b.flown]
     lines += stopped if short or len(stopped) <= NOTABLE_SHOWN else [
         *stopped[:NOTABLE_SHOWN], f"... and {len(stopped) - NOTABLE_SHOWN} more corners stopped at (--full lists them)"]
+    lines += _collision_lines(m.clearance)
     lines.append(f"stopping distance: up to {m.max_stopping_distance_mm:.3f} mm at "
                  f"t = {m.max_stopping_distance_at_s:.3f} s (every joint braking at its acceleration limit)")
     return "\n".join(lines) + "\n"
@@ -99,6 +101,22 @@ def _counted(counts: Counter[str]) -> str:
 
 def _deviation(d: object) -> tuple[float, float]:
     return (d.max_orientation_error_deg, d.max_position_error_mm) if isinstance(d, CrossingFigures) else (0.0, 0.0)
+
+
+def _collision_lines(c: ClearanceFigures | None) -> list[str]:
+    """The closest approach and what was checked, or why nothing was (none when neither the task nor the
+    robot has anything to check)."""
+    if c is None:
+        return []
+    notes = [f"collision: {note}" for note in c.notes]
+    if c.min_clearance_mm is None or c.min_clearance_pair is None or c.min_clearance_t is None:
+        return [*notes, "collision: no pair of bodies to check"]
+    skipped = ", ".join(f"{n} {why.replace('_', ' ')}" for why, n in c.skipped.items() if n)
+    srdf = f", SRDF {Path(c.srdf).name}" if c.srdf else ""
+    a, b = c.min_clearance_pair
+    return [f"collision: closest approach {c.min_clearance_mm:.2f} mm ({a} / {b}) at t = {c.min_clearance_t:.3f} s, "
+            f"clearance {c.clearance_mm:g} mm; {c.pairs} pairs checked{srdf}"
+            f"{f' ({skipped} left out)' if skipped else ''}", *notes]
 
 
 def _torque_line(traj: Trajectory, task: Task) -> str:

@@ -35,12 +35,16 @@ import meshcat
 import meshcat.geometry as mg
 import meshcat.transformations as mtf
 import numpy as np
+import pinocchio as pin
 import umsgpack
 
 from singplan.errors import InputError
+from singplan.kinematics.collision import MAX_MESH_BYTES
+from singplan.kinematics.files import read_bounded
+from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot
 from singplan.outputs.choices import DEFAULT_HOST
-from singplan.outputs.scene import ROOT, AnimationCommand, RobotScene
+from singplan.outputs.scene import ROOT, AnimationCommand, RobotScene, ZCylinder
 from singplan.outputs.svgplot import LIMIT_COLOUR, PALETTE
 from singplan.outputs.timeline import (
     PROGRAMMED_COLOUR,
@@ -177,6 +181,7 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath
     vis["/Grid"].set_property("visible", False)  # the robot's base axes show the ground frame
     vis["paths/programmed"].set_object(_line(programmed_path(traj, robot, tcp), PROGRAMMED_COLOUR, 1.0))
     _draw_segments(vis, traj, tcp, stretches)
+    _draw_cell(vis, traj)
     # a frame is a sample: keyframes at kept samples, the exact joint values there
     step = max(1, round(ANIMATION_STEP_S / traj.period))
     frames = kept_samples(traj, travel, step, _KEYFRAMES, _KEYFRAME_TURN_RAD)
@@ -185,7 +190,10 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath
     moving = [g for g, name in enumerate(scene.names) if name in shown
               and not (np.all(xyz[:, g] == xyz[0, g]) and np.all(quat[:, g] == quat[0, g]))]
     paths = tuple(vis[f"{ROOT}/{scene.names[g]}"].path.lower() for g in moving)
-    vis.window.send(AnimationCommand(paths, frames.astype(float), xyz[:, moving], quat[:, moving], speed / traj.period,
+    tool_paths, tool_xyz, tool_quat = _draw_tool(vis, traj, robot, frames)
+    vis.window.send(AnimationCommand(paths + tool_paths, frames.astype(float),
+                                     np.concatenate([xyz[:, moving], tool_xyz], axis=1),
+                                     np.concatenate([quat[:, moving], tool_quat], axis=1), speed / traj.period,
                                      play, _LOOP_REPETITIONS if loop else 1))
 
 
@@ -211,6 +219,78 @@ def _draw_segments(vis: meshcat.Visualizer, traj: Trajectory, tcp: TcpPath, stre
 
 
 _LOOP_REPETITIONS = 1_000_000  # meshcat's "loop": repeat the clip this many times
+CELL_COLOUR = 0x8A8F98  # the cell's shapes: grey, see-through
+TOOL_COLOUR = 0xD9A441  # the tool's shapes
+CLOSEST_COLOUR = 0xE0301E  # the closest approach: a line between the two closest points
+
+
+def _shape_object(spec: dict[str, Any], colour: int, opacity: float) -> tuple[Any, np.ndarray]:
+    """A cell or tool shape of the task mapping as a meshcat geometry and the transform that scales it
+    (a mesh's ``scale``; identity otherwise). The mesh file is read through the bounded reader."""
+    material = mg.MeshLambertMaterial(color=colour, opacity=opacity, transparent=opacity < 1.0)
+    scale = np.eye(4)
+    if "box" in spec:
+        geometry: Any = mg.Box([float(v) for v in spec["box"]["size"]])
+    elif "cylinder" in spec:
+        geometry = ZCylinder(float(spec["cylinder"]["length"]), float(spec["cylinder"]["radius"]))
+    elif "sphere" in spec:
+        geometry = mg.Sphere(float(spec["sphere"]["radius"]))
+    else:
+        mesh = spec["mesh"]
+        data = read_bounded(mesh["file"], MAX_MESH_BYTES, "mesh")
+        geometry = (mg.StlMeshGeometry.from_stream(io.BytesIO(data)) if str(mesh["file"]).lower().endswith(".stl")
+                    else mg.ObjMeshGeometry.from_stream(io.StringIO(data.decode("utf-8", "replace"))))
+        factor = mesh.get("scale", 1.0)
+        scale = np.diag([*(factor if isinstance(factor, list) else [factor] * 3), 1.0])
+    return (geometry, material), scale
+
+
+def _shape_pose(spec: dict[str, Any]) -> np.ndarray:
+    """A shape's pose (4, 4) in its frame: ``xyz`` and ``rpy_deg`` of the task mapping."""
+    T = np.eye(4)
+    T[:3, :3] = rpy_deg_to_rotation(spec.get("rpy_deg", [0.0, 0.0, 0.0]))
+    T[:3, 3] = spec.get("xyz", [0.0, 0.0, 0.0])
+    return T
+
+
+def _draw_cell(vis: meshcat.Visualizer, traj: Trajectory) -> None:
+    """The task's cell (fixed shapes, see-through) and the closest approach of the collision check (a line
+    between the two closest points, a dot at each)."""
+    for i, spec in enumerate(traj.task.get("cell", ())):
+        obj, scale = _shape_object(spec, CELL_COLOUR, 0.55)
+        node = vis[f"cell/{i:03d}_{spec.get('name', i)}"]
+        node.set_object(*obj)
+        node.set_transform(_shape_pose(spec) @ scale)
+    clearance = traj.metrics.clearance
+    if clearance is None or clearance.min_clearance_points is None:
+        return
+    a, b = (np.asarray(p, dtype=float) for p in clearance.min_clearance_points)
+    vis["closest/line"].set_object(_line(np.array([a, b]), CLOSEST_COLOUR, 3.0))
+    for name, point in (("a", a), ("b", b)):
+        vis[f"closest/{name}"].set_object(mg.Sphere(0.006), mg.MeshLambertMaterial(color=CLOSEST_COLOUR))
+        vis[f"closest/{name}"].set_transform(mtf.translation_matrix(point))
+
+
+def _draw_tool(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, frames: np.ndarray
+               ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+    """The tool's shapes (``tool.geometry``) fixed to the tip: their nodes, and their positions (F, S, 3) and
+    quaternions (x, y, z, w) (F, S, 4) at the animation's frames."""
+    specs = (traj.task.get("tool") or {}).get("geometry") or []
+    xyz, quat = np.empty((len(frames), len(specs), 3)), np.empty((len(frames), len(specs), 4))
+    tips = [robot.fk_tip(traj.q[k]).homogeneous for k in frames]
+    paths = []
+    for s, spec in enumerate(specs):
+        obj, scale = _shape_object(spec, TOOL_COLOUR, 1.0)
+        node = vis[f"tool/{s:02d}"]
+        node.set_object(*obj)
+        local = _shape_pose(spec)
+        node.set_transform(tips[0] @ local @ scale if tips else local @ scale)
+        paths.append(node.path.lower())
+        for f, tip in enumerate(tips):
+            T = tip @ local
+            xyz[f, s] = T[:3, 3]
+            quat[f, s] = pin.Quaternion(T[:3, :3]).coeffs()
+    return tuple(paths), xyz, quat
 
 
 def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
@@ -281,6 +361,12 @@ def _page_data(traj: Trajectory, tcp: TcpPath, basis: PageBasis) -> dict[str, An
             text = (f"{title.split(': ', 1)[1]}; {d.get('max_position_error_mm', 0.0):.3f} mm / "
                     f"{d.get('max_orientation_error_deg', 0.0):.2f} deg")
             labels.append({"text": text, "xyz": tcp.at(_midpoint(traj, seg)).tolist()})
+    clearance = traj.metrics.clearance
+    if clearance is not None and clearance.min_clearance_points is not None and clearance.min_clearance_pair:
+        a, b = (np.asarray(p, dtype=float) for p in clearance.min_clearance_points)
+        pair = " / ".join(clearance.min_clearance_pair)
+        text = f"closest {clearance.min_clearance_mm:.1f} mm: {pair} at {clearance.min_clearance_t:.3f} s"
+        labels.append({"text": text, "xyz": ((a + b) / 2).tolist()})
     ratio = basis.speed_ratio.max(axis=1, initial=0.0).astype(float)  # (K - 1,), at t[1:]
     keep = _extremes(ratio, _STRIP_POINTS)
     points = np.vstack([tcp.xyz, np.zeros((1, 3))])  # the path and the robot's base

@@ -16,6 +16,10 @@ distances by the two bounds of :mod:`singplan.kinematics.stopping` (the smaller 
 corner, where the blend adds the two moves' speeds, by the joint-by-joint one. The next move starts
 in each branch a method may end in (a few at most), so the bound of a later move covers the
 planner's choice too.
+
+With collision checking on, each move also gets its least clearance along the programmed path in
+the branch the start leads to (the tracked path of a LIN / CIRC, the straight joint line of a PTP;
+a crossing or a configuration change the planner makes may differ).
 """
 
 
@@ -29,6 +33,8 @@ from typing import NamedTuple
 import numpy as np
 
 from singplan.errors import PlanningError
+from singplan.kinematics.clearance import Clearance, check_clearance
+from singplan.kinematics.collision import CollisionModel
 from singplan.kinematics.robot import Robot
 from singplan.kinematics.stopping import (
     capped_rates,
@@ -40,6 +46,7 @@ from singplan.kinematics.stopping import (
 )
 from singplan.planning.budget import check_task
 from singplan.planning.checks import refusal
+from singplan.planning.collide import line_samples
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Exact
@@ -74,6 +81,13 @@ class MoveZones:
     length_m: float
     zones: tuple[Zone, ...]
     stopping: StoppingFigure
+    clearance: Clearance | None = None  # along the programmed path in the start branch (None: nothing checked)
+    u: tuple[float, ...] = ()  # the path parameters of the samples the clearance was checked at
+
+    def where(self, sample: int, fraction: float = 0.0) -> str:
+        """A checked sample (and a fraction of the way to the next) as a point of the move, for messages."""
+        u = self.u[sample] + fraction * (self.u[min(sample + 1, len(self.u) - 1)] - self.u[sample])
+        return f"{u:.2f} of the joint motion" if self.kind == "ptp" else f"s {u * self.length_m * 1e3:.1f} mm"
 
 
 @dataclass(frozen=True)
@@ -118,11 +132,14 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     starts = [arm.q_start]  # the first: the branch followed by continuity, whose zones are listed
     T = robot.fk(arm.q_start)
     found: list[tuple[float, tuple[Zone, ...]]] = []  # each move's length [m] and zones
+    clear: list[tuple[Clearance | None, tuple[float, ...]]] = []  # each move's clearance and where it was checked
     states: list[list[_States]] = []
     for i, move in enumerate(task.moves):
         if move.kind == "ptp":
             move_states, ends = _ptp_states(robot, task, i, move, starts)
             found.append((0.0, ()))
+            u = np.linspace(0.0, 1.0, line_samples(starts[0], ends[0]))
+            clear.append(_clearance(arm.collision, starts[0] + np.outer(u, ends[0] - starts[0]), u, i))
             starts = _distinct(ends)
             T = robot.fk(starts[0])
         else:
@@ -134,12 +151,21 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
                 move_states += s
                 ends += e
             found.append((tracking.piece.length_m, stage.found))
+            clear.append(_clearance(arm.collision, stage.ctx.tracked.q, stage.ctx.tracked.u, i))
             starts = _distinct(ends) or [stage.ctx.tracked.q[-1]]  # no method plans it: on as tracked
             T = tracking.piece.T_end
         states.append(move_states)
     qd = _velocities(robot, task, states)
-    return [MoveZones(i, move.kind, found[i][0], found[i][1], _figure(robot, task, states, qd, i))
+    return [MoveZones(i, move.kind, found[i][0], found[i][1], _figure(robot, task, states, qd, i), *clear[i])
             for i, move in enumerate(task.moves)]
+
+
+def _clearance(model: CollisionModel, q: np.ndarray, u: np.ndarray, i: int
+               ) -> tuple[Clearance | None, tuple[float, ...]]:
+    """The least clearance along joint samples q (N, n) at path parameters u (N,), when checking is on."""
+    if not model.active:
+        return None, ()
+    return check_clearance(model, q, start=i == 0), tuple(float(v) for v in u)
 
 
 def _methods(move: Move) -> Iterator[CrossingMethod]:

@@ -27,10 +27,12 @@ STEP_M = 0.002  # initial path sampling: at most 2 mm ...
 STEP_RAD = math.radians(0.5)  # ... and 0.5 deg of tool rotation between samples
 
 def plan_move(robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3, q_start: np.ndarray,
-               method: CrossingMethod, tracking: MoveTracking | None = None) -> PlannedMove:
-    """One move's joint map with ``method``; ``tracking`` shares the tracked stretches among candidates."""
+               method: CrossingMethod, tracking: MoveTracking | None = None,
+               q_target: np.ndarray | None = None) -> PlannedMove:
+    """One move's joint map with ``method``; ``tracking`` shares the tracked stretches among candidates;
+    ``q_target``: a PTP's target joints (default :func:`~singplan.planning.targets.ptp_target`'s)."""
     if move.kind == "ptp":
-        q_target = ptp_target(robot, i, move, q_start)
+        q_target = q_target if q_target is not None else ptp_target(robot, i, move, q_start)
         part = JointPart("ptp", np.array([0.0, 1.0]), np.array([q_start, q_target]))
         return PlannedMove(i, "ptp", JointMap(robot, None, [part]), move_limits(robot, task, move, 0.0))
     tracking = tracking if tracking is not None else MoveTracking(robot, task, i, move, T_start)

@@ -21,22 +21,35 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from singplan.errors import PlanningError
+from singplan.errors import CollisionError, PlanningError
+from singplan.kinematics.clearance import check_clearance
+from singplan.kinematics.collision import CollisionModel, describe_distance
+from singplan.kinematics.configuration import classify
 from singplan.kinematics.robot import Robot
 from singplan.planning.blending import RAMPS, Blend, corners, side_of, stopped
 from singplan.planning.bound import duration_bound_s
 from singplan.planning.budget import BudgetError, check_task
 from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
 from singplan.planning.checks import check_config, check_tolerances, refusal
+from singplan.planning.collide import check_move, screen, screen_line
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.nullspace import time_with_pauses
 from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_move
 from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint
-from singplan.planning.select import Candidate, Rank, best_of
-from singplan.planning.targets import task_arm
-from singplan.planning.timing import GiveUp, Scale, TimedMove, TimingError, TimingPath, time_move, timing_path
+from singplan.planning.select import Candidate, Rank, Refused, best_of
+from singplan.planning.targets import move_limits, ptp_targets, task_arm
+from singplan.planning.timing import (
+    GiveUp,
+    MoveLimits,
+    Scale,
+    TimedMove,
+    TimingError,
+    TimingPath,
+    time_move,
+    timing_path,
+)
 from singplan.task.load import load_task
 from singplan.task.schema import Move, Task
 
@@ -55,6 +68,7 @@ class PlannedTask:
     moves: tuple[PlannedMove, ...]
     timed: tuple[TimedMove, ...]  # moves joined by fly-by corners were timed together, then split
     planning_s: float  # wall time from the call to the last move timed
+    collision: CollisionModel  # the bodies and pairs checked (``robot``'s)
     blends: tuple[Blend, ...] = ()  # every corner that asked for a fly-by, with the radius it got
 
 
@@ -84,7 +98,11 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     left = allowance - 1  # output samples the remaining moves may add (they share their boundary samples)
     for i, move in enumerate(task.moves):
         methods = registry.candidates(task.singularity.method, move) if chosen is None else [chosen]
-        pm, tm = _best_of(robot, arm_task, i, arm_task.moves[i], T, q, methods, left)
+        place = _Place(arm.collision, allowance - 1 - left)
+        if move.kind == "ptp" and move.to_joints_deg is None and place.collision.active:
+            pm, tm = _best_end(robot, arm_task, i, arm_task.moves[i], T, q, methods, left, place)
+        else:
+            pm, tm = _best_of(robot, arm_task, i, arm_task.moves[i], T, q, methods, left, place)
         left -= len(tm.q) - 1
         planned.append(pm)
         timed.append(tm)
@@ -93,14 +111,14 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
         if progress is not None:
             progress(i + 1, len(task.moves))
     timed, blends = _fly_by(robot, planned, timed, [m.blend_mm / 1e3 for m in arm_task.moves], task.period_s,
-                            allowance)
+                            allowance, arm.collision)
     return PlannedTask(task, task.singularity.method if chosen is None else chosen.name,
                        arm.full, robot, arm.held, tuple(planned), tuple(timed), time.perf_counter() - started,
-                       tuple(blends.values()))
+                       arm.collision, tuple(blends.values()))
 
 
 def _fly_by(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], requested_m: list[float],
-            period_s: float, allowance: int) -> tuple[list[TimedMove], dict[int, Blend]]:
+            period_s: float, allowance: int, collision: CollisionModel) -> tuple[list[TimedMove], dict[int, Blend]]:
     """The fly-by corners, and the moves timed through them: with each ramp shape of
     :func:`~singplan.planning.blending.ramps` (the quartic's smooth seams win on some corners, the
     quadratic's tighter curve on others), the one whose program ends sooner kept."""
@@ -111,7 +129,7 @@ def _fly_by(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], re
         blends = corners(robot, sides, at_rest, requested_m, ramp)
         if not any(b.jmap is not None for b in blends.values()):
             return timed, blends  # nothing flown: the ramp makes no difference
-        flown = _time_chains(planned, timed, blends, period_s, allowance)
+        flown = _time_chains(planned, timed, blends, period_s, allowance, collision)
         total_s = sum(tm.duration_s for tm in flown)
         if best is None or total_s < best[0]:
             best = (total_s, flown, blends)
@@ -129,22 +147,23 @@ def _at_rest(pm: PlannedMove) -> str:
 
 
 def _time_chains(planned: list[PlannedMove], timed: list[TimedMove], blends: dict[int, Blend], period_s: float,
-                 allowance: int) -> list[TimedMove]:
+                 allowance: int, collision: CollisionModel) -> list[TimedMove]:
     """Moves joined by flown corners timed in one pass each (the others keep their timing);
     ``blends`` is updated in place where a corner is stopped at after all (:func:`_time_chain`)."""
     out: list[TimedMove] = []
     for group in chains(planned, blends):
-        out.extend(_time_chain(planned, timed, blends, group, period_s, allowance))
+        out.extend(_time_chain(planned, timed, blends, group, period_s, allowance, collision))
     return out
 
 
 def _time_chain(planned: list[PlannedMove], timed: list[TimedMove], blends: dict[int, Blend], group: list[int],
-                period_s: float, allowance: int) -> list[TimedMove]:
+                period_s: float, allowance: int, collision: CollisionModel) -> list[TimedMove]:
     """One chain timed in one pass. Where a move between two corners gets no sample of its own
     path, the corner into it is stopped at, and so is a corner with no sample inside (:func:`starved`);
     where the chain ends later than its moves stopping at
-    every corner (a jerk limit's uniform stretch spans the whole chain), its middle corner is;
-    either way each part is timed again, and the corner's reason reported."""
+    every corner (a jerk limit's uniform stretch spans the whole chain), its middle corner is; where
+    the flown motion is not clear of collisions, the corner nearest the contact is (each move stopping
+    at its corners was clear); either way each part is timed again, and the corner's reason reported."""
     if len(group) == 1:
         return [timed[group[0]]]
     members = [planned[i] for i in group]
@@ -158,8 +177,12 @@ def _time_chain(planned: list[PlannedMove], timed: list[TimedMove], blends: dict
     stop_s = sum(timed[i].duration_s for i in group)
     short = starved(cmap, tm)
     if short is None and tm.duration_s <= stop_s:
-        return split(cmap, tm, limits, period_s)
-    if short is not None:
+        parts = split(cmap, tm, limits, period_s)
+        blocked = _blocked_corner(collision, group, parts, period_s) if collision.active else None
+        if blocked is None:
+            return parts
+        cut, reason = blocked
+    elif short is not None:
         cut, reason = group.index(short[0]) + 1, short[1]
     else:
         cut = len(group) // 2
@@ -167,8 +190,27 @@ def _time_chain(planned: list[PlannedMove], timed: list[TimedMove], blends: dict
         reason = (f"moves {group[0]}-{group[-1]} flown through take {tm.duration_s:.3f} s, stopping at every corner "
                   f"{stop_s:.3f} s{why}: stopped here and the parts timed apart")
     blends[group[cut - 1]] = stopped(blends[group[cut - 1]], reason)
-    return (_time_chain(planned, timed, blends, group[:cut], period_s, allowance)
-            + _time_chain(planned, timed, blends, group[cut:], period_s, allowance))
+    return (_time_chain(planned, timed, blends, group[:cut], period_s, allowance, collision)
+            + _time_chain(planned, timed, blends, group[cut:], period_s, allowance, collision))
+
+
+def _blocked_corner(collision: CollisionModel, group: list[int], parts: list[TimedMove],
+                    period_s: float) -> tuple[int, str] | None:
+    """Where a flown chain is not clear: the place in ``group`` after the corner nearest the first contact
+    found, and why it is stopped at; None when the chain's samples and the motion between them are clear."""
+    q = np.concatenate([parts[0].q] + [tm.q[1:] for tm in parts[1:]])
+    found = check_clearance(collision, q, exact=False)
+    if found.clear:
+        return None
+    contact = found.contacts[0]
+    ends = np.cumsum([len(tm.q) - 1 for tm in parts])  # each move's last sample in the chain
+    corners = [(int(ends[m]) if parts[m].blend_from is None else int(ends[m] - len(parts[m].q) + 1
+                                                                      + parts[m].blend_from), m)
+               for m in range(len(parts) - 1)]  # where each corner starts, and its incoming move
+    _, m = min(corners, key=lambda corner: abs(corner[0] - contact.sample))
+    a, b = contact.bodies
+    return m + 1, (f"flown by, {a} and {b} would be {describe_distance(contact.distance_m)}, closer than the "
+                   f"clearance {collision.clearance_m * 1e3:g} mm: stopped here")
 
 
 def _timed(pm: PlannedMove, period_s: float, max_samples: int, path: TimingPath | None = None,
@@ -195,12 +237,84 @@ def _located(pm: PlannedMove, exc: TimingError) -> TimingError:
     return TimingError(pm.index, exc.u, exc.reason, kind=pm.kind, where=pm.describe(exc.u))
 
 
+@dataclass(frozen=True)
+class _Place:
+    """Where a move's candidates are checked for collisions: the bodies, and the trajectory sample the move
+    starts at (its samples' times in messages; the first move's first sample starts the trajectory)."""
+
+    collision: CollisionModel
+    offset: int
+
+
 def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
-             methods: list[CrossingMethod], max_samples: int) -> tuple[PlannedMove, TimedMove]:
+             methods: list[CrossingMethod], max_samples: int, place: _Place,
+             q_target: np.ndarray | None = None) -> tuple[PlannedMove, TimedMove]:
     """Plan each method's joint map, then time and check the candidates that can still win;
-    :func:`select.best_of` keeps the fastest."""
-    candidates = _MoveCandidates(robot, task, i, move, T, q, len(methods), max_samples)
+    :func:`select.best_of` keeps the fastest. ``q_target``: a PTP's end joints (default: the preferred)."""
+    candidates = _MoveCandidates(robot, task, i, move, T, q, len(methods), max_samples, place, q_target)
     return best_of(robot, i, move.kind, methods, candidates.prepare, candidates.finish)
+
+
+def _best_end(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
+              methods: list[CrossingMethod], max_samples: int, place: _Place) -> tuple[PlannedMove, TimedMove]:
+    """A PTP to a pose with collision checking on: the preferred end configuration (the nearest,
+    :func:`~singplan.planning.targets.ptp_targets`) where its joint line is clear, else the fastest clear
+    one of the others the move's ``config`` allows. Each line is checked before it is timed
+    (:func:`~singplan.planning.collide.screen_line`), the others fastest bound first
+    (:func:`ptp_duration_bound_s`), and none is timed whose bound cannot beat the fastest clear one.
+
+    Raises:
+        CollisionError: no end configuration is clear (the nearest's collision with its time and sample,
+            each other's reason).
+    """
+    targets = ptp_targets(robot, i, move, q)
+    blocked = screen_line(place.collision, q, targets[0], i)
+    if blocked is None:
+        return _best_of(robot, task, i, move, T, q, methods, max_samples, place, targets[0])
+    limits = move_limits(robot, task, move, 0.0)
+    refused: list[tuple[np.ndarray, PlanningError | BudgetError]] = []
+    best: tuple[PlannedMove, TimedMove] | None = None
+    for target in sorted(targets[1:], key=lambda target: ptp_duration_bound_s(q, target, limits)):
+        if best is not None and ptp_duration_bound_s(q, target, limits) >= best[1].duration_s:
+            break  # neither this nor a later one can be faster (a tie: the nearer end, tried first)
+        error: PlanningError | BudgetError | None = screen_line(place.collision, q, target, i)
+        if error is None:
+            try:
+                found = _best_of(robot, task, i, move, T, q, methods, max_samples, place, target)
+            except (PlanningError, BudgetError) as exc:
+                error = exc
+            else:
+                if best is None or found[1].duration_s < best[1].duration_s:
+                    best = found
+                continue
+        refused.append((target, error))
+    if best is not None:
+        return best
+    pm, tm = _best_of(robot, task, i, move, T, q, methods, max_samples, place, targets[0])
+    reasons = "; ".join(f"{classify(robot, target).label}: {_reason(error)}" for target, error in refused)
+    try:
+        check_move(place.collision, tm.q, i, "ptp", place.offset, task.period_s,
+                   lambda k: pm.describe(float(tm.u[k])))
+    except CollisionError as first:
+        message = f"{first} (no end configuration of the pose is clear: {reasons})" if reasons else str(first)
+        raise CollisionError(message, first.move, first.sample, first.t_s, first.bodies, first.distance_m,
+                             first.clearance_m) from first
+    raise blocked  # its output samples clear where its line is not (within the line's sub-sampling)
+
+
+def ptp_duration_bound_s(q_from: np.ndarray, q_to: np.ndarray, limits: MoveLimits) -> float:
+    """No timing of the straight joint motion q_from -> q_to ends sooner [s]: each joint alone needs at
+    least its rest-to-rest time at its own speed and acceleration limits (bang-bang, or bang-coast-bang)."""
+    d = np.abs(np.asarray(q_to, dtype=float) - q_from)
+    v, a = limits.velocity_rad_s, limits.acceleration_rad_s2
+    triangle = d <= v * v / a
+    return float(np.max(np.where(triangle, 2.0 * np.sqrt(d / a), d / v + v / a)))
+
+
+def _reason(error: Exception) -> str:
+    """An error's message without its move prefix and the free-space note (listed after the first's)."""
+    text = str(error).split("): ", 1)[-1]
+    return text.split("; singplan keeps", 1)[0]
 
 
 class _MoveCandidates:
@@ -210,8 +324,9 @@ class _MoveCandidates:
     takes that one's timing path, bound, refusal and outcome."""
 
     def __init__(self, robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray, count: int,
-                 max_samples: int) -> None:
+                 max_samples: int, place: _Place, q_target: np.ndarray | None = None) -> None:
         self.robot, self.task, self.index, self.move, self.T, self.q = robot, task, i, move, T, q
+        self.place, self.q_target = place, q_target
         self.compared = count > 1  # one candidate alone needs no bound or refusal
         self.max_samples = max_samples
         self.tracking: MoveTracking | None = None  # made by the first candidate (a bad piece fails every method alike)
@@ -222,7 +337,8 @@ class _MoveCandidates:
         """The method's joint map, with what lets it be skipped before timing."""
         if self.move.kind != "ptp" and self.tracking is None:
             self.tracking = MoveTracking(self.robot, self.task, self.index, self.move, self.T)
-        pm = plan_move(self.robot, self.task, self.index, self.move, self.T, self.q, method, self.tracking)
+        pm = plan_move(self.robot, self.task, self.index, self.move, self.T, self.q, method, self.tracking,
+                       self.q_target)
         same = next((c for c in self.prepared if _same_motion(c.pm, pm)), None)
         if same is not None:
             return replace(same, method=method, order=order, pm=pm)
@@ -249,10 +365,19 @@ class _MoveCandidates:
                            ) -> tuple[PlannedMove, TimedMove | PlanningError | BudgetError]:
         period_s = self.task.period_s
         give_up = None if best is None or c.path is None else _cannot_beat(c, c.path, best, period_s)
+        collision = self.place.collision
+        if collision.active and len(self.prepared) > 1 and c.refusal is None and self.move.kind != "ptp":
+            error = screen(collision, c.pm, c.path)  # before timing: a joint path that collides is out
+            if error is not None:
+                raise Refused(error)
         try:
             timed = _timed(c.pm, period_s, self.max_samples, c.path, give_up)
             check_config(self.robot, self.move, c.pm, timed.u, timed.q)
-            return replace(c.pm, deviations=check_tolerances(self.robot, self.task, c.pm, timed, c.screened)), timed
+            deviations = check_tolerances(self.robot, self.task, c.pm, timed, c.screened)
+            if collision.active and c.refusal is not None:  # refused, timed for the full error
+                check_move(collision, timed.q, self.index, c.pm.kind, self.place.offset, period_s,
+                           lambda k: c.pm.describe(float(timed.u[k])))
+            return replace(c.pm, deviations=deviations), timed
         except (PlanningError, BudgetError) as exc:
             return c.pm, exc
 

@@ -76,6 +76,16 @@ class _Failure(NamedTuple):
     error: PlanningError | BudgetError
 
 
+class Refused(Exception):  # noqa: N818 - a candidate's outcome, not an error of the program
+    """Raised by a :data:`Finish` before timing: the candidate cannot be kept whatever its timing (its
+    joint path collides). It is tried again, timed, only if no other candidate plans the move, so that
+    the error then is the full one (time and sample)."""
+
+    def __init__(self, error: PlanningError) -> None:
+        super().__init__(str(error))
+        self.error = error
+
+
 Prepare = Callable[[CrossingMethod, int], Candidate]  # plan one method's joint map and bound its duration
 # time and check a candidate; it may stop (timing.Outrun) once it cannot beat the best so far
 Finish = Callable[[Candidate, Rank | None], tuple[PlannedMove, TimedMove]]
@@ -130,8 +140,11 @@ def _timed_best_first(candidates: list[Candidate], finish: Finish
     results: list[_Result] = []
     skipped: list[Candidate] = []
     failures: list[_Failure] = []
+    deferred: list[Candidate] = []  # refused before timing (Refused): timed only if nothing else plans
     best: Rank | None = None
-    for c in sorted(candidates, key=lambda c: (c.refusal is not None, c.bound_s, c.order)):
+    order = sorted(candidates, key=lambda c: (c.refusal is not None, c.bound_s, c.order))
+    while order:
+        c = order.pop(0)
         if best is not None and (c.refusal is not None or Rank(c.bound_s, c.order) > best):
             skipped.append(c)
             continue
@@ -140,11 +153,17 @@ def _timed_best_first(candidates: list[Candidate], finish: Finish
         except Outrun as stop:  # a timing pass tightened its limits past what could win
             skipped.append(replace(c, bound_s=stop.at_least_s, outrun=True))
             continue
+        except Refused as refused:
+            deferred.append(replace(c, refusal=refused.error))
+            if not order and best is None:  # nothing else planned: time them for their full errors
+                order, deferred = deferred, []
+            continue
         except (PlanningError, BudgetError) as exc:
             failures.append(_Failure(c.order, c.method.name, c.method.variant, exc))
             continue
         results.append(_Result(replace(pm, method=c.method.name, variant=c.method.variant), tm, c.order))
         best = min(best or Rank(tm.duration_s, c.order), Rank(tm.duration_s, c.order))
+    skipped += deferred
     return results, sorted(skipped, key=lambda c: (c.bound_s, c.order)), failures
 
 

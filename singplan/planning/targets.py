@@ -10,6 +10,7 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.errors import UnreachableError
+from singplan.kinematics.collision import CollisionModel, collision_model
 from singplan.kinematics.configuration import classify
 from singplan.kinematics.dynamics import TorqueLimit, effort_limits_nm, require_dynamics
 from singplan.kinematics.geometry import rpy_deg_to_rotation
@@ -45,6 +46,7 @@ class TaskArm:
         robot: the chain planned: ``full``, or the 6R chain with the held joint locked.
         task: the task as that chain sees it (the held joint's values dropped).
         q_start: the start joints of ``robot`` [rad].
+        collision: ``robot``'s bodies in the task's cell and the pairs checked (none checked: nothing to check).
     """
 
     full: Robot
@@ -52,6 +54,7 @@ class TaskArm:
     robot: Robot
     task: Task
     q_start: np.ndarray  # (n,)
+    collision: CollisionModel
 
 
 def task_arm(task: Task) -> TaskArm:
@@ -59,7 +62,9 @@ def task_arm(task: Task) -> TaskArm:
     full = load_task_robot(task)
     held = hold_for_task(task, full)  # with `redundancy`, the 6R chain is planned like any 6-joint arm
     robot, arm_task = (held.reduced, held.reduce_task(task)) if held is not None else (full, task)
-    return TaskArm(full, held, robot, arm_task, start_joints(arm_task, robot))
+    q_start = start_joints(arm_task, robot)
+    collision = collision_model(robot, task.tool_geometry, task.cell, task.collision, q_start)
+    return TaskArm(full, held, robot, arm_task, q_start, collision)
 
 
 def start_joints(task: Task, robot: Robot) -> np.ndarray:
@@ -83,8 +88,15 @@ def start_joints(task: Task, robot: Robot) -> np.ndarray:
 def ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.ndarray:
     """A PTP's target joints [rad]: as given, or the IK solution of its pose in the requested
     configuration nearest the start."""
+    return ptp_targets(robot, i, move, q_start)[0]
+
+
+def ptp_targets(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> list[np.ndarray]:
+    """A PTP's possible target joints [rad], the preferred first: as given (one), or every IK solution
+    of its pose in the requested configuration, nearest the start first (the largest joint change
+    least); ``config: auto`` takes another only where the nearest's motion collides."""
     if move.to_joints_deg is not None:
-        return np.radians(np.asarray(move.to_joints_deg, dtype=float))
+        return [np.radians(np.asarray(move.to_joints_deg, dtype=float))]
     target = move_target(move, robot.fk(q_start))
     sols = solve_all(robot, target, seed=q_start)
     keep = [k for k, label in enumerate(sols.labels) if move.config in ("auto", "keep", label)]
@@ -94,8 +106,8 @@ def ptp_target(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> np.ndar
         raise UnreachableError(f"move {i} (ptp): no IK solution for xyz {target.translation.tolist()} inside the joint "
                                f"limits in the requested configuration ({move.config}); available: "
                                f"{sorted(set(sols.labels)) or 'none'}", move=i)
-    best = min(keep, key=lambda k: float(np.max(np.abs(sols.q[k] - q_start))))
-    return np.array(sols.q[best])
+    keep.sort(key=lambda k: float(np.max(np.abs(sols.q[k] - q_start))))  # stable: ties keep the solver's order
+    return [np.array(sols.q[k]) for k in keep]
 
 
 def move_limits(robot: Robot, task: Task, move: Move, length_m: float) -> MoveLimits:

@@ -18,6 +18,8 @@ from typing import Any, Literal
 
 import numpy as np
 
+from singplan.kinematics.clearance import Approach, Clearance
+from singplan.kinematics.collision import CollisionModel
 from singplan.kinematics.configuration import distances_batch, labels_from_distances, positive_sides
 from singplan.kinematics.dynamics import central_differences, effort_limits_nm, no_dynamics_reason, trajectory_torques
 from singplan.kinematics.robot import Robot
@@ -33,6 +35,7 @@ from singplan.planning.zones import Zone
 from singplan.results.metrics import (
     BlendFigures,
     BlendReport,
+    ClearanceFigures,
     CrossingFigures,
     CrossingReport,
     JerkFigures,
@@ -68,12 +71,14 @@ def sample_time(k: int, period_s: float) -> float:
 
 def build_trajectory(robot: Robot, task: Task, method: str, planned: list[PlannedMove], timed: list[TimedMove],
                      planning_time_s: float, held: HeldJoint | None = None,
-                     blends: tuple[Blend, ...] = ()) -> Trajectory:
+                     blends: tuple[Blend, ...] = (), collision: tuple[CollisionModel, Clearance] | None = None
+                     ) -> Trajectory:
     """The trajectory of the planned moves of ``robot`` (``method``: the crossing method asked for).
 
     With ``held`` (``robot`` is then its 6R chain) the held joint comes back as a constant column,
     so samples, limits and torques are the 7-joint arm's. ``blends``: the corners that asked for
     a fly-by; a flown one is its incoming move's ``blend`` segment, and every one is reported.
+    ``collision``: the bodies checked and the check of these samples (one span per move).
     """
     period = task.period_s
     q_planned = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
@@ -109,27 +114,46 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     stop_mm, stop_at_s = worst_stopping(stopping_m, t)
     metrics = Metrics(worst_pos * 1e3, math.degrees(worst_ori), speed, accel, float(t[-1]), planning_time_s, len(t),
                       method, tuple(crossings), _torque_metrics(arm, task, q, t), stop_mm, stop_at_s,
-                      _jerk_metrics(arm, task, q, timed), _blend_reports(blends))
+                      _jerk_metrics(arm, task, q, timed), _blend_reports(blends),
+                      _clearance_figures(*collision, period) if collision is not None else None)
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
     samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all),
                "stopping_distance_m": stopping_m}
     if not np.isnan(distances).all():  # an arm without labels (7 joints) has no singular distances to store
         samples["distances"] = distances
+    least = collision[1].least if collision is not None and collision[0].active else None
     return Trajectory(arm.name, str(arm.urdf_path), arm.tip, tool, task.to_mapping(), arm.joint_names,
                       period, t, q, qd, qdd, tuple(segments), tuple(events), metrics, samples,
-                      _move_records(arm, task, segments, q, period))
+                      _move_records(arm, task, segments, q, period, least))
 
 
-def _move_records(robot: Robot, task: Task, segments: list[Segment], q: np.ndarray,
-                  period: float) -> tuple[MoveRecord, ...]:
-    """Per task move: span, end configuration and vendor configuration data at its last sample."""
+def _move_records(robot: Robot, task: Task, segments: list[Segment], q: np.ndarray, period: float,
+                  least: tuple[Approach | None, ...] | None) -> tuple[MoveRecord, ...]:
+    """Per task move: span, end configuration and vendor configuration data at its last sample, and
+    its closest approach (``least``, one per move, when collision checking is on)."""
     spans: dict[int, list[Segment]] = {}
     for s in segments:
         spans.setdefault(s.move, []).append(s)
     ends = [min(len(q) - 1, round(segs[-1].t1 / period)) for segs in spans.values()]
     vendor = vendor_configs(robot, q[ends])
-    return tuple(MoveRecord(i, task.moves[i].kind, segs[0].t0, segs[-1].t1, segs[-1].config_after, v)
-                 for (i, segs), v in zip(spans.items(), vendor, strict=True))
+    records = []
+    for (i, segs), v in zip(spans.items(), vendor, strict=True):
+        closest = least[i] if least is not None else None
+        records.append(MoveRecord(i, task.moves[i].kind, segs[0].t0, segs[-1].t1, segs[-1].config_after, v,
+                                  None if closest is None else closest.distance_m * 1e3,
+                                  None if closest is None else list(closest.bodies)))
+    return tuple(records)
+
+
+def _clearance_figures(model: CollisionModel, found: Clearance, period: float) -> ClearanceFigures:
+    """The trajectory's collision figures: its closest approach and what was checked."""
+    closest = found.closest
+    return ClearanceFigures(
+        model.clearance_m * 1e3, None if closest is None else closest.distance_m * 1e3,
+        None if closest is None else closest.bodies, None if closest is None else closest.sample * period,
+        None if closest is None else (closest.point_a, closest.point_b), tuple(b.name for b in model.bodies),
+        len(model.pairs), dict(model.skipped), model.self_collision, None if model.srdf is None else str(model.srdf),
+        model.notes, found.distance_calls)
 
 
 _CHUNK = 65_536  # samples whose ratios are formed at once

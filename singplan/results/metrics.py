@@ -181,6 +181,67 @@ class JerkFigures(JsonRecord):
 
 
 @dataclass(frozen=True, eq=False)
+class ClearanceFigures(JsonRecord):
+    """The collision check of a trajectory (DESIGN.md, "Collision").
+
+    Attributes:
+        clearance_mm: the clearance every checked pair keeps [mm].
+        min_clearance_mm: the closest approach at the output samples [mm] (at most 0.4 mm above the
+            true least); None when no pair is checked.
+        min_clearance_pair: the two bodies there.
+        min_clearance_t: when [s].
+        min_clearance_points: the two closest points there, in the base frame [m].
+        bodies: every body (links with collision geometry, ``tool``, the cell's shapes).
+        pairs: how many pairs are checked.
+        skipped: how many pairs each rule leaves out (same_group, adjacent, srdf, allow).
+        self_collision: robot bodies are checked against each other.
+        srdf: the SRDF whose pairs are skipped, or None.
+        notes: what is not checked and why.
+        distance_calls: coal distance queries the last check made.
+    """
+
+    clearance_mm: float
+    min_clearance_mm: float | None
+    min_clearance_pair: tuple[str, str] | None
+    min_clearance_t: float | None
+    min_clearance_points: tuple[tuple[float, float, float], tuple[float, float, float]] | None
+    bodies: tuple[str, ...]
+    pairs: int
+    skipped: Mapping[str, int]
+    self_collision: bool
+    srdf: str | None
+    notes: tuple[str, ...] = ()
+    distance_calls: int = 0
+
+    def to_json(self) -> dict[str, Any]:
+        return {"clearance_mm": self.clearance_mm, "min_clearance_mm": self.min_clearance_mm,
+                "min_clearance_pair": None if self.min_clearance_pair is None else list(self.min_clearance_pair),
+                "min_clearance_t": self.min_clearance_t,
+                "min_clearance_points": (None if self.min_clearance_points is None
+                                         else [list(p) for p in self.min_clearance_points]),
+                "bodies": list(self.bodies), "pairs": self.pairs, "skipped": dict(self.skipped),
+                "self": self.self_collision, "srdf": self.srdf, "notes": list(self.notes),
+                "distance_calls": self.distance_calls}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> ClearanceFigures:
+        pair, points = doc.get("min_clearance_pair"), doc.get("min_clearance_points")
+        least = doc.get("min_clearance_mm")
+        return cls(_f(doc["clearance_mm"]), None if least is None else _f(least),
+                   None if pair is None else (str(pair[0]), str(pair[1])),
+                   None if doc.get("min_clearance_t") is None else _f(doc["min_clearance_t"]),
+                   None if points is None else (_point(points[0]), _point(points[1])),
+                   tuple(str(b) for b in doc.get("bodies", ())), int(doc.get("pairs", 0)),
+                   {str(k): int(v) for k, v in doc.get("skipped", {}).items()}, bool(doc.get("self", False)),
+                   doc.get("srdf"), tuple(str(n) for n in doc.get("notes", ())), int(doc.get("distance_calls", 0)))
+
+
+def _point(values: Any) -> tuple[float, float, float]:
+    x, y, z = (float(v) for v in values)
+    return x, y, z
+
+
+@dataclass(frozen=True, eq=False)
 class Metrics(JsonRecord):
     """Every trajectory's figures (deviations, limit ratios, timing, crossings, torques, jerk,
     stopping distance, fly-by corners); as a mapping, trajectory.json's ``metrics``."""
@@ -199,6 +260,7 @@ class Metrics(JsonRecord):
     max_stopping_distance_at_s: float
     jerk: JerkFigures | None = None
     blends: tuple[BlendReport, ...] = ()
+    clearance: ClearanceFigures | None = None  # the collision check (None: the task and robot have nothing to check)
 
     def to_json(self) -> dict[str, Any]:
         torques = {"torques": self.torques} if isinstance(self.torques, str) else self.torques.to_json()
@@ -211,6 +273,9 @@ class Metrics(JsonRecord):
             **(self.jerk.to_json() if self.jerk is not None else {}),
             "max_stopping_distance_mm": self.max_stopping_distance_mm,
             "max_stopping_distance_at_s": self.max_stopping_distance_at_s}
+        if self.clearance is not None:  # the two figures DESIGN names at the top, the rest under "collision"
+            out.update(min_clearance_mm=self.clearance.min_clearance_mm,
+                       min_clearance_pair=self.clearance["min_clearance_pair"], collision=self.clearance.to_json())
         return {**out, "blends": [b.to_json() for b in self.blends]} if self.blends else out
 
     @classmethod
@@ -227,7 +292,8 @@ class Metrics(JsonRecord):
                    _f(doc["planning_time_s"]), int(doc["samples"]), str(doc["method"]),
                    tuple(CrossingReport.from_json(c) for c in doc.get("crossings", ())), torques,
                    _f(doc.get("max_stopping_distance_mm", 0.0)), _f(doc.get("max_stopping_distance_at_s", 0.0)),
-                   jerk, tuple(BlendReport.from_json(b) for b in doc.get("blends", ())))
+                   jerk, tuple(BlendReport.from_json(b) for b in doc.get("blends", ())),
+                   ClearanceFigures.from_json(doc["collision"]) if doc.get("collision") is not None else None)
 
     @classmethod
     def of_samples(cls, duration_s: float, samples: int) -> Metrics:

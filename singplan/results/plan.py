@@ -7,13 +7,17 @@ no plan is returned whose output breaks a limit, whatever the cause.
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
 import numpy as np
 
 from singplan.errors import JointLimitError, PlanningError
+from singplan.kinematics.clearance import Clearance
+from singplan.kinematics.collision import CollisionModel
 from singplan.kinematics.robot import Robot
+from singplan.planning.collide import check_trajectory
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.planner import PlannedTask, Progress, plan_moves
 from singplan.planning.records import PlannedMove
@@ -38,12 +42,24 @@ def plan(task: Task | str | Path, method: str | CrossingMethod | None = None,
 
 
 def trajectory_of(planned: PlannedTask) -> Trajectory:
-    """The trajectory record of planned moves, checked against the limits sample by sample."""
+    """The trajectory record of planned moves, checked against the limits and for collisions sample by sample."""
     moves, timed = list(planned.moves), list(planned.timed)
     traj = build_trajectory(planned.robot, planned.task, planned.method, moves, timed, planned.planning_s,
-                            planned.held, planned.blends)
+                            planned.held, planned.blends, _clearance(planned))
     _check_metrics(planned.full, planned.task, moves, timed, traj)
     return traj
+
+
+def _clearance(planned: PlannedTask) -> tuple[CollisionModel, Clearance] | None:
+    """The last collision gate over the stitched samples (raises CollisionError), with each move's
+    closest approach; None when the task and robot have nothing to check or note."""
+    model = planned.collision
+    if not model.active and not model.notes and planned.task.collision is None:
+        return None
+    ends = np.cumsum([0] + [len(tm.q) - 1 for tm in planned.timed])
+    q = np.concatenate([planned.timed[0].q] + [tm.q[1:] for tm in planned.timed[1:]])
+    spans = [(int(a), int(b)) for a, b in itertools.pairwise(ends)]
+    return model, check_trajectory(model, q, spans, [pm.kind for pm in planned.moves], planned.task.period_s)
 
 
 _ROUND_OFF = 1e-9  # a metric ratio this far over 1 is round-off, more is a violated limit

@@ -112,9 +112,14 @@ class MoveRecord:
     t1: float
     config_end: str
     vendor_config: dict[str, Any] | None = None
+    min_clearance_mm: float | None = None  # the move's closest approach (collision checking on) [mm]
+    min_clearance_pair: list[str] | None = None  # the two bodies there
 
     def to_json(self) -> dict[str, Any]:
-        return asdict(self)
+        out = asdict(self)
+        if self.min_clearance_pair is None:  # collision checking off: the keys are left out
+            del out["min_clearance_mm"], out["min_clearance_pair"]
+        return out
 
 
 @dataclass(frozen=True)

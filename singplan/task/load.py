@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -18,13 +19,16 @@ from singplan.kinematics.configuration import parse_configuration
 from singplan.kinematics.files import FileRefusedError, read_bounded_text
 from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
 from singplan.kinematics.robot import Robot
+from singplan.kinematics.shapes import MESH_SUFFIXES, SHAPE_KINDS, TOOL_BODY, CollisionSettings, Shape
 from singplan.kinematics.yamldoc import YamlLimits, load_yaml
 from singplan.task.schema import (
     ACCELERATION_RAD_S2,
     ANGLE_DEG,
     BLEND_MM,
+    CLEARANCE_MM,
     COORDINATE_M,
     DEFAULT_BLEND_MM,
+    DEFAULT_CLEARANCE_MM,
     DEFAULT_CONFIG,
     DEFAULT_METHOD,
     DEFAULT_ORIENTATION_TOLERANCE_DEG,
@@ -41,6 +45,7 @@ from singplan.task.schema import (
     DEFAULT_ZONE_WRIST_DEG,
     JERK_RAD_S3,
     JOINT_DEG,
+    MAX_CELL_SHAPES,
     MAX_DEPTH,
     MAX_FILE_BYTES,
     MAX_JOINTS,
@@ -49,11 +54,14 @@ from singplan.task.schema import (
     MAX_NAME_CHARS,
     MAX_PATH_CHARS,
     MAX_SCALAR_CHARS,
+    MAX_TOOL_SHAPES,
     MAX_YAML_NODES,
+    MESH_SCALE,
     ORIENTATION_TOLERANCE_DEG,
     PERIOD_S,
     POSITION_TOLERANCE_MM,
     PTP_TIME_LAWS,
+    SHAPE_SIZE_M,
     SPEED_M_S,
     TOOL_OFFSET_M,
     TORQUE_SCALE,
@@ -129,13 +137,16 @@ def parse_task(doc: Any, base_dir: Path | None = None) -> Task:
     if not isinstance(doc, Mapping):
         raise TaskError("", f"the task must be a mapping of keys, got {type(doc).__name__}")
     _check_keys("", doc, required=("robot", "start", "moves"),
-                optional=("tip", "tool", "singularity", "limits", "output", "redundancy"))
+                optional=("tip", "tool", "singularity", "limits", "output", "redundancy", "cell", "collision"))
     robot = _robot_ref(doc["robot"], base_dir)
     tip = _string("tip", doc["tip"]) if doc.get("tip") is not None else None
     tool = _optional_mapping(doc, "tool", "")
-    _check_keys("tool", tool, optional=("xyz", "rpy_deg"))
+    _check_keys("tool", tool, optional=("xyz", "rpy_deg", "geometry"))
     start_joints, start_pose, start_config = _start(doc["start"])
     moves = _moves(doc["moves"])
+    tool_geometry = _shapes("tool.geometry", tool.get("geometry"), MAX_TOOL_SHAPES, base_dir)
+    cell = _cell(doc.get("cell"), base_dir)
+    checking = "cell" in doc or "collision" in doc or "geometry" in tool  # DESIGN "Collision": checking is on
     return Task(
         robot=robot, moves=moves, start_joints_deg=start_joints, start_pose=start_pose, start_config=start_config,
         tip=tip,
@@ -145,7 +156,135 @@ def parse_task(doc: Any, base_dir: Path | None = None) -> Task:
         limits=_limits(_optional_mapping(doc, "limits", "")),
         period_s=_output_period(_optional_mapping(doc, "output", "")),
         redundancy=_redundancy(doc["redundancy"]) if doc.get("redundancy") is not None else None,
+        tool_geometry=tool_geometry, cell=cell,
+        collision=_collision(_optional_mapping(doc, "collision", ""), cell, base_dir) if checking else None,
     )
+
+
+def _shapes(where: str, value: Any, cap: int, base_dir: Path | None) -> tuple[Shape, ...]:
+    """A list of shapes (``cell`` or ``tool.geometry``); absent or null is none."""
+    if value is None:
+        return ()
+    if not isinstance(value, Sequence) or isinstance(value, (str, bytes)):
+        raise TaskError(where, f"expected a list of shapes, got {_describe(value)}")
+    if len(value) > cap:
+        raise TaskError(where, f"{len(value)} shapes is over the cap of {cap}")
+    return tuple(_shape(f"{where}[{i}]", v, base_dir) for i, v in enumerate(value))
+
+
+def _cell(value: Any, base_dir: Path | None) -> tuple[Shape, ...]:
+    """The cell's shapes with their unique names (default ``cell[i]``)."""
+    shapes = _shapes("cell", value, MAX_CELL_SHAPES, base_dir)
+    seen: dict[str, str] = {}
+    named = []
+    for shape in shapes:
+        name = shape.name or shape.field
+        if name == TOOL_BODY:
+            raise TaskError(f"{shape.field}.name", f"{TOOL_BODY!r} names the tool's geometry; give the shape "
+                                                   "another name")
+        if name in seen:
+            raise TaskError(f"{shape.field}.name", f"{name!r} is used twice ({seen[name]} and {shape.field}); "
+                                                   "cell names are unique")
+        seen[name] = shape.field
+        named.append(replace(shape, name=name))
+    return tuple(named)
+
+
+def _shape(where: str, value: Any, base_dir: Path | None) -> Shape:
+    """One shape: exactly one of box, cylinder, sphere, mesh, with its pose (and a name)."""
+    _check_mapping(where, value)
+    _check_keys(where, value, optional=("name", *SHAPE_KINDS, "xyz", "rpy_deg"))
+    kinds = [k for k in SHAPE_KINDS if k in value]
+    if len(kinds) != 1:
+        got = f"got {', '.join(kinds)}" if kinds else "got none"
+        raise TaskError(where, f"needs exactly one shape kind of {', '.join(SHAPE_KINDS)}; {got}")
+    kind = kinds[0]
+    w = f"{where}.{kind}"
+    body = value[kind]
+    _check_mapping(w, body)
+    xyz = check_triple(f"{where}.xyz", value.get("xyz", DEFAULT_TOOL), COORDINATE_M)
+    rpy = check_triple(f"{where}.rpy_deg", value.get("rpy_deg", DEFAULT_TOOL), ANGLE_DEG)
+    name = _string(f"{where}.name", value["name"]) if value.get("name") is not None else ""
+    if kind == "box":
+        _check_keys(w, body, required=("size",))
+        size = check_triple(f"{w}.size", body["size"], SHAPE_SIZE_M)
+        return Shape("box", size, xyz, rpy, name=name, field=where)
+    if kind == "cylinder":
+        _check_keys(w, body, required=("radius", "length"))
+        dims = (_number(f"{w}.radius", body["radius"], SHAPE_SIZE_M), _number(f"{w}.length", body["length"],
+                                                                                SHAPE_SIZE_M))
+        return Shape("cylinder", dims, xyz, rpy, name=name, field=where)
+    if kind == "sphere":
+        _check_keys(w, body, required=("radius",))
+        return Shape("sphere", (_number(f"{w}.radius", body["radius"], SHAPE_SIZE_M),), xyz, rpy, name=name,
+                     field=where)
+    _check_keys(w, body, required=("file",), optional=("scale",))
+    scale = body.get("scale", 1.0)
+    if isinstance(scale, Sequence) and not isinstance(scale, (str, bytes)):
+        scales = check_triple(f"{w}.scale", scale, MESH_SCALE)
+    else:
+        one = _number(f"{w}.scale", scale, MESH_SCALE)
+        scales = (one, one, one)
+    return Shape("mesh", (), xyz, rpy, _mesh_file(f"{w}.file", body["file"], base_dir), scales, name=name,
+                 field=where)
+
+
+def _mesh_file(where: str, value: Any, base_dir: Path | None) -> str:
+    """An existing STL or OBJ file (relative to the task file's folder), as an absolute path."""
+    name = _string(where, value, max_chars=MAX_PATH_CHARS)
+    path = _task_relative(name, base_dir)
+    if Path(name).suffix.lower() not in MESH_SUFFIXES:
+        raise TaskError(where, f"{_path_text(name)} is not an STL or OBJ file (the name must end in "
+                               f"{' or '.join(MESH_SUFFIXES)})")
+    return _existing_file(where, name, path, "mesh file")
+
+
+def _task_relative(name: str, base_dir: Path | None) -> Path:
+    """A path a task names: absolute, or relative to the task file's folder (the working folder
+    for a task given as a mapping)."""
+    path = Path(name).expanduser()
+    return path if path.is_absolute() else (base_dir if base_dir is not None else Path.cwd()) / path
+
+
+def _existing_file(where: str, name: str, path: Path, what: str) -> str:
+    """An existing path that is no folder, as an absolute path (what it is, a FIFO or a device, is for
+    the bounded reader to refuse: kinematics.files)."""
+    try:
+        if path.is_dir():
+            raise TaskError(where, f"{_path_text(name)} is a directory, not a {what}")
+        if not path.exists():
+            raise TaskError(where, f"{what} {_path_text(name)} does not exist{_looked_at(name, path)}")
+        return str(path.resolve())
+    except OSError as exc:  # e.g. a name too long for the file system
+        raise TaskError(where, f"{what} {_path_text(str(path))} cannot be read ({exc.strerror})") from None
+
+
+def _collision(value: Mapping[str, Any], cell: tuple[Shape, ...], base_dir: Path | None) -> CollisionSettings:
+    """The ``collision`` key (absent or null: the defaults); ``allow`` names are checked against the robot later."""
+    _check_keys("collision", value, optional=("clearance_mm", "self", "srdf", "allow"))
+    self_check = value.get("self", True)
+    if not isinstance(self_check, bool):
+        raise TaskError("collision.self", f"expected true or false, got {_describe(self_check)}")
+    srdf = None
+    if value.get("srdf") is not None:
+        name = _string("collision.srdf", value["srdf"], max_chars=MAX_PATH_CHARS)
+        srdf = _existing_file("collision.srdf", name, _task_relative(name, base_dir), "SRDF file")
+    return CollisionSettings(_number("collision.clearance_mm", value.get("clearance_mm", DEFAULT_CLEARANCE_MM),
+                                     CLEARANCE_MM), self_check, srdf, _allow(value.get("allow")))
+
+
+def _allow(value: Any) -> tuple[tuple[str, str], ...]:
+    if value is None:
+        return ()
+    if not isinstance(value, Sequence) or isinstance(value, (str, bytes)):
+        raise TaskError("collision.allow", f"expected a list of [body, body] pairs, got {_describe(value)}")
+    pairs = []
+    for i, pair in enumerate(value):
+        if not isinstance(pair, Sequence) or isinstance(pair, (str, bytes)) or len(pair) != 2:
+            raise TaskError(f"collision.allow[{i}]", f"expected a pair of body names [a, b], got {_describe(pair)}")
+        a, b = (_string(f"collision.allow[{i}][{j}]", x) for j, x in enumerate(pair))
+        pairs.append((a, b))
+    return tuple(pairs)
 
 
 def _robot_ref(value: Any, base_dir: Path | None) -> str:

@@ -29,6 +29,9 @@ output.period                          0.0001 .. 1          s
 weave.amplitude_mm                     0.001 .. 1000        mm
 weave.wavelength_mm                    0.1 .. 100000        mm
 blend_mm                               0 .. 10000           mm (0: the move ends at rest)
+cell / tool.geometry sizes             0 .. 100 (exclusive) m (box size, radius, length)
+mesh scale                             0 .. 1e6 (exclusive)
+collision.clearance_mm                 0 .. 1000            mm
 =====================================  ===================  ==========================
 
 Names (robot, tip) are at most :data:`MAX_NAME_CHARS` characters without control
@@ -47,6 +50,7 @@ import numpy as np
 
 from singplan.errors import TaskError
 from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2  # limits.acceleration, all joints
+from singplan.kinematics.shapes import CollisionSettings, Shape
 from singplan.kinematics.yamldoc import join_field as _join
 from singplan.kinematics.yamldoc import key_text as _key_text
 from singplan.kinematics.yamldoc import shorten as _short
@@ -82,6 +86,9 @@ DEFAULT_BLEND_MM = 0.0  # a move ends at rest on its point
 DEFAULT_REDUNDANT_VALUE_DEG = 0.0
 DEFAULT_TOOL = (0.0, 0.0, 0.0)  # tool.xyz [m] and tool.rpy_deg
 MAX_KEY_CHARS = 256  # keys are field names; a longer one can only be a mistake (or a huge number)
+MAX_CELL_SHAPES = 1000  # cell shapes (each is checked against every robot body)
+MAX_TOOL_SHAPES = 100
+DEFAULT_CLEARANCE_MM = 0.0  # collision.clearance_mm: no contact
 
 
 class Range(NamedTuple):
@@ -111,6 +118,9 @@ PERIOD_S = Range(1e-4, 1.0, "s")
 WEAVE_AMPLITUDE_MM = Range(1e-3, 1000.0, "mm")
 WEAVE_WAVELENGTH_MM = Range(0.1, 1e5, "mm")
 BLEND_MM = Range(0.0, 1e4, "mm")
+SHAPE_SIZE_M = Range(1e-9, 100.0, "m")  # low > 0: "must be positive"
+MESH_SCALE = Range(1e-9, 1e6, "")
+CLEARANCE_MM = Range(0.0, 1000.0, "mm")
 WEAVE_PATTERNS = ("sine", "triangle")
 MAX_COORDINATE_M = COORDINATE_M.high
 MAX_SPEED_M_S = SPEED_M_S.high
@@ -239,6 +249,9 @@ class Task:
     limits: Limits = field(default_factory=Limits)
     period_s: float = DEFAULT_PERIOD_S
     redundancy: Redundancy | None = None
+    tool_geometry: tuple[Shape, ...] = ()  # the tool's shapes, in the tip frame (the body `tool`)
+    cell: tuple[Shape, ...] = ()  # fixed obstacles in the base frame
+    collision: CollisionSettings | None = None  # None: the task has no cell, tool geometry or collision key
 
     def joint_speed_scale(self, move: Move | None = None) -> float:
         """The fraction of the URDF's joint speed limits the trajectory (or ``move``) may use:
@@ -261,9 +274,12 @@ class Task:
         if self.start_config:
             start["config"] = self.start_config
         acc = self.limits.acceleration_rad_s2
+        tool: dict[str, Any] = {"xyz": list(self.tool_xyz), "rpy_deg": list(self.tool_rpy_deg)}
+        if self.tool_geometry:
+            tool["geometry"] = [s.to_mapping(named=False) for s in self.tool_geometry]
         out: dict[str, Any] = {
             "robot": self.robot,
-            "tool": {"xyz": list(self.tool_xyz), "rpy_deg": list(self.tool_rpy_deg)},
+            "tool": tool,
             "start": start,
             "moves": [_move_mapping(m) for m in self.moves],
             "singularity": {**asdict(self.singularity), "zone": asdict(self.singularity.zone)},
@@ -280,6 +296,10 @@ class Task:
             out["tip"] = self.tip
         if self.redundancy is not None:
             out["redundancy"] = asdict(self.redundancy)
+        if self.cell:
+            out["cell"] = [s.to_mapping() for s in self.cell]
+        if self.collision is not None:
+            out["collision"] = self.collision.to_mapping()
         return out
 
 

@@ -11,6 +11,7 @@ import io
 import json
 import math
 import re
+import shutil
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
@@ -49,7 +50,8 @@ def _continuous_abb(tmp_path: Path) -> Path:
 
 def _continuous_ur5(tmp_path: Path) -> Path:
     """example-robot-data's UR5 with continuous wrists, as older ur_description files declare them;
-    its ``package://example-robot-data/...`` meshes found beside it (a link to that package)."""
+    its ``package://example-robot-data/...`` meshes found beside it (a link to that package), and its
+    SRDF beside it under the URDF's stem (the pairs MoveIt never checks: its links overlap by design)."""
     original = Path(erd_urdf("ur5"))
     package = tmp_path / "example-robot-data"
     if not package.exists():
@@ -60,6 +62,7 @@ def _continuous_ur5(tmp_path: Path) -> Path:
             joint.set("type", "continuous")
     path = tmp_path / "ur5_continuous_wrists.urdf"
     tree.write(path)
+    shutil.copyfile(original.resolve().parents[1] / "srdf" / "ur5.srdf", path.with_suffix(".srdf"))
     return path
 
 

@@ -258,7 +258,8 @@ def _event(f: FieldChecks, field: str, value: Any, n_moves: int, duration: float
     return event
 
 
-_MOVE_KEYS = ("move", "kind", "t0", "t1", "config_end", "vendor_config")
+_MOVE_KEYS = ("move", "kind", "t0", "t1", "config_end", "vendor_config", "min_clearance_mm", "min_clearance_pair")
+_CLEARANCE_MM = 1e7  # any distance between two bodies of a cell [mm] (negative: a depth)
 
 
 def _move(f: FieldChecks, field: str, value: Any, n_moves: int, duration: float) -> dict[str, Any]:
@@ -273,6 +274,13 @@ def _move(f: FieldChecks, field: str, value: Any, n_moves: int, duration: float)
     vendor = move.get("vendor_config")
     if vendor is not None and (not isinstance(vendor, dict) or len(vendor) != 1):
         f.fail(f"{field}.vendor_config", f"expected null or one vendor's configuration, got {_shown(vendor)}")
+    if "min_clearance_pair" in move or "min_clearance_mm" in move:  # collision checking was on
+        f.number(f"{field}.min_clearance_mm", move.get("min_clearance_mm"), -_CLEARANCE_MM, _CLEARANCE_MM, "mm")
+        pair = f.items(f"{field}.min_clearance_pair", move.get("min_clearance_pair"), 2)
+        if len(pair) != 2:
+            f.fail(f"{field}.min_clearance_pair", f"expected the two bodies' names, got {_shown(pair)}")
+        for i, name in enumerate(pair):
+            f.text(f"{field}.min_clearance_pair[{i}]", name)
     return move
 
 

@@ -347,12 +347,26 @@ def labels_batch(robot: Robot, q: np.ndarray) -> list[str]:
 
 def labels_from_distances(d: np.ndarray) -> list[str]:
     """Configuration labels of distance rows (N, 3): the sign of each distance; NO_LABEL for an all-NaN row."""
-    shoulder = np.where(d[:, 1] >= 0, "F", "B")
-    elbow = np.where(d[:, 2] >= 0, "U", "D")
-    wrist = np.where(d[:, 0] >= 0, "N", "F")
-    none = np.isnan(d).all(axis=1).tolist()
-    return [NO_LABEL if n else f"{s} {e} {w}"
-            for s, e, w, n in zip(shoulder.tolist(), elbow.tolist(), wrist.tolist(), none, strict=True)]
+    labels: list[str] = _LABELS[_label_codes(np.ascontiguousarray(d, dtype=float))].tolist()
+    return labels
+
+
+# the label of each code of _label_codes (front 4, up 2, no flip 1; 8 none), as objects: one take a call
+_LABELS = np.array([*(f"{s} {e} {w}" for s in SHOULDER_LABELS[::-1] for e in ELBOW_LABELS[::-1]
+                      for w in WRIST_LABELS[::-1]), NO_LABEL], dtype=object)
+
+
+@jit
+def _label_codes(d: np.ndarray) -> np.ndarray:
+    """Each distance row's (N, 3) index in _LABELS: the signs of its distances (NaN counts as negative)."""
+    codes = np.empty(d.shape[0], dtype=np.int64)
+    for i in range(d.shape[0]):
+        wrist, shoulder, elbow = d[i, 0], d[i, 1], d[i, 2]
+        if math.isnan(wrist) and math.isnan(shoulder) and math.isnan(elbow):
+            codes[i] = 8
+        else:
+            codes[i] = 4 * (shoulder >= 0) + 2 * (elbow >= 0) + (wrist >= 0)
+    return codes
 
 
 @jit

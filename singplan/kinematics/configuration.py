@@ -338,11 +338,20 @@ def labels_batch(robot: Robot, q: np.ndarray) -> list[str]:
     labels = labels_from_distances(d)
     if _unlabelled(robot) or reduced.is_reduced(robot) or (robot.opw is None and robot.ur is None):
         return labels  # distances_batch is classify's own computation, row by row
-    angles = np.abs(d[:, [0, 2]])
-    near = (np.abs(d) < _LABEL_BOUNDARY).any(axis=1) | (angles > math.pi - _LABEL_BOUNDARY).any(axis=1)
-    for k in np.flatnonzero(near):
+    for k in _near_sign_change(d, _LABEL_BOUNDARY):
         labels[k] = classify(robot, q[k]).label
     return labels
+
+
+@jit
+def _near_sign_change(d: np.ndarray, margin: float) -> np.ndarray:
+    """The rows of distances d (N, 3) with one within ``margin`` of 0, or an angle (wrist, elbow)
+    within it of +-pi: where a closed form's sign may disagree with classify's."""
+    near = np.zeros(d.shape[0], dtype=np.bool_)
+    for i in range(d.shape[0]):
+        for j in range(3):
+            near[i] |= abs(d[i, j]) < margin or (j != 1 and abs(d[i, j]) > math.pi - margin)
+    return np.flatnonzero(near)
 
 
 def labels_from_distances(d: np.ndarray) -> list[str]:

@@ -34,13 +34,30 @@ def inside_limits(rows: np.ndarray, branches: np.ndarray, lower: np.ndarray, upp
     """
     rows = np.ascontiguousarray(rows, dtype=float).reshape(len(branches), len(lower))
     lo, hi = np.ascontiguousarray(lower, dtype=float), np.ascontiguousarray(upper, dtype=float)
-    if seed is None:
-        q, origin = _all_variants(rows, lo, hi)
+    nearest = np.ascontiguousarray(seed if seed is not None else lo, dtype=float)
+    q, origin = _inside(rows, lo, hi, nearest, seed is not None)
+    return q, np.asarray(branches)[origin]
+
+
+@jit
+def _inside(rows: np.ndarray, lower: np.ndarray, upper: np.ndarray, seed: np.ndarray,
+            seeded: bool) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """:func:`inside_limits` in one call (each compiled call's arrays cost microseconds to hand back)."""
+    if seeded:
+        q, origin, count = _nearest_variants(rows, lower, upper, seed)
     else:
-        q, origin, count = _nearest_variants(rows, lo, hi, np.ascontiguousarray(seed, dtype=float))
-        q, origin = q[:count], origin[:count]
-    keep = _distinct(q)
-    return q[keep], np.asarray(branches)[origin[keep]]
+        q, origin = _all_variants(rows, lower, upper)
+        count = len(q)
+    keep = _distinct(q[:count])
+    return q[keep], origin[keep]
+
+
+@jit
+def _finite(row: np.ndarray) -> bool:  # pragma: no cover - compiled
+    for value in row:  # noqa: SIM110 - numba compiles no generator expressions
+        if not math.isfinite(value):
+            return False
+    return True
 
 
 @jit
@@ -56,22 +73,20 @@ def _all_variants(rows: np.ndarray, lower: np.ndarray, upper: np.ndarray
     b, n = rows.shape
     first = np.zeros((b, n), dtype=np.int64)
     count = np.zeros((b, n), dtype=np.int64)
-    total = 0
+    products = np.zeros(b, dtype=np.int64)
     for r in range(b):
-        product = 1 if np.all(np.isfinite(rows[r])) else 0
+        if not _finite(rows[r]):
+            continue
+        products[r] = 1
         for j in range(n):
             k_lo, k_hi = _shift_range(rows[r, j], lower[j], upper[j])
             first[r, j], count[r, j] = k_lo, max(k_hi - k_lo + 1, 0)
-            product *= count[r, j]
-        total += product
-    out = np.empty((total, n))
-    origin = np.empty(total, dtype=np.int64)
+            products[r] *= count[r, j]
+    out = np.empty((np.sum(products), n))
+    origin = np.empty(len(out), dtype=np.int64)
     m = 0
     for r in range(b):
-        product = 1 if np.all(np.isfinite(rows[r])) else 0
-        for j in range(n):
-            product *= count[r, j]
-        for t in range(product):
+        for t in range(products[r]):
             rest = t
             for j in range(n - 1, -1, -1):  # the last joint fastest, as itertools.product
                 out[m, j] = rows[r, j] + TWO_PI * (first[r, j] + rest % count[r, j])
@@ -91,7 +106,7 @@ def _nearest_variants(rows: np.ndarray, lower: np.ndarray, upper: np.ndarray, se
     origin = np.empty(b, dtype=np.int64)
     m = 0
     for r in range(b):
-        found = bool(np.all(np.isfinite(rows[r])))
+        found = _finite(rows[r])
         for j in range(n):
             if not found:
                 break
@@ -109,7 +124,7 @@ def _nearest_variants(rows: np.ndarray, lower: np.ndarray, upper: np.ndarray, se
         if found:
             origin[m] = r
             m += 1
-    return out, origin, m  # sliced by the caller: a slice would be boxed at ~10 us
+    return out, origin, m
 
 
 @jit
@@ -127,8 +142,11 @@ def _distinct(rows: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
     window = 1e-9
     for j in range(n):
         weight = 1.0 / (1.0 + 0.618034 * j)
-        key += weight * rows[:, j]
-        window += 2.0 * weight * (_SAME_ABS + _SAME_REL * np.max(np.abs(rows[:, j])))
+        largest = 0.0
+        for i in range(m):
+            key[i] += weight * rows[i, j]
+            largest = max(largest, abs(rows[i, j]))
+        window += 2.0 * weight * (_SAME_ABS + _SAME_REL * largest)
     order = np.argsort(key)
     place = np.empty(m, dtype=np.int64)
     for p in range(m):

@@ -221,12 +221,9 @@ def main(argv: list[str] | None = None) -> int:
     trees["this"] = ROOT
     rows = measure(trees, args.moves, args.methods, args.rounds)
     text = report(rows, list(trees), f"`{args.baseline}`" if args.baseline else None, args.rounds)
-    print(text)
-    if args.write:
-        sys.path.insert(0, str(HERE))
-        from bench_ik import write_section
+    from bench_ik import emit  # here, not above: it loads py-opw-kinematics
 
-        write_section(args.write, text, MARK)
+    emit(text, args.write, MARK)
     return 0
 
 

@@ -26,7 +26,6 @@ import argparse
 import importlib.util
 import os
 import platform
-import sys
 import time
 from collections.abc import Callable
 from importlib.metadata import version
@@ -54,8 +53,7 @@ Case = tuple[timing.TimingPath, timing.MoveLimits, timing.Scale]
 
 def capture(moves: int) -> list[Case]:
     """Every TOPP-RA pass (path, limits, scale) of the three plans."""
-    sys.path.insert(0, str(HERE))
-    from bench_program import program
+    from bench_program import program  # its neighbour's program (bench/ is on the path of a script run)
 
     cases: list[Case] = []
     solve = timing._toppra_profile
@@ -181,7 +179,6 @@ def torque_only(case: Case) -> bool:
 
 
 def report(cases: list[Case], figures: dict[str, dict[str, float]]) -> str:
-    sys.path.insert(0, str(HERE))
     from bench_ik import machine
 
     grids = [len(c[0].grid) for c in cases]
@@ -224,12 +221,9 @@ def main(argv: list[str] | None = None) -> int:
         engines["copp-py TOPP2-RA, default tolerances"] = copp_pass(None)
         engines["copp-py TOPP2-RA, tolerances 1e-12"] = copp_pass(1e-12)
     text = report(cases, compare(cases, engines, args.repeat))
-    print(text)
-    if args.write:
-        sys.path.insert(0, str(HERE))
-        from bench_ik import write_section
+    from bench_ik import emit  # here, not above: it loads py-opw-kinematics
 
-        write_section(args.write, text, MARK)
+    emit(text, args.write, MARK)
     return 0
 
 

@@ -14,6 +14,13 @@ Times are the best of ``--repeat`` runs, in microseconds per pose.
 The numeric all-branch solver (singplan.kinematics.ik.numeric) on arms without and with a closed form:
 milliseconds per call and the branches it finds against a reference (the closed form inside
 the limits, or for the offset-wrist arm the brute force of tests/test_ik_numeric.py).
+
+    python bench/bench_ik.py --solve-all [--baseline DIR] [--poses 1000] [--write docs/benchmarks.md]
+
+``solve_all`` per pose (every branch and whole-turn variant inside the limits, labelled) on OPW
+and UR arms, without and with a seed, each tree in a fresh process (``--baseline``: a tree of
+an earlier singplan, measured alternately with this one in the same run), beside
+py-opw-kinematics ``inverse`` (eight branches, no limits, no labels).
 """
 
 from __future__ import annotations
@@ -112,8 +119,8 @@ def table(robot_name: str, rows: list[dict[str, float]]) -> str:
         lines.append(f"| {r['n']:,} | {r['singplan_opw_batch']:.2f} | {r['singplan_solve_all']:.1f} "
                      f"| {r['pyopw_inverse']:.2f} | {r['pyopw_batch_inverse']:.2f} |")
     lines.append("")
-    lines.append("`solve_all` is timed on at most 1000 poses; it classifies every solution with Pinocchio "
-                 "FK, which dominates its cost.")
+    lines.append("`solve_all` is timed on at most 1000 poses (it also expands whole turns inside the limits and "
+                 "labels every row: see the next table).")
     return "\n".join(lines)
 
 
@@ -197,6 +204,80 @@ def main_numeric(n_poses: int, write: Path | None) -> int:
     return 0
 
 
+SOLVE_ALL_ARMS = ("kuka_kr6_r900_2", "abb_irb2400", "ur5")
+
+
+def solve_all_figures(poses: int, repeat: int) -> dict[str, dict[str, float]]:
+    """solve_all's microseconds per pose (best of ``repeat`` loops) without and with a seed, and the
+    mean number of rows, per arm; seeded random poses inside the limits (capped at +-2 pi)."""
+    out = {}
+    for name in SOLVE_ALL_ARMS:
+        robot = load_robot(name)
+        rng = np.random.default_rng(24)
+        q = rng.uniform(np.maximum(robot.lower_rad, -2 * np.pi), np.minimum(robot.upper_rad, 2 * np.pi),
+                        size=(poses, robot.n_joints))
+        targets = [robot.fk(qk) for qk in q]
+        seeds = q + rng.normal(0.0, 0.3, q.shape)
+        solve_all(robot, targets[0])  # kernels loaded
+        out[name] = {
+            "free_us": _best_us_per_pose(lambda r=robot, ts=targets: [solve_all(r, T) for T in ts], poses, repeat),
+            "seeded_us": _best_us_per_pose(lambda r=robot, ts=targets, ss=seeds: [
+                solve_all(r, T, seed=s) for T, s in zip(ts, ss, strict=True)], poses, repeat),
+            "rows": float(np.mean([len(solve_all(robot, T)) for T in targets])),
+        }
+    return out
+
+
+def _solve_all_in(tree: Path, poses: int, repeat: int) -> dict[str, dict[str, float]]:
+    """:func:`solve_all_figures` of the singplan in ``tree``, in a fresh process."""
+    import json
+    import os
+    import subprocess
+
+    argv = [sys.executable, __file__, "--solve-all-child", "--poses", str(poses), "--repeat", str(repeat)]
+    done = subprocess.run(argv, env={**os.environ, "PYTHONPATH": str(tree)}, capture_output=True, text=True,
+                          check=True)
+    figures: dict[str, dict[str, float]] = json.loads(done.stdout.strip().splitlines()[-1])
+    return figures
+
+
+def solve_all_table(trees: dict[str, Path], poses: int, repeat: int, baseline: Path | None) -> str:
+    results: dict[str, list[dict[str, dict[str, float]]]] = {label: [] for label in trees}
+    for _ in range(2):  # two rounds, alternating the trees; the best of each
+        for label, tree in trees.items():
+            results[label].append(_solve_all_in(tree, poses, repeat))
+    best = {label: {arm: {k: min(r[arm][k] for r in runs) for k in runs[0][arm]} for arm in SOLVE_ALL_ARMS}
+            for label, runs in results.items()}
+    labels = list(trees)
+    lines = [
+        "### `solve_all` per pose (all branches and whole turns inside the limits, labelled)",
+        "",
+        f"Machine: {machine()}; Python {platform.python_version()}, numpy {version('numpy')}, "
+        f"numba {version('numba')}, pin {version('pin')}, py-opw-kinematics {version('py-opw-kinematics')}. "
+        f"{poses} seeded random poses an arm; microseconds per pose, the best of {repeat} loops in each of two "
+        "fresh processes per tree" + (f", `before` = {baseline}, measured alternately in the same run" if baseline
+                                      else "") + "; a shared, loaded machine: compare the ratios.",
+        "",
+        "| arm | rows a pose | " + " | ".join(f"{lb} (no seed)" for lb in labels) + " | "
+        + " | ".join(f"{lb} (seeded)" for lb in labels) + " | py-opw `inverse` (8 branches) |",
+        "|---|---:|" + "---:|" * (2 * len(labels) + 1),
+    ]
+    for arm in SOLVE_ALL_ARMS:
+        robot = load_robot(arm)
+        reference = "-"
+        if robot.opw is not None:
+            oracle = _oracle(robot)
+            poses_T = RigidTransform.from_matrix(np.array([robot.fk(q).homogeneous for q in np.random.default_rng(
+                24).uniform(robot.lower_rad, robot.upper_rad, size=(poses, 6))]))
+            us = _best_us_per_pose(lambda o=oracle, ps=poses_T: [o.inverse(ps[i]) for i in range(poses)], poses, 3)
+            reference = f"{us:.1f}"
+        free = [f"{best[lb][arm]['free_us']:.1f}" for lb in labels]
+        seeded = [f"{best[lb][arm]['seeded_us']:.1f}" for lb in labels]
+        lines.append(f"| {arm} | {best[labels[-1]][arm]['rows']:.0f} | " + " | ".join(free) + " | "
+                     + " | ".join(seeded) + f" | {reference} |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", default="kuka_kr6_r900_2")
@@ -204,10 +285,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sizes", type=int, nargs="+", default=[1, 100, 10_000])
     parser.add_argument("--write", type=Path, default=None, help="update this markdown file")
     parser.add_argument("--numeric", action="store_true", help="the numeric all-branch solver instead")
-    parser.add_argument("--poses", type=int, default=30, help="random poses per arm (--numeric)")
+    parser.add_argument("--poses", type=int, default=None,
+                        help="random poses per arm (--numeric: 30, --solve-all: 1000)")
+    parser.add_argument("--solve-all", action="store_true", help="solve_all per pose, beside --baseline")
+    parser.add_argument("--baseline", type=Path, default=None, help="a tree of an earlier singplan (--solve-all)")
+    parser.add_argument("--solve-all-child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.numeric:
-        return main_numeric(args.poses, args.write)
+        return main_numeric(args.poses or 30, args.write)
+    if args.solve_all_child:
+        import json
+
+        sys.stdout.write(json.dumps(solve_all_figures(args.poses or 1000, args.repeat)) + "\n")
+        return 0
+    if args.solve_all:
+        trees = {"before": args.baseline.resolve()} if args.baseline else {}
+        trees["this"] = Path(__file__).resolve().parents[1]
+        text = solve_all_table(trees, args.poses or 1000, args.repeat, args.baseline)
+        sys.stdout.write(text + "\n")
+        if args.write:
+            write_section(args.write, text, mark="bench_ik_solve_all")
+        return 0
     text = table(args.robot, measure(args.robot, args.sizes, args.repeat))
     sys.stdout.write(text + "\n")
     if args.write:

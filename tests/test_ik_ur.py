@@ -11,7 +11,8 @@ import pytest
 from scipy.optimize import brentq
 
 from singplan.kinematics.configuration import classify
-from singplan.kinematics.ik.solve import _distinct, solve_all
+from singplan.kinematics.ik.solve import solve_all
+from singplan.kinematics.ik.turns import _distinct
 from singplan.kinematics.ik.ur import UrParameters, ur_arm_for_point, ur_solutions
 from singplan.kinematics.robot import load_robot
 
@@ -145,7 +146,7 @@ def test_opw_closed_form_solves_the_stretched_elbow_and_the_wrist_singularity(na
 
 
 def test_distinct_keeps_the_rows_pairwise_allclose_would_keep() -> None:
-    """The vectorised de-duplication of solve_all against the pairwise np.allclose(atol=1e-9) it replaced."""
+    """The compiled de-duplication of solve_all against the pairwise np.allclose(atol=1e-9) it replaced."""
     rng = np.random.default_rng(5)
     base = rng.uniform(-6.0, 6.0, (40, 6))
     rows = [*base, *(base[rng.integers(0, 40, 60)] + rng.choice([0.0, 1e-10, 1e-6, 1e-3], (60, 6)))]
@@ -153,4 +154,4 @@ def test_distinct_keeps_the_rows_pairwise_allclose_would_keep() -> None:
     for k, row in enumerate(rows):
         if not any(np.allclose(row, rows[j], atol=1e-9) for j in expected):
             expected.append(k)
-    assert _distinct(rows) == expected and len(expected) < len(rows)
+    assert _distinct(np.array(rows)).tolist() == expected and len(expected) < len(rows)

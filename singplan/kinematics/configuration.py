@@ -360,23 +360,47 @@ def labels_batch(robot: Robot, q: np.ndarray) -> list[str]:
     labels = labels_from_distances(d)
     if _unlabelled(robot) or reduced.is_reduced(robot) or (robot.opw is None and robot.ur is None):
         return labels  # distances_batch is classify's own computation, row by row
-    angles = np.abs(d[:, [0, 2]])
-    near = (np.abs(d) < _LABEL_BOUNDARY).any(axis=1) | (angles > math.pi - _LABEL_BOUNDARY).any(axis=1)
-    for k in np.flatnonzero(near):
+    for k in _near_sign_change(d, _LABEL_BOUNDARY):
         labels[k] = classify(robot, q[k]).label
     return labels
 
 
+@jit
+def _near_sign_change(d: np.ndarray, margin: float) -> np.ndarray:
+    """The rows of distances d (N, 3) with one within ``margin`` of 0, or an angle (wrist, elbow)
+    within it of +-pi: where a closed form's sign may disagree with classify's."""
+    near = np.zeros(d.shape[0], dtype=np.bool_)
+    for i in range(d.shape[0]):
+        for j in range(3):
+            near[i] |= abs(d[i, j]) < margin or (j != 1 and abs(d[i, j]) > math.pi - margin)
+    return np.flatnonzero(near)
+
+
 def labels_from_distances(d: np.ndarray) -> list[str]:
-    """Configuration labels of distance rows (N, 3): each distance's side (:func:`positive_sides`);
-    NO_LABEL for an all-NaN row."""
-    positive = positive_sides(d)
-    shoulder = np.where(positive[:, 1], "F", "B")
-    elbow = np.where(positive[:, 2], "U", "D")
-    wrist = np.where(positive[:, 0], "N", "F")
-    none = np.isnan(d).all(axis=1).tolist()
-    return [NO_LABEL if n else f"{s} {e} {w}"
-            for s, e, w, n in zip(shoulder.tolist(), elbow.tolist(), wrist.tolist(), none, strict=True)]
+    """Configuration labels of distance rows (N, 3): each distance's side (the rule of
+    :func:`positive_sides`, compiled); NO_LABEL for an all-NaN row."""
+    labels: list[str] = _LABELS[_label_codes(np.ascontiguousarray(d, dtype=float), LABEL_ZERO)].tolist()
+    return labels
+
+
+# the label of each code of _label_codes (front 4, up 2, no flip 1; 8 none), as objects: one take a call
+_LABELS = np.array([*(f"{s} {e} {w}" for s in SHOULDER_LABELS[::-1] for e in ELBOW_LABELS[::-1]
+                      for w in WRIST_LABELS[::-1]), NO_LABEL], dtype=object)
+
+
+@jit
+def _label_codes(d: np.ndarray, zero: float) -> np.ndarray:
+    """Each distance row's (N, 3) index in _LABELS: which side of ``zero`` each distance is on, as
+    :func:`positive_sides` says (an angle within ``zero`` of -pi is +pi's; NaN counts as negative)."""
+    codes = np.empty(d.shape[0], dtype=np.int64)
+    for i in range(d.shape[0]):
+        wrist, shoulder, elbow = d[i, 0], d[i, 1], d[i, 2]
+        if math.isnan(wrist) and math.isnan(shoulder) and math.isnan(elbow):
+            codes[i] = 8
+        else:
+            codes[i] = (4 * (shoulder >= -zero) + 2 * (elbow >= -zero or elbow <= -math.pi + zero)
+                        + (wrist >= -zero or wrist <= -math.pi + zero))
+    return codes
 
 
 @jit

@@ -104,7 +104,12 @@ class Recognition:
 
     def to_closed_form(self, T_base_tip: np.ndarray) -> np.ndarray:
         """Tip poses (N, 4, 4) in the base frame as the closed form's flange poses in its own base frame."""
-        return _to_closed_form(T_base_tip, self.T_base_closed, self.T_flange_tip)
+        return _to_closed_form(T_base_tip, *self._inverses)
+
+    @cached_property
+    def _inverses(self) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The inverses of T_base_closed and T_flange_tip, None for an identity (IK calls this per pose)."""
+        return _inverse_unless_identity(self.T_base_closed), _inverse_unless_identity(self.T_flange_tip)
 
     def closed_points(self, points_m: np.ndarray) -> np.ndarray:
         """Points (N, 3) [m] of the base frame in the closed form's base frame."""
@@ -461,13 +466,18 @@ def closed_form_batch(params: OpwParameters | UrParameters, T_closed: np.ndarray
     return opw.branches(T, p.a1, p.a2, p.b, p.c1, p.c2, p.c3, p.c4, p.offsets, p.signs, zeros, zeros)
 
 
-def _to_closed_form(T_base_tip: np.ndarray, T_base_closed: np.ndarray, T_flange_tip: np.ndarray) -> np.ndarray:
+def _to_closed_form(T_base_tip: np.ndarray, closed_base_inv: np.ndarray | None,
+                    tip_flange_inv: np.ndarray | None) -> np.ndarray:
     T = np.asarray(T_base_tip, dtype=float).reshape(-1, 4, 4)
-    if not _is_identity(T_base_closed):
-        T = np.linalg.inv(T_base_closed) @ T
-    if not _is_identity(T_flange_tip):
-        T = T @ np.linalg.inv(T_flange_tip)
+    if closed_base_inv is not None:
+        T = closed_base_inv @ T
+    if tip_flange_inv is not None:
+        T = T @ tip_flange_inv
     return np.ascontiguousarray(T)
+
+
+def _inverse_unless_identity(T: np.ndarray) -> np.ndarray | None:
+    return None if _is_identity(T) else np.linalg.inv(T)
 
 
 def _is_identity(T: np.ndarray) -> bool:
@@ -494,7 +504,8 @@ def _verify(model: pin.Model, tip_frame_id: int, params: OpwParameters | UrParam
     for q in samples:
         pin.framesForwardKinematics(model, data, q)
         poses.append(data.oMf[tip_frame_id].homogeneous)
-    branches = closed_form_batch(params, _to_closed_form(np.array(poses), T_base_closed, T_flange_tip))
+    branches = closed_form_batch(params, _to_closed_form(np.array(poses), _inverse_unless_identity(T_base_closed),
+                                                           _inverse_unless_identity(T_flange_tip)))
     worst_m = worst_rad = 0.0
     for q, T, sols in zip(samples, poses, branches, strict=True):
         diff = np.abs(np.angle(np.exp(1j * (sols - q))))  # per joint, modulo whole turns

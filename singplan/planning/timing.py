@@ -34,12 +34,12 @@ from functools import cached_property
 
 import numpy as np
 import toppra as ta
-import toppra.algorithm as ta_algo
 import toppra.constraint as ta_constraint
 from scipy.interpolate import CubicSpline
 
 from singplan.errors import PlanningError
 from singplan.kinematics.dynamics import PathDynamics, TorqueLimit, move_torque_ratio
+from singplan.planning import reachability
 from singplan.planning.budget import check_move_samples
 from singplan.planning.jerk import QuinticLaw, SCurveLaw, SmoothedLaw, jerk_ratio, quintic_duration
 from singplan.planning.jointmap import JointMap
@@ -258,51 +258,43 @@ def timing_path(jmap: JointMap, limits: MoveLimits, move_index: int) -> TimingPa
 def _toppra_profile(path: TimingPath, limits: MoveLimits, scale: Scale,
                     move_index: int) -> Profile:
     """TOPP-RA on the move made dimensionless (:class:`TimingPath`); ``scale`` multiplies the joint
-    velocity, TCP speed, acceleration and torque limits (the tightening passes)."""
+    velocity, TCP speed, acceleration and torque limits (the tightening passes). toppra's algorithm
+    and constraints, compiled (:mod:`~singplan.planning.reachability`)."""
     scale_v, scale_c, _, scale_t = scale
     assert path.spline is not None
     tau, vmax_1, amax_1 = path.scaled_limits(limits, scale)
-    constraints = [_velocity_constraint(limits, vmax_1, scale_v * tau / path.length, scale_c * tau, path.grid),
-                   ta_constraint.JointAccelerationConstraint(np.stack([-amax_1, amax_1], axis=1))]
+    d1, d2 = path.derivatives
+    rows = [reachability.acceleration_rows(path.grid, d1, d2, amax_1)]
     if limits.torque is not None:
-        constraints.append(_torque_constraint(limits.torque, path.q[0], path.length, tau, scale_t))
-    instance = ta_algo.TOPPRA(constraints, path.spline, gridpoints=path.grid)
-    instance.compute_parameterization(0.0, 0.0)
-    data = instance.problem_data
-    if data.return_code != ta_algo.ParameterizationReturnCode.Ok or data.sd_vec is None:
+        torque = _torque_constraint(limits.torque, path.q[0], path.length, tau, scale_t)
+        rows.append(reachability.toppra_rows(torque, path.spline, path.grid))
+    speeds = _velocity_bounds(limits, vmax_1, scale_v * tau / path.length, scale_c * tau, path.grid)
+    result = reachability.solve(path.grid, rows, reachability.velocity_x_bounds(d1, speeds))
+    if result.sd is None:
         if limits.torque is not None:
             _check_holding_torque(limits.torque, path.u, path.q, move_index)
-        at = _infeasible_at(data)
+        at = None if result.empty_at is None else float(path.grid[result.empty_at])
         where = "" if at is not None else "; TOPP-RA did not say where: the path's steepest point"
         raise TimingError(move_index, at if at is not None else _steepest_at(path.u, path.q, limits.velocity_rad_s),
-                          f"TOPP-RA found no feasible time-parameterisation ({data.return_code.value}; the "
+                          f"TOPP-RA found no feasible time-parameterisation ({result.code.value}; the "
                           f"joint velocity{', acceleration and torque' if limits.torque else ' and acceleration'} "
                           f"limits cannot hold the path there{where})")
-    sd = np.maximum(np.asarray(data.sd_vec, dtype=float), 0.0) / tau  # du/dt in real time
-    return Profile(np.asarray(data.gridpoints, dtype=float), sd)
+    return Profile(path.grid, np.maximum(result.sd, 0.0) / tau)  # du/dt in real time
 
 
-def _velocity_constraint(limits: MoveLimits, vmax_1: np.ndarray, factor: float, clock_factor: float,
-                         grid: np.ndarray) -> ta_constraint.LinearConstraint:
-    """TOPP-RA's joint speed constraint on the dimensionless path (``vmax_1``: joints and the TCP
-    clock). Along a chain of moves it varies: each move's own joint limits (x ``factor``), and the
-    last coordinate (u itself) capped at ``clock_factor`` over the clock's rate du -> dclock, the
+def _velocity_bounds(limits: MoveLimits, vmax_1: np.ndarray, factor: float, clock_factor: float,
+                     grid: np.ndarray) -> np.ndarray:
+    """The joint speed limits on the dimensionless path, (n + 1,) (``vmax_1``: joints and the TCP
+    clock) or, along a chain of moves, (G, n + 1): each move's own joint limits (x ``factor``), and
+    the last coordinate (u itself) capped at ``clock_factor`` over the clock's rate du -> dclock, the
     largest rate on the grid intervals either side of each grid point (TOPP-RA holds a bound at its
     grid points only; where the rate varies between them, as in a corner of woven moves, the
     point's own rate would let the TCP run over its speed)."""
     if limits.velocity_at is None:
-        return ta_constraint.JointVelocityConstraint(np.stack([-vmax_1, vmax_1], axis=1))
-    velocity_at = limits.velocity_at
+        return vmax_1
     rate = _clock_rates(limits, grid)
-
-    def bounds(u: float) -> np.ndarray:
-        k = min(int(np.searchsorted(grid, u)), len(grid) - 1)
-        k = k - 1 if k > 0 and u - grid[k - 1] < grid[k] - u else k
-        v = np.minimum(np.append(velocity_at(np.array([u]))[0] * factor, clock_factor / max(rate[k], 1e-300)),
-                       _UNLIMITED)
-        return np.stack([-v, v], axis=1)
-
-    return ta_constraint.JointVelocityConstraintVarying(bounds)
+    clock_cap = clock_factor / np.maximum(rate, 1e-300)
+    return np.minimum(np.hstack([limits.velocity_at(grid) * factor, clock_cap[:, None]]), _UNLIMITED)
 
 
 def _clock_rates(limits: MoveLimits, grid: np.ndarray) -> np.ndarray:
@@ -336,15 +328,6 @@ def _check_holding_torque(limit: TorqueLimit, u: np.ndarray, q: np.ndarray, move
             raise TimingError(move_index, float(u[k]), f"holding the arm against gravity takes "
                                                        f"{ratio[j] * limit.limit_nm[j]:.1f} N m at {name}, over its "
                                                        f"limit of {limit.limit_nm[j]:.1f} N m (effort x torque_scale)")
-
-
-def _infeasible_at(data: ta_algo.ParameterizationData) -> float | None:
-    """The path parameter u where TOPP-RA's controllable set first empties (backward pass), if known."""
-    if data.K is None or data.gridpoints is None:
-        return None
-    sets = np.asarray(data.K, dtype=float)
-    empty = np.flatnonzero(~(sets[:, 1] >= sets[:, 0]))  # also NaN
-    return float(np.asarray(data.gridpoints)[empty[-1]]) if len(empty) else None
 
 
 def _steepest_at(u: np.ndarray, q: np.ndarray, vmax: np.ndarray) -> float:

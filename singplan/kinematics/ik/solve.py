@@ -24,17 +24,15 @@ that vanishes at the singularity), which keeps the pose exact to round-off near 
 
 from __future__ import annotations
 
-import itertools
-import math
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
-from singplan.kinematics.angles import TWO_PI, nearest_shifted, wrap_to_pi
+from singplan.kinematics.angles import nearest_shifted, wrap_to_pi
 from singplan.kinematics.configuration import LABEL_ZERO, classify, labels_batch
 from singplan.kinematics.ik import numeric as ik_numeric
-from singplan.kinematics.ik import opw
+from singplan.kinematics.ik import opw, turns
 from singplan.kinematics.ik.ur import ur_batch
 from singplan.kinematics.robot import OpwParameters, Robot
 
@@ -117,33 +115,6 @@ def _to_opw(params: OpwParameters, q_robot: np.ndarray) -> np.ndarray:
     return q_robot * params.signs - params.offsets
 
 
-def _shift_variants(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> list[np.ndarray]:
-    """Every q + 2*pi*k (per joint) inside the limits; an unlimited joint's angle in (-pi, pi] only
-    (its other turns are the same solution: a seed picks the turn, :func:`_nearest_variant`)."""
-    options = []
-    for j, value in enumerate(q):
-        if not (math.isfinite(lower[j]) and math.isfinite(upper[j])):
-            options.append([float(wrap_to_pi(np.array([value]))[0])])
-            continue
-        k_lo = math.ceil((lower[j] - value) / TWO_PI - 1e-12)
-        k_hi = math.floor((upper[j] - value) / TWO_PI + 1e-12)
-        options.append([value + TWO_PI * k for k in range(k_lo, k_hi + 1)])
-    return [np.array(v) for v in itertools.product(*options)]
-
-
-def _nearest_variant(q: np.ndarray, seed: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray | None:
-    """The 2*pi shift of each joint nearest the seed that stays inside the limits."""
-    out = np.empty_like(q)
-    for j, value in enumerate(q):
-        k0 = round((seed[j] - value) / TWO_PI)
-        candidates = [value + TWO_PI * k for k in (k0 - 1, k0, k0 + 1)
-                      if lower[j] - 1e-9 <= value + TWO_PI * k <= upper[j] + 1e-9]
-        if not candidates:
-            return None
-        out[j] = candidates[int(np.argmin(np.abs(np.array(candidates) - seed[j])))]
-    return np.clip(out, lower, upper)
-
-
 def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None) -> IkSolutions:
     """Every IK solution of a TCP pose inside the joint limits.
 
@@ -158,46 +129,8 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
         rows, branches = _closed_form_candidates(robot, T_base_tcp, seed)
     else:
         rows, branches = _numeric_candidates(robot, T_base_tcp, seed)
-    found: list[tuple[np.ndarray, int]] = []
-    for q, branch in zip(rows, branches, strict=True):
-        variants = ([_nearest_variant(q, seed, robot.lower_rad, robot.upper_rad)] if seed is not None
-                    else _shift_variants(q, robot.lower_rad, robot.upper_rad))
-        found += [(v, branch) for v in variants if v is not None]
-    kept = _distinct([v for v, _ in found]) if seed is None else _distinct_turns([v for v, _ in found], seed)
-    q_all = np.array([found[k][0] for k in kept]).reshape(-1, robot.n_joints)
-    branch_list = [found[k][1] for k in kept]
-    labels = tuple(labels_batch(robot, q_all))
-    return IkSolutions(q=q_all, labels=labels, branches=np.array(branch_list, dtype=int))
-
-
-def _distinct(rows: list[np.ndarray]) -> list[int]:
-    """Indices of the rows (in order) that differ from every earlier kept row by more than
-    ``np.allclose(atol=1e-9)`` does; one vectorised comparison per row (a UR pose has up to
-    8 x 64 whole-turn variants, which pairwise ``allclose`` calls made seconds)."""
-    if not rows:
-        return []
-    table = np.array(rows)  # (M, n)
-    kept: list[int] = []
-    for k, row in enumerate(table):
-        earlier = table[kept]
-        if not np.any(np.all(np.abs(row - earlier) <= 1e-9 + 1e-5 * np.abs(earlier), axis=1)):
-            kept.append(k)
-    return kept
-
-
-def _distinct_turns(rows: list[np.ndarray], seed: np.ndarray) -> list[int]:
-    """Indices of the rows that differ from every other up to whole turns by more than
-    :data:`~singplan.kinematics.configuration.LABEL_ZERO` in some joint, in order; of rows equal up to
-    whole turns the one nearest ``seed`` (max norm; the first among equals) stands for them. (Where
-    branches meet, a pose's solver branches differ by the round-off LABEL_ZERO absorbs.)"""
-    kept: list[int] = []
-    for k, row in enumerate(rows):
-        same = [i for i, m in enumerate(kept) if np.max(np.abs(wrap_to_pi(row - rows[m]))) <= LABEL_ZERO]
-        if not same:
-            kept.append(k)
-        elif np.max(np.abs(row - seed)) < np.max(np.abs(rows[kept[same[0]]] - seed)):
-            kept[same[0]] = k
-    return kept
+    q_all, branch = turns.inside_limits(rows, branches, robot.lower_rad, robot.upper_rad, seed, LABEL_ZERO)
+    return IkSolutions(q=q_all, labels=tuple(labels_batch(robot, q_all)), branches=branch)
 
 
 def closed_form_branches(robot: Robot, T_base_tcp: np.ndarray, seeds: np.ndarray | None = None) -> np.ndarray:
@@ -219,16 +152,16 @@ def closed_form_branches(robot: Robot, T_base_tcp: np.ndarray, seeds: np.ndarray
 
 
 def _closed_form_candidates(robot: Robot, T_base_tcp: pin.SE3,
-                            seed: np.ndarray | None) -> tuple[list[np.ndarray], list[int]]:
+                            seed: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """The closed form's branches (B, n), NaN rows unreachable, and their numbers (B,)."""
     sols = closed_form_branches(robot, T_base_tcp.homogeneous[None], None if seed is None else seed[None])[0]
-    keep = [k for k in range(len(sols)) if np.all(np.isfinite(sols[k]))]
-    return [sols[k] for k in keep], keep
+    return sols, np.arange(len(sols))
 
 
 def _numeric_candidates(robot: Robot, T_base_tcp: pin.SE3,
-                        seed: np.ndarray | None) -> tuple[list[np.ndarray], list[int]]:
+                        seed: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     rows, origins = ik_numeric.all_branches(robot, T_base_tcp, seed, label=lambda q: classify(robot, q).label)
-    return [wrap_to_pi(q) for q in rows], origins
+    return np.array([wrap_to_pi(q) for q in rows]).reshape(-1, robot.n_joints), np.array(origins, dtype=int)
 
 
 solve_newton = ik_numeric.newton  # the seeded per-sample solve (tracking, joint maps)

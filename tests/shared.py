@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
+# ../shared next to the project; SINGPLAN_SHARED names it where the project sits elsewhere (a git worktree)
+SHARED = Path(os.environ.get("SINGPLAN_SHARED") or Path(__file__).resolve().parents[2] / "shared")
 CHECKER = SHARED / "verify" / "verify_trajectory.py"
 SCENARIOS = SHARED / "scenarios"
 PROGRAMS = SHARED / "scenarios_programs"

@@ -30,11 +30,11 @@ from singplan.planning.chain import chain_limits, chain_map, chains, describe_ch
 from singplan.planning.checks import check_config, check_tolerances, refusal
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
-from singplan.planning.crossing.nullspace import time_with_pauses
 from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_move
 from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint
 from singplan.planning.select import Candidate, Rank, best_of
+from singplan.planning.stops import stops, time_in_pieces
 from singplan.planning.targets import task_arm
 from singplan.planning.timing import GiveUp, Scale, TimedMove, TimingError, TimingPath, time_move, timing_path
 from singplan.task.load import load_task
@@ -123,6 +123,8 @@ def _at_rest(pm: PlannedMove) -> str:
     """Why a move must start and end at rest ("" when it need not)."""
     if any(c.pause is not None for c in pm.crossings):
         return "pauses on its path (a null-space crossing starts and ends at rest)"
+    if stops(pm.crossings):
+        return "jumps over a zone with a PTP motion, which starts and ends at rest"
     if pm.limits.quintic:
         return "is timed by the quintic PTP law, which runs from rest to rest"
     return ""
@@ -176,8 +178,8 @@ def _timed(pm: PlannedMove, period_s: float, max_samples: int, path: TimingPath 
     """time_move (``path``: the joint map's timing path, where made; ``give_up``: see there), a
     failure located on the move."""
     try:
-        if any(c.pause is not None for c in pm.crossings):  # the TCP waits: timed in pieces
-            return time_with_pauses(pm.jmap, pm.crossings, pm.limits, period_s, pm.index, max_samples)
+        if stops(pm.crossings):  # the TCP waits or jumps: timed in pieces
+            return time_in_pieces(pm.jmap, pm.crossings, pm.limits, period_s, pm.index, max_samples)
         return time_move(pm.jmap, pm.limits, period_s, pm.index, max_samples, path, give_up)
     except TimingError as exc:
         raise _located(pm, exc) from exc
@@ -226,7 +228,7 @@ class _MoveCandidates:
         same = next((c for c in self.prepared if _same_motion(c.pm, pm)), None)
         if same is not None:
             return replace(same, method=method, order=order, pm=pm)
-        path = None if any(c.pause is not None for c in pm.crossings) else _timing_path(pm)
+        path = None if stops(pm.crossings) else _timing_path(pm)
         if not self.compared:
             return Candidate(method, order, pm, path)
         bound_s = 0.0 if path is None else duration_bound_s(path, pm.limits, self.task.period_s)
@@ -270,7 +272,7 @@ def _same_motion(a: PlannedMove, b: PlannedMove) -> bool:
     """Whether two plans of one move give the same timing and checks: equal joint maps and zones, no pause."""
     if a.zones != b.zones or len(a.jmap.parts) != len(b.jmap.parts):
         return False
-    if any(c.pause is not None for c in (*a.crossings, *b.crossings)):
+    if stops(a.crossings) or stops(b.crossings):
         return False
     return all(p.kind == r.kind and p.axis == r.axis and p.exact == r.exact and _equal(p.u, r.u)
                and _equal(p.q, r.q) and _equal(p.dq_du, r.dq_du)

@@ -12,7 +12,7 @@ singularity, is drawn again. The start is the followed branch's joints at the pa
 the task can be planned as written.
 
 Arms: bundled OPW arms of several vendors and the example-robot-data UR5 and UR10 (by the path of
-their URDF, as a user would give it).
+their URDF, as a user would give it); no tool, a straight one, or one offset and tilted.
 
     from tests.edge_tasks import edge_tasks
     for case in edge_tasks(seed=0, count=12):
@@ -101,7 +101,10 @@ def edge_tasks(seed: int, count: int, arms: tuple[str, ...] = ARMS) -> Iterator[
 def generate(arm: str, kind: str, move: str, shape: str, rng: np.random.Generator,
              tries: int = 60) -> EdgeTask | None:
     """One task of the kind asked for, or None when ``tries`` random starts found none."""
-    robot_value, robot = arm_robot(arm)
+    robot_value, bare = arm_robot(arm)
+    tool = _tool(rng)
+    robot = bare if tool is None else bare.with_tool(
+        pin.SE3(pin.rpy.rpyToMatrix(*np.radians(tool["rpy_deg"])), np.array(tool["xyz"])))
     lo, hi = robot.lower_rad, robot.upper_rad
     lo, hi = np.maximum(lo, -math.pi), np.minimum(hi, math.pi)  # UR arms: one turn either way is enough
     margin = 0.15 * (hi - lo)
@@ -124,6 +127,8 @@ def generate(arm: str, kind: str, move: str, shape: str, rng: np.random.Generato
             continue
         closest = float(np.min(np.abs(dist[:, KIND_INDEX[kind]])))
         task = _task(robot_value, robot, followed[0], path, move, rng)
+        if tool is not None:
+            task = {"robot": task["robot"], "tool": tool, **{k: v for k, v in task.items() if k != "robot"}}
         name = f"{arm.replace(':', '-')}__{kind}_{move}_{shape}_{int(rng.integers(1_000_000)):06d}"
         return EdgeTask(name, task, arm, kind, move, shape, closest)
     return None
@@ -267,6 +272,17 @@ def _step(robot: Robot, q: np.ndarray, rotation: np.ndarray, path: PathFunction,
         return None
     half = _step(robot, q, rotation, path, u0, 0.5 * (u0 + u1), depth + 1)
     return None if half is None else _step(robot, half, rotation, path, 0.5 * (u0 + u1), u1, depth + 1)
+
+
+def _tool(rng: np.random.Generator) -> dict[str, list[float]] | None:
+    """No tool (the flange), a straight one along the flange's z axis, or one offset and tilted."""
+    kind = int(rng.integers(3))
+    if kind == 0:
+        return None
+    if kind == 1:
+        return {"xyz": [0.0, 0.0, round(float(rng.uniform(0.05, 0.25)), 4)], "rpy_deg": [0.0, 0.0, 0.0]}
+    return {"xyz": [round(float(v), 4) for v in rng.uniform([-0.05, -0.05, 0.05], [0.05, 0.05, 0.25])],
+            "rpy_deg": [round(float(v), 2) for v in rng.uniform(-30.0, 30.0, 3)]}
 
 
 def _task(robot_value: str, robot: Robot, q_start: np.ndarray, path: PathFunction, move: str,

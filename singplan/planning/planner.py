@@ -27,7 +27,7 @@ from singplan.planning.blending import RAMPS, Blend, corners, side_of, stopped
 from singplan.planning.bound import duration_bound_s
 from singplan.planning.budget import BudgetError, check_task
 from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
-from singplan.planning.checks import check_config, check_tolerances, refusal
+from singplan.planning.checks import check_config, check_samples, refusal
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_move
@@ -254,7 +254,7 @@ class _MoveCandidates:
         try:
             timed = _timed(c.pm, period_s, self.max_samples, c.path, give_up)
             check_config(self.robot, self.move, c.pm, timed.u, timed.q)
-            return replace(c.pm, deviations=check_tolerances(self.robot, self.task, c.pm, timed, c.screened)), timed
+            return replace(c.pm, deviations=check_samples(self.robot, self.task, c.pm, timed, c.screened)), timed
         except (PlanningError, BudgetError) as exc:
             return c.pm, exc
 

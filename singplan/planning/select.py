@@ -14,11 +14,13 @@ durations are replaced by their bounds.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import NamedTuple
+from functools import partial
+from typing import NamedTuple, TypeVar
 
-from singplan.errors import PlanningError, SingularityError, UnreachableError
+from singplan.errors import MethodError, PlanningError, SingplanError, SingularityError, UnreachableError
 from singplan.kinematics.robot import Robot
 from singplan.planning.alternatives import Alternative
 from singplan.planning.budget import BudgetError
@@ -76,6 +78,7 @@ class _Failure(NamedTuple):
     error: PlanningError | BudgetError
 
 
+logger = logging.getLogger(__name__)
 Prepare = Callable[[CrossingMethod, int], Candidate]  # plan one method's joint map and bound its duration
 # time and check a candidate; it may stop (timing.Outrun) once it cannot beat the best so far
 Finish = Callable[[Candidate, Rank | None], tuple[PlannedMove, TimedMove]]
@@ -89,8 +92,8 @@ def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prep
     with the reason, and asked for alone it is refused where the move meets a zone.
     """
     serving, refused = _serving(robot, methods)
-    candidates, failures = _prepared(serving or [Exact()], prepare)  # nothing serves: exact's motion, if no zone
-    results, skipped, timing_failures = _timed_best_first(candidates, finish)
+    candidates, failures = _prepared(i, kind, serving or [Exact()], prepare)  # nothing serves: exact's, if no zone
+    results, skipped, timing_failures = _timed_best_first(i, kind, candidates, finish)
     if not serving and results and results[0].pm.zones:
         raise _refusal(robot, results[0].pm, refused)
     failures = sorted(failures + timing_failures, key=lambda f: f.order)
@@ -108,13 +111,14 @@ def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prep
     return replace(best.pm, alternatives=alternatives if len(methods) > 1 else ()), best.tm
 
 
-def _prepared(methods: list[CrossingMethod], prepare: Prepare) -> tuple[list[Candidate], list[_Failure]]:
+def _prepared(i: int, kind: str, methods: list[CrossingMethod], prepare: Prepare
+              ) -> tuple[list[Candidate], list[_Failure]]:
     """Each method's candidate, or why it could not plan the joint map."""
     candidates: list[Candidate] = []
     failures: list[_Failure] = []
     for order, method in enumerate(methods):
         try:
-            candidate = prepare(method, order)
+            candidate = isolated(i, kind, method, partial(prepare, method, order))
         except (PlanningError, BudgetError) as exc:  # a slow method over the allowance: another may fit
             failures.append(_Failure(order, method.name, method.variant, exc))
             continue
@@ -124,7 +128,7 @@ def _prepared(methods: list[CrossingMethod], prepare: Prepare) -> tuple[list[Can
     return candidates, failures
 
 
-def _timed_best_first(candidates: list[Candidate], finish: Finish
+def _timed_best_first(i: int, kind: str, candidates: list[Candidate], finish: Finish
                       ) -> tuple[list[_Result], list[Candidate], list[_Failure]]:
     """Time and check the candidates fastest bound first, skipping those that cannot win."""
     results: list[_Result] = []
@@ -136,7 +140,7 @@ def _timed_best_first(candidates: list[Candidate], finish: Finish
             skipped.append(c)
             continue
         try:
-            pm, tm = finish(c, best)
+            pm, tm = isolated(i, kind, c.method, partial(finish, c, best))
         except Outrun as stop:  # a timing pass tightened its limits past what could win
             skipped.append(replace(c, bound_s=stop.at_least_s, outrun=True))
             continue
@@ -146,6 +150,25 @@ def _timed_best_first(candidates: list[Candidate], finish: Finish
         results.append(_Result(replace(pm, method=c.method.name, variant=c.method.variant), tm, c.order))
         best = min(best or Rank(tm.duration_s, c.order), Rank(tm.duration_s, c.order))
     return results, sorted(skipped, key=lambda c: (c.bound_s, c.order)), failures
+
+
+T = TypeVar("T")
+
+
+def isolated(i: int, kind: str, method: CrossingMethod, work: Callable[[], T]) -> T:
+    """``work()`` (one method's planning or timing of move ``i``), a failure inside its own
+    computation (not a SingplanError: a solver that did not converge, a numerical error) turned into
+    :class:`~singplan.errors.MethodError`, so that one method cannot take the others down (exit 1).
+    The traceback is logged (debug level) for a report."""
+    try:
+        return work()
+    except (SingplanError, BudgetError, Outrun, MemoryError):
+        raise
+    except Exception as exc:
+        logger.debug("move %d: method %s failed", i, method.name, exc_info=True)
+        cause = f"{type(exc).__name__}: {exc}"
+        raise MethodError(f"move {i} ({kind}): method {method.name} failed in its own computation ({cause})",
+                            move=i, method=method.name, cause=cause) from exc
 
 
 def _untimed(c: Candidate, best_s: float) -> Alternative:

@@ -49,16 +49,32 @@ def stops(crossings: tuple[Crossing, ...]) -> bool:
 
 def time_in_pieces(jmap: JointMap, crossings: tuple[Crossing, ...], limits: MoveLimits, period_s: float,
                    move_index: int, max_samples: int) -> TimedMove:
-    """Time a move that stops on its path: the pieces between its stops, each from rest to rest, joined."""
+    """Time a move that stops on its path: the pieces between its stops, each from rest to rest, joined.
+
+    Where a piece does not start on the joints the one before ends on and the seam would break the
+    joint limits, the two are joined by a short joint line from rest to rest (:func:`_with_bridges`).
+    """
+    pieces = _pieces(jmap, crossings, limits)
+    timed = _joined(pieces, limits, period_s, move_index, max_samples)
+    if timed.speed_ratio > 1.0 or timed.accel_ratio > 1.0:
+        bridged = _with_bridges(jmap, pieces, limits)
+        if len(bridged) > len(pieces):
+            timed = _joined(bridged, limits, period_s, move_index, max_samples)
+    return timed
+
+
+def _joined(pieces: list[Piece], limits: MoveLimits, period_s: float, move_index: int,
+            max_samples: int) -> TimedMove:
+    """Each piece timed, the samples joined (the pieces share their end samples, at rest)."""
     us: list[np.ndarray] = []
     qs: list[np.ndarray] = []
     duration, left = 0.0, max_samples
-    for piece_map, piece_limits, u0, u1 in _pieces(jmap, crossings, limits):
+    for piece_map, piece_limits, u0, u1 in pieces:
         try:
             tm = time_move(piece_map, piece_limits, period_s, move_index, left)
         except TimingError as exc:
             raise TimingError(move_index, u0 + exc.u * (u1 - u0), exc.reason) from exc
-        first = 0 if not us else 1  # the pieces share their end samples (at rest)
+        first = 0 if not us else 1
         us.append(u0 + tm.u[first:] * (u1 - u0))
         qs.append(tm.q[first:])
         duration += tm.duration_s
@@ -92,6 +108,26 @@ def _pieces(jmap: JointMap, crossings: tuple[Crossing, ...], limits: MoveLimits)
     if current and current[-1].u1 > current[0].u0:
         pieces.append(_path_piece(jmap, current, limits))
     return pieces
+
+
+_BRIDGED_RAD = 1e-12  # pieces whose shared sample differs by more are joined by a bridge
+
+
+def _with_bridges(jmap: JointMap, pieces: list[Piece], limits: MoveLimits) -> list[Piece]:
+    """The pieces, with a short joint line from rest to rest wherever one does not start on the joints
+    the one before ends on (a null-space turn ends where its pose tolerance let it drift; the path
+    after it re-solves the position there, and at the singular point a free joint may land a hair
+    away): the seam jumps by the difference otherwise."""
+    out: list[Piece] = []
+    for piece in pieces:
+        if out:
+            end = out[-1][0].evaluate(np.array([1.0]))[0]
+            start = piece[0].evaluate(np.array([0.0]))[0]
+            if float(np.max(np.abs(start - end))) > _BRIDGED_RAD:
+                line = JointMap(jmap.robot, None, [JointPart("ptp", np.array([0.0, 1.0]), np.array([end, start]))])
+                out.append((line, replace(limits, length_m=0.0, tcp_speed_m_s=None, trace=None), piece[2], piece[2]))
+        out.append(piece)
+    return out
 
 
 def _path_piece(jmap: JointMap, parts: list[JointPart], limits: MoveLimits) -> Piece:

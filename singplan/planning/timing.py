@@ -211,7 +211,8 @@ _TRACE_MIN, _TRACE_MAX = 64, 20_000  # samples a part, at least and at most
 
 def tcp_trace(jmap: JointMap, length_m: float) -> TcpTrace | None:
     """The TCP's own travel along a LIN / CIRC joint map (:class:`TcpTrace`), where it has parts
-    that leave the path; None where every part keeps the position (the path's arc length is the TCP's)."""
+    that leave the path and its TCP runs ahead of the path somewhere; None where the path's arc
+    length bounds the TCP's (every part keeps the position, or the parts off it run no faster)."""
     off = jmap.off_path_parts
     if not off or length_m <= 0.0:
         return None
@@ -223,9 +224,11 @@ def tcp_trace(jmap: JointMap, length_m: float) -> TcpTrace | None:
                     math.ceil(travel / _TRACE_STEP_RAD))
         dense.append(np.linspace(part.u0, part.u1, min(count, _TRACE_MAX) + 1))
     u = np.unique(np.concatenate(dense))
+    path_m = np.diff(u) * length_m
     tcp_m = np.linalg.norm(np.diff(jmap.robot.tcp_positions(jmap.evaluate(u)), axis=0), axis=1)
-    s_m = np.concatenate([[0.0], np.cumsum(np.maximum(np.diff(u) * length_m, tcp_m))])
-    return TcpTrace(jmap.robot, u, s_m)
+    if np.all(tcp_m <= path_m * (1.0 + 1e-9) + 1e-12):
+        return None  # the TCP never runs ahead of the path (an axis part that keeps to it): as without a trace
+    return TcpTrace(jmap.robot, u, np.concatenate([[0.0], np.cumsum(np.maximum(path_m, tcp_m))]))
 
 
 def _reference(jmap: JointMap, limits: MoveLimits) -> tuple[np.ndarray, np.ndarray]:

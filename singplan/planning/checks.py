@@ -11,6 +11,7 @@ import numpy as np
 from singplan.errors import JointLimitError, PlanningError, SingularityError, UnreachableError
 from singplan.kinematics.configuration import distances_batch, labels_from_distances, parse_configuration
 from singplan.kinematics.robot import Robot
+from singplan.planning.alternatives import NO_DEVIATION, Deviation
 from singplan.planning.path import CartesianPiece, sample_deviations
 from singplan.planning.records import PlannedMove, SampleDeviations
 from singplan.planning.timing import TimedMove
@@ -94,27 +95,36 @@ def crossing_deviation(robot: Robot, task: Task, pm: PlannedMove) -> Singularity
     """The tolerance error of a crossing's own joints (its reference samples, through which its
     joint map passes), if any: a motion that leaves the tolerance band there leaves it whether or
     not an output sample lands on that point."""
-    parts = [part for crossing in pm.crossings for part in crossing.parts]
-    if pm.piece is None or not parts:
-        return None
-    u = np.concatenate([part.u for part in parts])
-    pos, ori = sample_deviations(robot, pm.piece, u, np.concatenate([part.q for part in parts]))
-    return _over_tolerance(task, pm, u, pos, ori)
+    return _crossing_screen(robot, task, pm)[0]
 
 
-def refusal(robot: Robot, task: Task, move: Move, pm: PlannedMove) -> PlanningError | None:
-    """Why no timing of the move can be kept, told before timing; None when only the samples can tell.
+def screen(robot: Robot, task: Task, move: Move, pm: PlannedMove) -> tuple[PlanningError | None, Deviation]:
+    """What is known of a candidate before timing: why no timing of it can be kept (None when only
+    the samples can tell), and how far its crossings leave the pose on their own joints.
 
-    The configuration its joint map ends in (the first and last samples of any timing are its
-    ends), or a crossing's own joints over the tolerances (:func:`crossing_deviation`, which
-    :func:`check_samples` applies to every timed move too).
+    The refusal: the configuration its joint map ends in (the first and last samples of any timing
+    are its ends), or a crossing's own joints over the tolerances (which :func:`check_samples`
+    applies to every timed move too).
     """
     u = np.array([0.0, 1.0])
     try:
         check_config(robot, move, pm, u, pm.jmap.evaluate(u))
     except PlanningError as exc:
-        return exc
-    return crossing_deviation(robot, task, pm)
+        return exc, NO_DEVIATION
+    return _crossing_screen(robot, task, pm)
+
+
+def _crossing_screen(robot: Robot, task: Task, pm: PlannedMove) -> tuple[SingularityError | None, Deviation]:
+    """The crossings' own joints: their tolerance error if any, and their deviation."""
+    parts = [part for crossing in pm.crossings for part in crossing.parts]
+    if pm.piece is None or not parts:
+        return None, NO_DEVIATION
+    u = np.concatenate([part.u for part in parts])
+    pos, ori = sample_deviations(robot, pm.piece, u, np.concatenate([part.q for part in parts]))
+    pos_m, ori_rad = float(pos.max(initial=0.0)), float(ori.max(initial=0.0))
+    share = max(pos_m * 1e3 / task.singularity.position_tolerance_mm,
+                math.degrees(ori_rad) / task.singularity.orientation_tolerance_deg)
+    return _over_tolerance(task, pm, u, pos, ori), Deviation(pos_m * 1e3, math.degrees(ori_rad), min(share, 1.0))
 
 
 def _over_tolerance(task: Task, pm: PlannedMove, u: np.ndarray, pos: np.ndarray,

@@ -27,7 +27,7 @@ from singplan.planning.blending import RAMPS, Blend, corners, side_of, stopped
 from singplan.planning.bound import duration_bound_s
 from singplan.planning.budget import BudgetError, check_task
 from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
-from singplan.planning.checks import check_config, check_samples, refusal
+from singplan.planning.checks import check_config, check_samples, screen
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_move
@@ -202,7 +202,8 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
     """Plan each method's joint map, then time and check the candidates that can still win;
     :func:`select.best_of` keeps the fastest."""
     candidates = _MoveCandidates(robot, task, i, move, T, q, len(methods), max_samples)
-    return best_of(robot, i, move.kind, methods, candidates.prepare, candidates.finish)
+    return best_of(robot, i, move.kind, methods, candidates.prepare, candidates.finish,
+                   task.singularity.deviation_cost_percent / 100.0)
 
 
 class _MoveCandidates:
@@ -232,8 +233,8 @@ class _MoveCandidates:
         if not self.compared:
             return Candidate(method, order, pm, path)
         bound_s = 0.0 if path is None else duration_bound_s(path, pm.limits, self.task.period_s)
-        why_not = refusal(self.robot, self.task, self.move, pm)
-        self.prepared.append(Candidate(method, order, pm, path, bound_s, why_not, screened=True))
+        why_not, deviation = screen(self.robot, self.task, self.move, pm)
+        self.prepared.append(Candidate(method, order, pm, path, bound_s, why_not, screened=True, deviation=deviation))
         return self.prepared[-1]
 
     def finish(self, c: Candidate, best: Rank | None) -> tuple[PlannedMove, TimedMove]:
@@ -250,7 +251,8 @@ class _MoveCandidates:
     def _timed_and_checked(self, c: Candidate, best: Rank | None
                            ) -> tuple[PlannedMove, TimedMove | PlanningError | BudgetError]:
         period_s = self.task.period_s
-        give_up = None if best is None or c.path is None else _cannot_beat(c, c.path, best, period_s)
+        cost = self.task.singularity.deviation_cost_percent / 100.0
+        give_up = None if best is None or c.path is None else _cannot_beat(c, c.path, best, period_s, cost)
         try:
             timed = _timed(c.pm, period_s, self.max_samples, c.path, give_up)
             check_config(self.robot, self.move, c.pm, timed.u, timed.q)
@@ -259,11 +261,11 @@ class _MoveCandidates:
             return c.pm, exc
 
 
-def _cannot_beat(c: Candidate, path: TimingPath, best: Rank, period_s: float) -> GiveUp:
+def _cannot_beat(c: Candidate, path: TimingPath, best: Rank, period_s: float, cost: float) -> GiveUp:
     """After a timing pass: the bound at the tightened limits, if it shows ``c`` cannot beat ``best``."""
     def give_up(scale: Scale, pass_s: float) -> float | None:
         bound_s = duration_bound_s(path, c.pm.limits, period_s, scale, pass_s)
-        return bound_s if Rank(bound_s, c.order) > best else None
+        return bound_s if c.rank(bound_s, cost) > best else None
 
     return give_up
 

@@ -22,7 +22,7 @@ from typing import NamedTuple, TypeVar
 
 from singplan.errors import MethodError, PlanningError, SingplanError, SingularityError, UnreachableError
 from singplan.kinematics.robot import Robot
-from singplan.planning.alternatives import Alternative
+from singplan.planning.alternatives import NO_DEVIATION, Alternative, Deviation
 from singplan.planning.budget import BudgetError
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Exact
@@ -46,6 +46,7 @@ class Candidate:
         screened: ``refusal`` was looked for (and the crossings' own joints found within the
             tolerances where it is None): the checks after timing need not look again.
         outrun: its timing stopped at a pass whose tightened limits gave ``bound_s``.
+        deviation: how far its crossings leave the pose, on their own joints (known before timing).
     """
 
     method: CrossingMethod
@@ -56,19 +57,26 @@ class Candidate:
     refusal: PlanningError | None = None
     screened: bool = False
     outrun: bool = False
+    deviation: Deviation = NO_DEVIATION
+
+    def rank(self, duration_s: float, cost: float) -> Rank:
+        """Where the candidate stands with this duration (or a bound on it) [s], its deviation counted
+        at ``cost`` (auto's rule: the fraction of the move's time a whole tolerance costs)."""
+        return Rank(duration_s * (1.0 + cost * self.deviation.share), self.order)
 
 
 class Rank(NamedTuple):
-    """Where a candidate stands: a shorter duration wins, a tie goes to the method asked for first."""
+    """Where a candidate stands: a shorter duration wins (its deviation counted, :meth:`Candidate.rank`),
+    a tie goes to the method asked for first."""
 
-    duration_s: float  # its duration, or a bound on it [s]
+    counted_s: float  # its duration, or a bound on it, with its deviation counted [s]
     order: int  # its place among the methods asked for
 
 
 class _Result(NamedTuple):
     pm: PlannedMove
     tm: TimedMove
-    order: int
+    candidate: Candidate
 
 
 class _Failure(NamedTuple):
@@ -85,15 +93,17 @@ Finish = Callable[[Candidate, Rank | None], tuple[PlannedMove, TimedMove]]
 
 
 def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prepare: Prepare,
-            finish: Finish) -> tuple[PlannedMove, TimedMove]:
-    """Plan the move with each method; keep the fastest within the tolerances.
+            finish: Finish, cost: float = 0.0) -> tuple[PlannedMove, TimedMove]:
+    """Plan the move with each method; keep the fastest within the tolerances, each candidate's
+    deviation counted at ``cost`` (``singularity.deviation_cost_percent`` / 100: a candidate whose
+    crossings use their whole tolerance counts as that fraction slower; 0: the fastest).
 
     A method this arm's family cannot use is never run in disguise: it is listed as infeasible
     with the reason, and asked for alone it is refused where the move meets a zone.
     """
     serving, refused = _serving(robot, methods)
     candidates, failures = _prepared(i, kind, serving or [Exact()], prepare)  # nothing serves: exact's, if no zone
-    results, skipped, timing_failures = _timed_best_first(i, kind, candidates, finish)
+    results, skipped, timing_failures = _timed_best_first(i, kind, candidates, finish, cost)
     if not serving and results and results[0].pm.zones:
         raise _refusal(robot, results[0].pm, refused)
     failures = sorted(failures + timing_failures, key=lambda f: f.order)
@@ -101,10 +111,13 @@ def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prep
                  for name, why in refused.items()]
     if not results:
         raise _no_plan(i, kind, failures)
-    results.sort(key=lambda r: Rank(r.tm.duration_s, r.order))
+    results.sort(key=lambda r: r.candidate.rank(r.tm.duration_s, cost))
     best = results[0]
-    alternatives = tuple([Alternative(r.pm.method, True, r.pm.variant, r.tm.duration_s) for r in results]
-                         + [_untimed(c, best.tm.duration_s) for c in skipped if c.refusal is None]
+    best_rank = best.candidate.rank(best.tm.duration_s, cost)
+    alternatives = tuple([Alternative(r.pm.method, True, r.pm.variant, r.tm.duration_s,
+                                      position_mm=r.candidate.deviation.position_mm,
+                                      orientation_deg=r.candidate.deviation.orientation_deg) for r in results]
+                         + [_untimed(c, best.tm.duration_s, best_rank, cost) for c in skipped if c.refusal is None]
                          + [Alternative(f.method, False, f.variant, reason=str(f.error)) for f in failures]
                          + [Alternative(c.method.name, False, c.method.variant, reason=str(c.refusal)) for c in skipped
                             if c.refusal is not None])
@@ -128,15 +141,15 @@ def _prepared(i: int, kind: str, methods: list[CrossingMethod], prepare: Prepare
     return candidates, failures
 
 
-def _timed_best_first(i: int, kind: str, candidates: list[Candidate], finish: Finish
+def _timed_best_first(i: int, kind: str, candidates: list[Candidate], finish: Finish, cost: float
                       ) -> tuple[list[_Result], list[Candidate], list[_Failure]]:
-    """Time and check the candidates fastest bound first, skipping those that cannot win."""
+    """Time and check the candidates best bound first (deviation counted), skipping those that cannot win."""
     results: list[_Result] = []
     skipped: list[Candidate] = []
     failures: list[_Failure] = []
     best: Rank | None = None
-    for c in sorted(candidates, key=lambda c: (c.refusal is not None, c.bound_s, c.order)):
-        if best is not None and (c.refusal is not None or Rank(c.bound_s, c.order) > best):
+    for c in sorted(candidates, key=lambda c: (c.refusal is not None, c.rank(c.bound_s, cost))):
+        if best is not None and (c.refusal is not None or c.rank(c.bound_s, cost) > best):
             skipped.append(c)
             continue
         try:
@@ -147,9 +160,9 @@ def _timed_best_first(i: int, kind: str, candidates: list[Candidate], finish: Fi
         except (PlanningError, BudgetError) as exc:
             failures.append(_Failure(c.order, c.method.name, c.method.variant, exc))
             continue
-        results.append(_Result(replace(pm, method=c.method.name, variant=c.method.variant), tm, c.order))
-        best = min(best or Rank(tm.duration_s, c.order), Rank(tm.duration_s, c.order))
-    return results, sorted(skipped, key=lambda c: (c.bound_s, c.order)), failures
+        results.append(_Result(replace(pm, method=c.method.name, variant=c.method.variant), tm, c))
+        best = min(best or c.rank(tm.duration_s, cost), c.rank(tm.duration_s, cost))
+    return results, sorted(skipped, key=lambda c: c.rank(c.bound_s, cost)), failures
 
 
 T = TypeVar("T")
@@ -171,12 +184,17 @@ def isolated(i: int, kind: str, method: CrossingMethod, work: Callable[[], T]) -
                             move=i, method=method.name, cause=cause) from exc
 
 
-def _untimed(c: Candidate, best_s: float) -> Alternative:
+def _untimed(c: Candidate, best_s: float, best: Rank, cost: float) -> Alternative:
     how = "timing stopped after a pass: at its tightened limits" if c.outrun else "not timed:"
-    tie = " (a tie goes to the method listed first)" if c.bound_s == best_s else ""
+    tie = " (a tie goes to the method listed first)" if c.rank(c.bound_s, cost).counted_s == best.counted_s else ""
+    counted = ""
+    if cost > 0.0 and (c.deviation.share > 0.0 or best.counted_s != best_s):
+        counted = (f" (with the deviations counted: at least {c.rank(c.bound_s, cost).counted_s:.3f} s against "
+                   f"{best.counted_s:.3f} s)")
     return Alternative(c.method.name, None, c.method.variant, at_least_s=c.bound_s,
                        reason=f"{how} no timing of its joint map ends before {c.bound_s:.3f} s, and the "
-                              f"chosen method's move takes {best_s:.3f} s{tie}")
+                              f"chosen method's move takes {best_s:.3f} s{counted}{tie}",
+                       position_mm=c.deviation.position_mm, orientation_deg=c.deviation.orientation_deg)
 
 
 def _no_plan(i: int, kind: str, failures: list[_Failure]) -> PlanningError | BudgetError:

@@ -262,8 +262,9 @@ class Ptp:
     """Baseline (SEEDS 004): jump over the zone's singular stretch with a joint-space straight line.
 
     The jump spans the singular sample: from the last point of the path's sampling grid (every
-    2 mm / 0.5 deg) before the zone's closest point to the first after it (the rest of the zone is
-    followed as exact does), and lands on the
+    2 mm / 0.5 deg) before the zone's closest point to the first after it, each at least 0.05 deg
+    (0.5 mm at the shoulder) off the singularity (the rest of the zone is followed as exact does),
+    and lands on the
     branch nearest its start from which the rest of the move can be followed inside the joint
     limits. It is a PTP motion: it starts and ends at rest (:mod:`singplan.planning.stops`), as a
     controller runs one, and the TCP leaves the path on it (its speed is held to the move's).
@@ -277,12 +278,15 @@ class Ptp:
         if b <= a:
             return None
         u, q = ctx.tracked.u, ctx.tracked.q
-        # the singular sample's neighbours on the path's sampling grid (tracked samples: the grid is among them)
+        # the singular sample's neighbours on the path's sampling grid (tracked samples: the grid is among
+        # them), each clear of the singular point itself (where the branches meet and joints are free)
         grid = ctx.piece.grid(STEP_M, STEP_RAD)
-        g_a = grid[max(int(np.searchsorted(grid, zone.u_closest, side="left")) - 1, 0)]
-        g_b = grid[min(int(np.searchsorted(grid, zone.u_closest, side="right")), len(grid) - 1)]
-        a = max(a, min(int(np.searchsorted(u, g_a - 1e-12)), len(u) - 1))
-        b = min(b, max(a + 1, int(np.searchsorted(u, g_b - 1e-12))))
+        on_grid = np.isin(u, grid)
+        clear = on_grid & (np.abs(ctx.distances[:, KIND_INDEX[zone.kind]]) >= _EDGE_MIN[zone.kind])
+        before = np.nonzero(clear[:b + 1] & (u[:b + 1] < zone.u_closest))[0]
+        after = np.nonzero(clear[a:] & (u[a:] > zone.u_closest))[0]
+        a = max(a, int(before[-1])) if before.size else a
+        b = min(b, a + int(after[0])) if after.size else b
         options = exit_candidates(ctx, float(u[b]))
         if not options:
             return None

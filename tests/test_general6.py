@@ -107,7 +107,7 @@ def _assert_runner_up_is_not_refused(summary_text: str, traj: dict[str, Any]) ->
     for segment in _crossings(traj):
         feasible = {a["method"] for a in segment.get("alternatives") or [] if a["feasible"] is not False}
         rows = [line.split() for line in summary_text.splitlines()
-                if line.startswith("          ") and not line.split()[0] == "method"]
+                if line.startswith("          ") and line.split()[0] != "method"]
         refused = ["infeasible:" in row for row in rows]
         assert refused == sorted(refused), summary_text  # the refused ones last
         assert all(row[0] in feasible for row, r in zip(rows, refused, strict=True) if not r), summary_text

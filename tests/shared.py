@@ -4,12 +4,17 @@ except under CI=true, where it must be present (missing is an error, not a skip)
 
 from __future__ import annotations
 
+import importlib.util
+import json
 import os
 import subprocess
 import sys
+from functools import cache
 from pathlib import Path
+from types import ModuleType
 
 import pytest
+import yaml
 
 # ../shared next to the project; SINGPLAN_SHARED names it where the project sits elsewhere (a git worktree)
 SHARED = Path(os.environ.get("SINGPLAN_SHARED") or Path(__file__).resolve().parents[2] / "shared")
@@ -31,3 +36,26 @@ def run_checker(task: Path, out: Path, *options: str) -> subprocess.CompletedPro
     """``verify_trajectory.py TASK OUT [options]``: exit code 0 when every check holds."""
     return subprocess.run([sys.executable, str(require(CHECKER)), str(task), str(out), *options],
                           capture_output=True, text=True, timeout=600, check=False)
+
+
+@cache
+def checker_module() -> ModuleType:
+    """The independent checker imported in this process (a battery checks hundreds of plans: one
+    interpreter and Pinocchio load, not one per plan)."""
+    checker = require(CHECKER)
+    sys.path.insert(0, str(checker.parent))  # it imports its neighbours (paths_check, collision_check)
+    spec = importlib.util.spec_from_file_location("verify_trajectory", checker)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def check_in_process(task: Path, out: Path) -> list[str]:
+    """The checker's failures for the plan in ``out`` of the task file ``task`` (empty: it passes)."""
+    verify = checker_module()
+    verify.paths_check.TASK_DIR = task.resolve().parent
+    traj = json.loads((out / "trajectory.json").read_text())
+    result = verify.Checker(yaml.safe_load(task.read_text()), traj, out).run()
+    verify.collision_check.add_to(result, yaml.safe_load(task.read_text()), task, traj, out)
+    return list(result["failures"])

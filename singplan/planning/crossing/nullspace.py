@@ -273,7 +273,10 @@ def self_motion(robot: Robot, q0: np.ndarray, T_target: np.ndarray, joint: int, 
     out = np.empty((steps + 1, robot.n_joints))
     out[0] = q0
     for k in range(1, steps + 1):
-        n = np.linalg.svd(robot.jacobian(out[k - 1]))[2][-1]
+        J = robot.jacobian(out[k - 1])
+        if not np.all(np.isfinite(J)):  # the hold before did not converge to joint values: no way on
+            raise _NoSelfMotionError(f"turning {robot.joint_names[joint]} loses the pose after {k - 1} steps")
+        n = np.linalg.svd(J)[2][-1]
         if abs(n[joint]) < 0.1 * float(np.max(np.abs(n))):
             raise _NoSelfMotionError(f"the Jacobian's null space does not move {robot.joint_names[joint]} here")
         guess = out[k - 1] + n / n[joint] * (turn_rad / steps)

@@ -148,6 +148,17 @@ def test_null_space_pieces_that_do_not_meet_are_bridged(tmp_path: Path) -> None:
     assert got.code == 0 and not got.failures, got
 
 
+def test_without_the_bridge_the_seam_is_refused_naming_the_sample(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The candidate check measures a move timed in pieces across its seams: the jump the bridge
+    removes breaks the acceleration limit, and the method alone is refused naming move and sample."""
+    from singplan.planning import stops
+
+    monkeypatch.setattr(stops, "_with_bridges", lambda jmap, pieces, limits: pieces)
+    with pytest.raises(PlanningError, match=r"move 0 \(circ\): its samples break the joint limits \(acceleration "
+                                            r"x1\.06\d+\) near its sample \d+ \(t = [\d.]+ s into the move\) at s = "):
+        plan(load_task(DATA / "kuka_shoulder_circ_hit_nullspace.yaml"))
+
+
 # -- isolated candidates ----------------------------------------------------------------------------
 
 

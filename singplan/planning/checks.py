@@ -14,7 +14,7 @@ from singplan.kinematics.robot import Robot
 from singplan.planning.alternatives import NO_DEVIATION, Deviation
 from singplan.planning.path import CartesianPiece, sample_deviations
 from singplan.planning.records import PlannedMove, SampleDeviations
-from singplan.planning.timing import TimedMove
+from singplan.planning.timing import TimedMove, worst_sample
 from singplan.planning.tracking import TrackedPath
 from singplan.planning.weave import WovenPiece
 from singplan.planning.zones import Zone
@@ -34,7 +34,7 @@ def check_samples(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove,
     each crossing's own joints, :func:`crossing_deviation`, not again where ``crossings_checked``).
     Returns the samples' figures (None for a PTP move), for the trajectory record to reuse.
     """
-    _check_joint_samples(robot, pm, tm)
+    _check_joint_samples(robot, pm, tm, task.period_s)
     if pm.piece is None:
         return None
     pos, ori = sample_deviations(robot, pm.piece, tm.u, tm.q)
@@ -65,7 +65,7 @@ def tcp_speed_ratios(robot: Robot, pm: PlannedMove, u: np.ndarray, q: np.ndarray
     return np.linalg.norm(np.diff(robot.tcp_positions(q), axis=0), axis=1) / (period_s * speed)
 
 
-def _check_joint_samples(robot: Robot, pm: PlannedMove, tm: TimedMove) -> None:
+def _check_joint_samples(robot: Robot, pm: PlannedMove, tm: TimedMove, period_s: float) -> None:
     """The move's samples inside the joint position limits, and the ratios its timing measured
     (speed, acceleration, torque, jerk) within theirs: joined pieces (a pause, a PTP jump) are
     measured across their seams only here."""
@@ -76,7 +76,9 @@ def _check_joint_samples(robot: Robot, pm: PlannedMove, tm: TimedMove) -> None:
     over = {name: value for name, value in ratios.items() if not value <= 1.0 + ROUND_OFF}
     if over:
         figures = ", ".join(f"{name} x{value:.4f}" for name, value in over.items())
-        raise PlanningError(f"move {pm.index} ({pm.kind}): its samples break the joint limits ({figures})")
+        k = worst_sample(tm.q, period_s, pm.limits.velocity_rad_s, pm.limits.acceleration_rad_s2)
+        raise PlanningError(f"move {pm.index} ({pm.kind}): its samples break the joint limits ({figures}) near its "
+                            f"sample {k} (t = {k * period_s:.4f} s into the move) at {pm.describe(float(tm.u[k]))}")
 
 
 def _check_positions(robot: Robot, pm: PlannedMove, tm: TimedMove) -> None:

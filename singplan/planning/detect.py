@@ -10,7 +10,8 @@ from singplan.kinematics.stopping import path_estimate, ptp_estimate
 from singplan.planning.budget import check_task
 from singplan.planning.checks import check_tracked
 from singplan.planning.jointmap import JointMap, JointPart
-from singplan.planning.move_plan import STEP_M, STEP_RAD, refiner
+from singplan.planning.move_plan import refiner
+from singplan.planning.path import STEP_M, STEP_RAD
 from singplan.planning.pieces import move_piece
 from singplan.planning.targets import ptp_target, task_arm
 from singplan.planning.tracking import track

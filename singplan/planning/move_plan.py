@@ -25,8 +25,6 @@ from singplan.planning.tracking import BranchCandidates, track
 from singplan.planning.zones import DistanceFunction, Zone, find_zones
 from singplan.task.schema import Move, Task
 
-__all__ = ["STEP_M", "STEP_RAD", "MoveTracking", "plan_move", "refiner"]
-
 
 def plan_move(robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3, q_start: np.ndarray,
                method: CrossingMethod, tracking: MoveTracking | None = None) -> PlannedMove:

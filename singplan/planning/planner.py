@@ -30,7 +30,8 @@ from singplan.planning.chain import chain_limits, chain_map, chains, describe_ch
 from singplan.planning.checks import check_config, check_samples, screen
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
-from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_move
+from singplan.planning.move_plan import MoveTracking, plan_move
+from singplan.planning.path import STEP_M, STEP_RAD
 from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint
 from singplan.planning.select import Candidate, Rank, best_of

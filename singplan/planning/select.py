@@ -38,8 +38,8 @@ class Candidate:
         method: the method.
         order: its place among the methods asked for (a tie goes to the earlier).
         pm: its joint map and what was found along it.
-        path: TOPP-RA's path of the joint map, made once for the bound and the timing (None: PTP
-            timing or a paused crossing, timed otherwise).
+        path: TOPP-RA's path of the joint map, made once for the bound and the timing (None: a move
+            that stops on its path, a null-space pause or a PTP jump, timed in pieces).
         bound_s: no timing of the joint map ends sooner [s] (0: no bound known).
         refusal: a failure certain before timing (the configuration the joint map ends in); the
             candidate is timed only if no other one plans the move, so that the error is the full one.

@@ -65,7 +65,11 @@ _WINDOW_FACTORS = (0.5, 1.0, 2.0, 4.0, 8.0)
 _S_CURVE_JERKS = (1.0, 0.5, 0.25)
 TimeLaw = QuinticLaw | SmoothedLaw | SCurveLaw  # S-curve candidates: path jerk x these (curved joint maps need less)
 _CLOCK_SUBSTEPS = 8  # differences per grid interval that find a chain clock's largest rate
-_DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
+# an overshoot this large means a jump in the joint map, not TOPP-RA's grid: tightening cannot help.
+# (A joint map that curves sharply between its reference samples, as exact's crossing right at a
+# wrist hit does, overshoots 4-7x on the first pass and is timed within the limits by tightening;
+# a jump of one degree between two 4 ms samples at 10 rad/s^2 is x109.)
+_DISCONTINUOUS = 10.0
 
 
 class TimingError(PlanningError):

@@ -96,7 +96,7 @@ def run(task: Path, mode: str, out: Path) -> tuple[int, float, float]:
 def model_mb(task: Path) -> float:
     """The budget's estimate [MB] of a task's peak (singplan/planning/budget.py, as the planner calls it)."""
     from singplan.planning.budget import check_task, memory_mb
-    from singplan.planning.move_plan import STEP_M, STEP_RAD
+    from singplan.planning.path import STEP_M, STEP_RAD
     from singplan.planning.targets import load_task_robot
     from singplan.task.load import load_task
 

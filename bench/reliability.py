@@ -47,7 +47,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 from tests.task_strategies import seeded_task  # noqa: E402 (the repo root is put on the path first)
 
-VERIFY = REPO.parent / "shared" / "verify" / "verify_trajectory.py"
+# ../shared next to the project; SINGPLAN_SHARED names it where the project sits elsewhere (a git worktree)
+VERIFY = Path(os.environ.get("SINGPLAN_SHARED") or REPO.parent / "shared") / "verify" / "verify_trajectory.py"
 MOVE_NAMED = re.compile(r"\bmove \d+")
 POINT_NAMED = re.compile(r"s = -?\d[\d.]* mm|xyz|sample \d+|t = \d[\d.]* ?s")
 EXCEPTION_LINE = re.compile(r"^(\w+(?:\.\w+)*(?:Error|Exception|Interrupt|Exit))\b", re.MULTILINE)

@@ -121,3 +121,15 @@ class CollisionError(PlanningError):
         self.distance_m = distance_m
         self.clearance_m = clearance_m
         super().__init__(message)
+
+
+class MethodError(PlanningError):
+    """A crossing method failed inside its own computation on a move (a solver that did not
+    converge, a numerical error): that method cannot plan the move. Under auto the other methods
+    go on and this one is listed as infeasible with the reason."""
+
+    def __init__(self, message: str, move: int, method: str, cause: str) -> None:
+        self.move = move
+        self.method = method
+        self.cause = cause  # the failure's type and message, e.g. "LinAlgError: SVD did not converge"
+        super().__init__(message)

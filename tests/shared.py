@@ -5,15 +5,18 @@ except under CI=true, where it must be present (missing is an error, not a skip)
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import subprocess
 import sys
+from functools import cache
 from pathlib import Path
 from types import ModuleType
 
 import pytest
+import yaml
 
-# next to the project; SINGPLAN_SHARED names it elsewhere (a git worktree, whose parent is not the project's)
+# ../shared next to the project; SINGPLAN_SHARED names it where the project sits elsewhere (a git worktree)
 SHARED = Path(os.environ.get("SINGPLAN_SHARED") or Path(__file__).resolve().parents[2] / "shared")
 CHECKER = SHARED / "verify" / "verify_trajectory.py"
 SCENARIOS = SHARED / "scenarios"
@@ -43,3 +46,26 @@ def bench_module(stem: str) -> ModuleType:
     sys.modules[stem] = module
     spec.loader.exec_module(module)
     return module
+
+
+@cache
+def checker_module() -> ModuleType:
+    """The independent checker imported in this process (a battery checks hundreds of plans: one
+    interpreter and Pinocchio load, not one per plan)."""
+    checker = require(CHECKER)
+    sys.path.insert(0, str(checker.parent))  # it imports its neighbours (paths_check, collision_check)
+    spec = importlib.util.spec_from_file_location("verify_trajectory", checker)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def check_in_process(task: Path, out: Path) -> list[str]:
+    """The checker's failures for the plan in ``out`` of the task file ``task`` (empty: it passes)."""
+    verify = checker_module()
+    verify.paths_check.TASK_DIR = task.resolve().parent
+    traj = json.loads((out / "trajectory.json").read_text())
+    result = verify.Checker(yaml.safe_load(task.read_text()), traj, out).run()
+    verify.collision_check.add_to(result, yaml.safe_load(task.read_text()), task, traj, out)
+    return list(result["failures"])

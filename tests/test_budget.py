@@ -26,7 +26,7 @@ from singplan.planning.budget import (
     estimate_moves,
     memory_mb,
 )
-from singplan.planning.move_plan import STEP_M, STEP_RAD
+from singplan.planning.path import STEP_M, STEP_RAD
 from singplan.planning.targets import load_task_robot
 from singplan.planning.timing import sample_ratios
 from singplan.results import build as trajectory_build

@@ -161,13 +161,20 @@ def test_baselines_leave_the_path_and_say_so(method: str) -> None:
     found = re.search(r"move 0 \(lin\): the crossing in the wrist zone deviates (\d+\.\d+) mm / (\d+\.\d+) deg "
                       r"at s = [\d.]+ mm along the path .*, over the tolerance 0\.01 mm / 2 deg", str(info.value))
     assert found, str(info.value)
-    assert float(found.group(1)) > 0.05  # [mm]: five times the tolerance at least (0.06 to 11 mm)
+    assert float(found.group(1)) > 0.01  # [mm]: over the tolerance (0.013 mm for ptp's jump, up to 11 mm)
     assert (info.value.move, info.value.kind) == (0, "wrist") and info.value.s_m > 0.0
 
 
-def test_summary_names_the_choice_the_runner_up_and_the_time_saved() -> None:
+def test_summary_tabulates_what_auto_compared() -> None:
+    """One row per candidate: its move time (or the least it can have, not timed), the deviation of
+    its crossings, and why it was not chosen; the rule named with its setting."""
     from singplan.outputs.summary import summary
 
     task = load_task(NEAR_MISS)
     text = summary(plan(task), task)
-    assert "auto chose" in text and "runner-up" in text and "s saved" in text
+    assert "auto chose axis (a crossing that uses its whole tolerance counts 3 % slower, " \
+           "singularity.deviation_cost_percent):" in text, text
+    rows = {line.split()[0]: line for line in text.splitlines()[4:] if line.startswith("          ")}
+    assert re.search(r"axis +1\.032 s +0\.000 mm / 0\.122 deg +chosen", rows["axis"]), text
+    assert re.search(r"exact +>= 1\.748 s +0\.000 mm / 0\.000 deg +not timed: cannot win", rows["exact"]), text
+    assert re.search(r"null-space +- +- +infeasible: null-space acts only where", rows["null-space"]), text

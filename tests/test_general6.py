@@ -101,16 +101,16 @@ def _crossings(traj: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def _assert_runner_up_is_not_refused(summary_text: str, traj: dict[str, Any]) -> None:
-    """The summary's runner-up is a method that planned the move, or the bound of one that could not
-    beat the chosen one (not timed, ``feasible`` null), never a refused one."""
+    """The summary's table of what auto compared lists the methods that planned the move and those
+    that could not beat the chosen one (not timed, ``feasible`` null) first, and every refused one
+    after them, saying so: the row after the chosen one is never a refused method."""
     for segment in _crossings(traj):
         feasible = {a["method"] for a in segment.get("alternatives") or [] if a["feasible"] is not False}
-        for line in summary_text.splitlines():
-            if "runner-up" in line:
-                named = line.split("runner-up ")[1]
-                if named.startswith(">="):  # 'runner-up >= m s (nearest bound: NAME ..., not timed)'
-                    named = named.split("nearest bound: ")[1]
-                assert named.split(" ")[0].rstrip(",") in feasible, line
+        rows = [line.split() for line in summary_text.splitlines()
+                if line.startswith("          ") and line.split()[0] != "method"]
+        refused = ["infeasible:" in row for row in rows]
+        assert refused == sorted(refused), summary_text  # the refused ones last
+        assert all(row[0] in feasible for row, r in zip(rows, refused, strict=True) if not r), summary_text
 
 
 def _plan_all(task: dict[str, Any], tmp_path: Path, planned: tuple[str, ...]) -> dict[str, dict[str, Any]]:

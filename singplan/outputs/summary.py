@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from collections import Counter
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -61,7 +62,8 @@ def _move_lines(traj: Trajectory, task: Task, by_move: dict[int, list[Segment]],
         lines.append(f"  move {i} {move.kind:4s} {t0:8.3f} .. {t1:8.3f} s  {what:16s} "
                      f"{segs[0].config_before} -> {segs[-1].config_after}")
         for s in segs:
-            lines.extend(_segment_lines(s, traj.zone_times(s) if s.kind == "crossing" else None))
+            lines.extend(_segment_lines(s, traj.zone_times(s) if s.kind == "crossing" else None,
+                                        task.singularity.deviation_cost_percent))
     return lines
 
 
@@ -76,7 +78,7 @@ def overview_lines(traj: Trajectory, task: Task, by_move: dict[int, list[Segment
     crossings = [s for s in traj.segments if isinstance(s.details, CrossingFigures)]
     if crossings:
         figures = [s.details for s in crossings if isinstance(s.details, CrossingFigures)]
-        worst = max(crossings, key=lambda s: _deviation(s.details))
+        worst = max(crossings, key=lambda s: _worst_first(s.details))
         lines.append(f"  crossings: {len(crossings)} ({_counted(Counter(str(s.singularity) for s in crossings))}; "
                      f"methods {_counted(Counter(str(s.method) for s in crossings))}), "
                      f"{sum(f.time_lost_s for f in figures):.3f} s lost, largest deviation "
@@ -99,7 +101,8 @@ def _counted(counts: Counter[str]) -> str:
     return ", ".join(f"{n} {name}" for name, n in counts.most_common())
 
 
-def _deviation(d: object) -> tuple[float, float]:
+def _worst_first(d: object) -> tuple[float, float]:
+    """A crossing's deviation as a sort key: orientation, then position."""
     return (d.max_orientation_error_deg, d.max_position_error_mm) if isinstance(d, CrossingFigures) else (0.0, 0.0)
 
 
@@ -129,9 +132,9 @@ def _torque_line(traj: Trajectory, task: Task) -> str:
     return f"torques: peak x{torques.max_torque_ratio:.3f} of {limit} at {torques.max_torque_joint}"
 
 
-def _segment_lines(s: Segment, zone: tuple[float, float] | None) -> list[str]:
+def _segment_lines(s: Segment, zone: tuple[float, float] | None, cost_percent: float) -> list[str]:
     """The lines of a fly-by corner or a crossing (none for other segments); ``zone``: when the
-    path is inside a crossing's zone."""
+    path is inside a crossing's zone; ``cost_percent``: auto's rule (what a whole tolerance costs)."""
     d = s.details
     if isinstance(d, BlendFigures):
         reduced = f" ({d.reduced})" if d.reduced else ""
@@ -149,8 +152,7 @@ def _segment_lines(s: Segment, zone: tuple[float, float] | None) -> list[str]:
              f"method {s.method} {how}, {s.config_before} -> {s.config_after}, "
              f"dev {d.max_position_error_mm:.4f} mm / {d.max_orientation_error_deg:.4f} deg, "
              f"time lost {d.time_lost_s:.3f} s"]
-    choice = _choice(d.alternatives)
-    return [*lines, f"        {choice}"] if choice else lines
+    return [*lines, *(f"        {line}" for line in _choice(d.alternatives, cost_percent))]
 
 
 def _span(s: Segment, zone: tuple[float, float] | None) -> str:
@@ -162,29 +164,51 @@ def _span(s: Segment, zone: tuple[float, float] | None) -> str:
     return f"zone {crossing}" if inside == crossing else f"crossing {crossing} (zone {inside})"
 
 
-def _choice(alternatives: Sequence[Alternative]) -> str:
-    """'auto chose X (n s); runner-up Y (m s), k s saved; infeasible: Z' from a crossing's
-    alternatives. Where a candidate not timed might come second, the runner-up is given by the
-    least duration it can have: 'runner-up >= m s (nearest bound: Y, not timed), >= k s saved'."""
+def _choice(alternatives: Sequence[Alternative], cost_percent: float) -> list[str]:
+    """What auto compared on the move, as a small table: each candidate's move duration (or, for one
+    not timed, the least it can have), the deviation of its crossings, and why it was not chosen."""
     feasible = [a for a in alternatives if a.feasible and a.duration_s is not None]
     if len(alternatives) < 2 or not feasible:
-        return ""
+        return []
     best = feasible[0]
-    text = f"auto chose {_name(best)} ({best.duration_s:.3f} s move)"
-    ranked = sorted(feasible[1:] + [a for a in alternatives if a.feasible is None], key=_seconds)
-    others = [a for a in ranked if a.method != best.method] or ranked
-    if others:
-        second = others[0]
-        saved = _seconds(second) - float(best.duration_s or 0.0)
-        if second.feasible:
-            text += f"; runner-up {_name(second)} ({_seconds(second):.3f} s), {saved:.3f} s saved"
-        else:
-            text += (f"; runner-up >= {_seconds(second):.3f} s (nearest bound: {_name(second)}, not timed), "
-                     f">= {saved:.3f} s saved")
-    infeasible = sorted({a.method for a in alternatives if a.feasible is False})
-    if infeasible:
-        text += f"; infeasible: {', '.join(infeasible)}"
-    return text
+    rule = (f"a crossing that uses its whole tolerance counts {cost_percent:g} % slower"
+            if cost_percent > 0 else "the fastest within the tolerances")
+    untimed = sorted((a for a in alternatives if a.feasible is None), key=_seconds)
+    rows = [*feasible, *untimed, *(a for a in alternatives if a.feasible is False)]
+    width = max(len(_name(a)) for a in rows)
+    lines = [f"auto chose {_name(best)} ({rule}, singularity.deviation_cost_percent):",
+             f"  {'method':{width}s}  {'move':>10s}  deviation"]
+    for a in rows:
+        lines.append(f"  {_name(a):{width}s}  {_move_time(a):>10s}  {_alternative_deviation(a):22s}  {_note(a, best)}".rstrip())
+    return lines
+
+
+def _move_time(a: Alternative) -> str:
+    if a.feasible:
+        return f"{float(a.duration_s or 0.0):.3f} s"
+    return f">= {float(a.at_least_s or 0.0):.3f} s" if a.feasible is None else "-"
+
+
+def _alternative_deviation(a: Alternative) -> str:
+    if a.position_mm is None or a.orientation_deg is None:
+        return "-"
+    return f"{a.position_mm:.3f} mm / {a.orientation_deg:.3f} deg"
+
+
+def _note(a: Alternative, best: Alternative) -> str:
+    if a is best:
+        return "chosen"
+    if a.feasible:
+        return "planned, not chosen"
+    if a.feasible is None:
+        return "not timed: cannot win"
+    return f"infeasible: {_short(a.reason)}"
+
+
+def _short(reason: str, limit: int = 110) -> str:
+    """An infeasible candidate's reason without the move's name, up to its first clause."""
+    text = re.sub(r"^move \d+ \(\w+\): ", "", reason).split("; ")[0]
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _name(a: Alternative) -> str:

@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any
+from typing import Any, NamedTuple
 
 
 class JsonRecord(Mapping[str, Any]):
@@ -34,6 +34,19 @@ class JsonRecord(Mapping[str, Any]):
         return len(self._document)
 
 
+class Deviation(NamedTuple):
+    """How far a candidate's crossings leave the programmed pose (on their own joints, known before
+    timing), and the share of the task's tolerance that is: the larger of position / its tolerance
+    and orientation / its tolerance (0 .. 1). auto counts it (``singularity.deviation_cost_percent``)."""
+
+    position_mm: float
+    orientation_deg: float
+    share: float
+
+
+NO_DEVIATION = Deviation(0.0, 0.0, 0.0)
+
+
 @dataclass(frozen=True, eq=False)
 class Alternative(JsonRecord):
     """One method auto (or a multi-variant method) tried on a move.
@@ -46,6 +59,8 @@ class Alternative(JsonRecord):
         duration_s: the move's duration with it [s] (feasible ones).
         reason: why it could not plan the move (infeasible ones), or why it was not timed.
         at_least_s: the lower bound on its duration that ruled it out [s] (those not timed).
+        position_mm, orientation_deg: how far its crossings leave the pose (:class:`Deviation`;
+            feasible ones and those not timed; None for infeasible ones).
     """
 
     method: str
@@ -54,14 +69,17 @@ class Alternative(JsonRecord):
     duration_s: float | None = None
     reason: str = ""
     at_least_s: float | None = None
+    position_mm: float | None = None
+    orientation_deg: float | None = None
 
     def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"method": self.method, "variant": self.variant}
+        if self.feasible is False:
+            return {**out, "feasible": False, "reason": self.reason}
+        deviation = {"position_mm": self.position_mm, "orientation_deg": self.orientation_deg}
         if self.feasible:
-            return {"method": self.method, "variant": self.variant, "duration_s": self.duration_s, "feasible": True}
-        if self.feasible is None:
-            return {"method": self.method, "variant": self.variant, "feasible": None, "at_least_s": self.at_least_s,
-                    "reason": self.reason}
-        return {"method": self.method, "variant": self.variant, "feasible": False, "reason": self.reason}
+            return {**out, "duration_s": self.duration_s, "feasible": True, **deviation}
+        return {**out, "feasible": None, "at_least_s": self.at_least_s, "reason": self.reason, **deviation}
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Alternative:
@@ -70,4 +88,5 @@ class Alternative(JsonRecord):
 
         feasible = doc["feasible"]
         return cls(str(doc["method"]), None if feasible is None else bool(feasible), str(doc.get("variant", "")),
-                   number("duration_s"), str(doc.get("reason", "")), number("at_least_s"))
+                   number("duration_s"), str(doc.get("reason", "")), number("at_least_s"), number("position_mm"),
+                   number("orientation_deg"))

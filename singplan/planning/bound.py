@@ -20,7 +20,8 @@ profile a timing's samples are taken from stays under C.
 **Samples.** The samples are that profile at every period, so between two of them the path
 advances at most as far as C lets it in one period; and an accepted timing's samples advance
 the TCP clock (time at the programmed speed) by at most ``TCP_MARGIN`` periods each (the check
-of :mod:`~singplan.planning.timing`, exact for LIN and CIRC). Stepping as far as both allow,
+of :mod:`~singplan.planning.timing`, exact for LIN and CIRC; where the joint map leaves the path
+the clock follows the TCP's own travel, never less than the path's). Stepping as far as both allow,
 sample after sample, reaches the end in the fewest samples any accepted timing can have (each
 step's reach only grows with where it starts): that count of periods is the bound, up to
 TOPP-RA's solver tolerance (a 1e-6 relative margin).
@@ -57,8 +58,10 @@ def duration_bound_s(path: TimingPath, limits: MoveLimits, period_s: float,
         return 0.0
     tau, vmax_1, amax_1 = path.scaled_limits(limits, scale)
     caps = speed_caps(path, vmax_1, amax_1)  # (G,) C_i, dimensionless
-    clock = limits.tcp_clock(np.array([1.0]))  # the TCP's time at programmed speed to the end [s]
-    clock_step = math.inf if clock is None else TCP_MARGIN * period_s / float(clock[0]) * _MARGIN
+    # the path's time at programmed speed to the end [s] (a trace of the TCP's own travel only adds
+    # to it: every step advances its coordinate at least as far as the path's)
+    clock_s = limits.length_m / limits.tcp_speed_m_s if limits.tcp_speed_m_s and limits.length_m > 0 else 0.0
+    clock_step = TCP_MARGIN * period_s / clock_s * _MARGIN if clock_s > 0 else math.inf
     samples = fewest_samples(path.grid, np.sqrt(caps), period_s / tau * _MARGIN, clock_step)  # the period in tau
     after_pass = max(1, math.ceil(pass_s / _MARGIN / period_s - 1e-9)) if pass_s > 0.0 else 0  # as _sample rounds
     return max(samples, after_pass) * period_s if samples > 0 else 0.0

@@ -11,22 +11,30 @@ import numpy as np
 from singplan.errors import JointLimitError, PlanningError, SingularityError, UnreachableError
 from singplan.kinematics.configuration import distances_batch, labels_from_distances, parse_configuration
 from singplan.kinematics.robot import Robot
+from singplan.planning.alternatives import NO_DEVIATION, Deviation
 from singplan.planning.path import CartesianPiece, sample_deviations
 from singplan.planning.records import PlannedMove, SampleDeviations
-from singplan.planning.timing import TimedMove
+from singplan.planning.timing import TimedMove, worst_sample
 from singplan.planning.tracking import TrackedPath
+from singplan.planning.weave import WovenPiece
 from singplan.planning.zones import Zone
 from singplan.task.schema import Move, Task
 
+ROUND_OFF = 1e-9  # a limit ratio this far over 1 is round-off, more is a violated limit
+TCP_ROUND_OFF = 1e-6  # the TCP speed: chords of exact samples, measured through the kinematics
 
-def check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove,
-                     crossings_checked: bool = False) -> SampleDeviations | None:
-    """A crossing may deviate up to the task's tolerances; more is no plan (exit 3).
 
-    Checked on the samples, and on each crossing's own joints (:func:`crossing_deviation`; not
-    again where ``crossings_checked``). Returns the samples' deviations (None for a PTP move), for
-    the trajectory record to reuse.
+def check_samples(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove,
+                  crossings_checked: bool = False) -> SampleDeviations | None:
+    """What the final gate measures on a trajectory, measured on one candidate's timed move, so that a
+    candidate that would fail it is dropped (auto takes the next) or refused (exit 3) here.
+
+    The joint limits (position, speed, acceleration and the others the timing measured) and the TCP
+    speed on the samples; a crossing may deviate up to the task's tolerances (on the samples, and on
+    each crossing's own joints, :func:`crossing_deviation`, not again where ``crossings_checked``).
+    Returns the samples' figures (None for a PTP move), for the trajectory record to reuse.
     """
+    _check_joint_samples(robot, pm, tm, task.period_s)
     if pm.piece is None:
         return None
     pos, ori = sample_deviations(robot, pm.piece, tm.u, tm.q)
@@ -35,34 +43,90 @@ def check_tolerances(robot: Robot, task: Task, pm: PlannedMove, tm: TimedMove,
         error = crossing_deviation(robot, task, pm)
     if error is not None:
         raise error
-    return SampleDeviations(tm.u, tm.q, pos, ori)
+    tcp = tcp_speed_ratios(robot, pm, tm.u, tm.q, task.period_s)
+    k = int(np.argmax(tcp)) if len(tcp) else 0
+    if len(tcp) and not tcp[k] <= 1.0 + TCP_ROUND_OFF:  # `not <=`: NaN too
+        raise PlanningError(f"move {pm.index} ({pm.kind}): the TCP runs at x{tcp[k]:.4f} its programmed speed "
+                            f"({pm.limits.tcp_speed_m_s:g} m/s) between the move's samples {k} and {k + 1} at "
+                            f"{pm.describe(float(tm.u[k]))}")
+    return SampleDeviations(tm.u, tm.q, pos, ori, tcp)
+
+
+def tcp_speed_ratios(robot: Robot, pm: PlannedMove, u: np.ndarray, q: np.ndarray, period_s: float) -> np.ndarray:
+    """Each step's TCP speed over the move's programmed speed (K,), of samples (u (K + 1,), q (K + 1, n))
+    on a LIN / CIRC's own path: the chord between the samples' TCP positions over the period, as a
+    checker measures it; along a woven move the base path's progress (its programmed speed is the
+    base path's). Zeros for a PTP or a move without a TCP speed."""
+    speed = pm.limits.tcp_speed_m_s
+    if pm.piece is None or not speed or len(u) < 2:
+        return np.zeros(max(len(u) - 1, 0))
+    if isinstance(pm.piece, WovenPiece):
+        return np.abs(np.diff(u)) * pm.limits.length_m / (period_s * speed)
+    return np.linalg.norm(np.diff(robot.tcp_positions(q), axis=0), axis=1) / (period_s * speed)
+
+
+def _check_joint_samples(robot: Robot, pm: PlannedMove, tm: TimedMove, period_s: float) -> None:
+    """The move's samples inside the joint position limits, and the ratios its timing measured
+    (speed, acceleration, torque, jerk) within theirs: joined pieces (a pause, a PTP jump) are
+    measured across their seams only here."""
+    _check_positions(robot, pm, tm)
+    ratios = {"speed": tm.speed_ratio, "acceleration": tm.accel_ratio,
+              "torque": tm.torque_ratio if pm.limits.torque is not None else 0.0,
+              "jerk": tm.jerk_ratio if pm.limits.jerk_rad_s3 is not None else 0.0}
+    over = {name: value for name, value in ratios.items() if not value <= 1.0 + ROUND_OFF}
+    if over:
+        figures = ", ".join(f"{name} x{value:.4f}" for name, value in over.items())
+        k = worst_sample(tm.q, period_s, pm.limits.velocity_rad_s, pm.limits.acceleration_rad_s2)
+        raise PlanningError(f"move {pm.index} ({pm.kind}): its samples break the joint limits ({figures}) near its "
+                            f"sample {k} (t = {k * period_s:.4f} s into the move) at {pm.describe(float(tm.u[k]))}")
+
+
+def _check_positions(robot: Robot, pm: PlannedMove, tm: TimedMove) -> None:
+    outside = np.argwhere(~((tm.q >= robot.lower_rad - 1e-9) & (tm.q <= robot.upper_rad + 1e-9)))
+    if outside.size:
+        k, j = (int(v) for v in outside[0])
+        raise JointLimitError(
+            f"move {pm.index} ({pm.kind}): its sample {k} puts {robot.joint_names[j]} at "
+            f"{math.degrees(tm.q[k, j]):.3f} deg, outside its limits [{math.degrees(robot.lower_rad[j]):.1f}, "
+            f"{math.degrees(robot.upper_rad[j]):.1f}] deg, at {pm.describe(float(tm.u[k]))}",
+            joint=robot.joint_names[j], value_rad=float(tm.q[k, j]), lower_rad=float(robot.lower_rad[j]),
+            upper_rad=float(robot.upper_rad[j]), move=pm.index)
 
 
 def crossing_deviation(robot: Robot, task: Task, pm: PlannedMove) -> SingularityError | None:
     """The tolerance error of a crossing's own joints (its reference samples, through which its
     joint map passes), if any: a motion that leaves the tolerance band there leaves it whether or
     not an output sample lands on that point."""
-    parts = [part for crossing in pm.crossings for part in crossing.parts]
-    if pm.piece is None or not parts:
-        return None
-    u = np.concatenate([part.u for part in parts])
-    pos, ori = sample_deviations(robot, pm.piece, u, np.concatenate([part.q for part in parts]))
-    return _over_tolerance(task, pm, u, pos, ori)
+    return _crossing_screen(robot, task, pm)[0]
 
 
-def refusal(robot: Robot, task: Task, move: Move, pm: PlannedMove) -> PlanningError | None:
-    """Why no timing of the move can be kept, told before timing; None when only the samples can tell.
+def screen(robot: Robot, task: Task, move: Move, pm: PlannedMove) -> tuple[PlanningError | None, Deviation]:
+    """What is known of a candidate before timing: why no timing of it can be kept (None when only
+    the samples can tell), and how far its crossings leave the pose on their own joints.
 
-    The configuration its joint map ends in (the first and last samples of any timing are its
-    ends), or a crossing's own joints over the tolerances (:func:`crossing_deviation`, which
-    :func:`check_tolerances` applies to every timed move too).
+    The refusal: the configuration its joint map ends in (the first and last samples of any timing
+    are its ends), or a crossing's own joints over the tolerances (which :func:`check_samples`
+    applies to every timed move too).
     """
     u = np.array([0.0, 1.0])
     try:
         check_config(robot, move, pm, u, pm.jmap.evaluate(u))
     except PlanningError as exc:
-        return exc
-    return crossing_deviation(robot, task, pm)
+        return exc, NO_DEVIATION
+    return _crossing_screen(robot, task, pm)
+
+
+def _crossing_screen(robot: Robot, task: Task, pm: PlannedMove) -> tuple[SingularityError | None, Deviation]:
+    """The crossings' own joints: their tolerance error if any, and their deviation."""
+    parts = [part for crossing in pm.crossings for part in crossing.parts]
+    if pm.piece is None or not parts:
+        return None, NO_DEVIATION
+    u = np.concatenate([part.u for part in parts])
+    pos, ori = sample_deviations(robot, pm.piece, u, np.concatenate([part.q for part in parts]))
+    pos_m, ori_rad = float(pos.max(initial=0.0)), float(ori.max(initial=0.0))
+    share = max(pos_m * 1e3 / task.singularity.position_tolerance_mm,
+                math.degrees(ori_rad) / task.singularity.orientation_tolerance_deg)
+    return _over_tolerance(task, pm, u, pos, ori), Deviation(pos_m * 1e3, math.degrees(ori_rad), min(share, 1.0))
 
 
 def _over_tolerance(task: Task, pm: PlannedMove, u: np.ndarray, pos: np.ndarray,

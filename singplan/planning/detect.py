@@ -45,12 +45,13 @@ from singplan.kinematics.stopping import (
     travel,
 )
 from singplan.planning.budget import check_task
-from singplan.planning.checks import refusal
+from singplan.planning.checks import screen
 from singplan.planning.collide import line_samples
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Exact
-from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_cartesian
+from singplan.planning.move_plan import MoveTracking, plan_cartesian
+from singplan.planning.path import STEP_M, STEP_RAD
 from singplan.planning.records import PlannedMove
 from singplan.planning.targets import ptp_target, task_arm
 from singplan.planning.zones import Zone
@@ -188,7 +189,7 @@ def _path_states(robot: Robot, task: Task, i: int, move: Move, tracking: MoveTra
             pm = plan_cartesian(robot, task, i, move, tracking, q_start, method)
         except PlanningError:
             continue
-        if refusal(robot, task, move, pm) is not None:  # the planner drops it before timing: no plan of it
+        if screen(robot, task, move, pm)[0] is not None:  # the planner drops it before timing: no plan of it
             continue
         states += list(_jmap_states(robot, task, move, pm))
         ends.append(pm.jmap.evaluate(np.array([1.0]))[0])

@@ -10,7 +10,10 @@ output sample lies on the path. It is stitched from parts:
   joint values and slopes), with joints 1-3 re-solved so that the TCP *position* is exact.
 * ``axis``: one joint follows the blend; the others keep one pose component exact and
   minimise the error of the other (SEEDS 000, :func:`axis_solve`).
-* ``ptp``: piecewise-linear in joint space (PTP moves, and the baselines' samples).
+* ``ptp``: piecewise-linear in joint space (PTP moves, and the ``ptp`` baseline's jump, which
+  starts and ends at rest: :mod:`singplan.planning.stops`).
+* ``spline``: a C2 cubic spline through the samples of a baseline (``average``, ``dls``), its end
+  slopes the neighbouring path's, so the joints move smoothly through them and on.
 """
 
 from __future__ import annotations
@@ -39,10 +42,10 @@ class JointPart:
     """One part of a joint map over [u0, u1].
 
     Attributes:
-        kind: "track" | "blend" | "axis" | "ptp".
+        kind: "track" | "blend" | "axis" | "ptp" | "spline".
         u: reference parameters inside [u0, u1], increasing, shape (K,).
         q: reference joint values [rad], shape (K, n).
-        dq_du: joint slopes at u0 and u1 (blend only), shape (2, n).
+        dq_du: joint slopes at u0 and u1 (blend, axis and spline parts), shape (2, n).
     """
 
     kind: str
@@ -105,13 +108,22 @@ class JointMap:
         self.robot = robot
         self.poses = poses
         self.parts = parts
-        # an axis part's spline through its solutions, by the part's id (the part is kept: its id stays its own)
+        # an axis part's spline through its solutions, a spline part's curve, by the part's id (the
+        # part is kept: its id stays its own)
         self._starts: dict[int, tuple[JointPart, CubicSpline]] = {}
 
     @property
     def straight(self) -> bool:
         """A straight line in joint space (a PTP): a few reference points describe it."""
         return all(part.kind == "ptp" for part in self.parts)
+
+    @property
+    def off_path_parts(self) -> list[JointPart]:
+        """The parts whose TCP may leave a LIN / CIRC's path in position (joint lines and splines,
+        axis parts that keep the orientation); none for a PTP move."""
+        if self.poses is None:
+            return []
+        return [p for p in self.parts if p.kind in ("ptp", "spline") or (p.kind == "axis" and p.exact != "position")]
 
     def reference(self) -> tuple[np.ndarray, np.ndarray]:
         """All reference samples (u (K,), q (K, n)), without repeated part ends."""
@@ -124,6 +136,8 @@ class JointMap:
     def evaluate(self, u: np.ndarray) -> np.ndarray:
         """Joint values (N, n) at parameters u (N,), each exactly on the map's definition."""
         u = np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0)  # np.clip costs several times more
+        if len(u) == 0:
+            return np.empty((0, self.robot.n_joints))
         if len(u) > _CHUNK:
             out = np.empty((len(u), self.robot.n_joints))
             for k in range(0, len(u), _CHUNK):
@@ -144,6 +158,8 @@ class JointMap:
     def _evaluate_part(self, part: JointPart, u: np.ndarray) -> np.ndarray:
         if part.kind == "ptp":
             return interpolate(part, u)
+        if part.kind == "spline":
+            return np.asarray(self._spline(part)(u))
         if part.kind == "blend":
             return self.fix_position(hermite(part, u), u)
         if part.kind == "axis":
@@ -168,6 +184,13 @@ class JointMap:
         """The spline through an axis part's solutions (its free joints), made once per part of this map."""
         if id(part) not in self._starts:
             self._starts[id(part)] = (part, CubicSpline(part.u, part.q[:, free], axis=0))
+        return self._starts[id(part)][1]
+
+    def _spline(self, part: JointPart) -> CubicSpline:
+        """A spline part's curve: through its samples, with its end slopes where it has them (made once)."""
+        if id(part) not in self._starts:
+            ends = "not-a-knot" if part.dq_du is None else ((1, part.dq_du[0]), (1, part.dq_du[1]))
+            self._starts[id(part)] = (part, CubicSpline(part.u, part.q, axis=0, bc_type=ends))
         return self._starts[id(part)][1]
 
     def _exact_near(self, q_ref: np.ndarray, u: np.ndarray) -> np.ndarray:

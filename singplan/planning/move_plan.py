@@ -16,15 +16,15 @@ from singplan.kinematics.robot import Robot
 from singplan.planning.checks import check_limits, check_tracked
 from singplan.planning.crossing.base import Crossing, CrossingMethod, MoveContext
 from singplan.planning.jointmap import JointMap, JointPart
+from singplan.planning.path import STEP_M, STEP_RAD
 from singplan.planning.pieces import move_piece
 from singplan.planning.records import PlannedMove
 from singplan.planning.targets import move_limits, ptp_target
+from singplan.planning.timing import tcp_trace
 from singplan.planning.tracking import BranchCandidates, track
 from singplan.planning.zones import DistanceFunction, Zone, find_zones
 from singplan.task.schema import Move, Task
 
-STEP_M = 0.002  # initial path sampling: at most 2 mm ...
-STEP_RAD = math.radians(0.5)  # ... and 0.5 deg of tool rotation between samples
 
 def plan_move(robot: Robot, task: Task, i: int, move: Move, T_start: pin.SE3, q_start: np.ndarray,
                method: CrossingMethod, tracking: MoveTracking | None = None,
@@ -72,8 +72,11 @@ def plan_cartesian(robot: Robot, task: Task, i: int, move: Move, tracking: MoveT
             check_limits(robot, i, move, piece, part.u, part.q, zones)  # every method's crossing
         crossings.append(result)
         u_from, q_from = result.parts[-1].u1, result.q_exit
-    return PlannedMove(i, move.kind, JointMap(robot, piece.poses, parts),
-                       move_limits(robot, task, move, piece.length_m), piece, tuple(zones), tuple(crossings))
+    jmap = JointMap(robot, piece.poses, parts)
+    limits = move_limits(robot, task, move, piece.length_m)
+    if move.weave is None:  # a weave's programmed speed is along its base path, which u measures
+        limits = replace(limits, trace=tcp_trace(jmap, piece.length_m))
+    return PlannedMove(i, move.kind, jmap, limits, piece, tuple(zones), tuple(crossings))
 
 
 @dataclass(frozen=True)

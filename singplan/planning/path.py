@@ -24,6 +24,8 @@ from singplan.kinematics.robot import Robot
 from singplan.task.schema import Move
 
 AMBIGUOUS_ROTATION_RAD = math.pi - 1e-6
+STEP_M = 0.002  # the planner's path sampling: at most 2 mm ...
+STEP_RAD = math.radians(0.5)  # ... and 0.5 deg of tool rotation between samples
 _DRAW_POINTS = 64  # a replay draws a LIN / CIRC with this many points (a woven one with more)
 
 

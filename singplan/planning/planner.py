@@ -26,19 +26,20 @@ from singplan.kinematics.clearance import check_clearance
 from singplan.kinematics.collision import CollisionModel, describe_distance
 from singplan.kinematics.configuration import classify
 from singplan.kinematics.robot import Robot
+from singplan.planning import collide
 from singplan.planning.blending import RAMPS, Blend, corners, side_of, stopped
 from singplan.planning.bound import duration_bound_s
 from singplan.planning.budget import BudgetError, check_task
 from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
-from singplan.planning.checks import check_config, check_tolerances, refusal
-from singplan.planning.collide import check_move, screen, screen_line
+from singplan.planning.checks import check_config, check_samples, screen
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
-from singplan.planning.crossing.nullspace import time_with_pauses
-from singplan.planning.move_plan import STEP_M, STEP_RAD, MoveTracking, plan_move
+from singplan.planning.move_plan import MoveTracking, plan_move
+from singplan.planning.path import STEP_M, STEP_RAD
 from singplan.planning.records import PlannedMove
 from singplan.planning.redundancy import HeldJoint
 from singplan.planning.select import Candidate, Rank, Refused, best_of
+from singplan.planning.stops import stops, time_in_pieces
 from singplan.planning.targets import move_limits, ptp_targets, task_arm
 from singplan.planning.timing import (
     GiveUp,
@@ -141,6 +142,8 @@ def _at_rest(pm: PlannedMove) -> str:
     """Why a move must start and end at rest ("" when it need not)."""
     if any(c.pause is not None for c in pm.crossings):
         return "pauses on its path (a null-space crossing starts and ends at rest)"
+    if stops(pm.crossings):
+        return "jumps over a zone with a PTP motion, which starts and ends at rest"
     if pm.limits.quintic:
         return "is timed by the quintic PTP law, which runs from rest to rest"
     return ""
@@ -218,8 +221,8 @@ def _timed(pm: PlannedMove, period_s: float, max_samples: int, path: TimingPath 
     """time_move (``path``: the joint map's timing path, where made; ``give_up``: see there), a
     failure located on the move."""
     try:
-        if any(c.pause is not None for c in pm.crossings):  # the TCP waits: timed in pieces
-            return time_with_pauses(pm.jmap, pm.crossings, pm.limits, period_s, pm.index, max_samples)
+        if stops(pm.crossings):  # the TCP waits or jumps: timed in pieces
+            return time_in_pieces(pm.jmap, pm.crossings, pm.limits, period_s, pm.index, max_samples)
         return time_move(pm.jmap, pm.limits, period_s, pm.index, max_samples, path, give_up)
     except TimingError as exc:
         raise _located(pm, exc) from exc
@@ -252,7 +255,8 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
     """Plan each method's joint map, then time and check the candidates that can still win;
     :func:`select.best_of` keeps the fastest. ``q_target``: a PTP's end joints (default: the preferred)."""
     candidates = _MoveCandidates(robot, task, i, move, T, q, len(methods), max_samples, place, q_target)
-    return best_of(robot, i, move.kind, methods, candidates.prepare, candidates.finish)
+    return best_of(robot, i, move.kind, methods, candidates.prepare, candidates.finish,
+                   task.singularity.deviation_cost_percent / 100.0)
 
 
 def _best_end(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
@@ -268,7 +272,7 @@ def _best_end(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nd
             each other's reason).
     """
     targets = ptp_targets(robot, i, move, q)
-    blocked = screen_line(place.collision, q, targets[0], i)
+    blocked = collide.screen_line(place.collision, q, targets[0], i)
     if blocked is None:
         return _best_of(robot, task, i, move, T, q, methods, max_samples, place, targets[0])
     limits = move_limits(robot, task, move, 0.0)
@@ -277,7 +281,7 @@ def _best_end(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nd
     for target in sorted(targets[1:], key=lambda target: ptp_duration_bound_s(q, target, limits)):
         if best is not None and ptp_duration_bound_s(q, target, limits) >= best[1].duration_s:
             break  # neither this nor a later one can be faster (a tie: the nearer end, tried first)
-        error: PlanningError | BudgetError | None = screen_line(place.collision, q, target, i)
+        error: PlanningError | BudgetError | None = collide.screen_line(place.collision, q, target, i)
         if error is None:
             try:
                 found = _best_of(robot, task, i, move, T, q, methods, max_samples, place, target)
@@ -293,8 +297,8 @@ def _best_end(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nd
     pm, tm = _best_of(robot, task, i, move, T, q, methods, max_samples, place, targets[0])
     reasons = "; ".join(f"{classify(robot, target).label}: {_reason(error)}" for target, error in refused)
     try:
-        check_move(place.collision, tm.q, i, "ptp", place.offset, task.period_s,
-                   lambda k: pm.describe(float(tm.u[k])))
+        collide.check_move(place.collision, tm.q, i, "ptp", place.offset, task.period_s,
+                           lambda k: pm.describe(float(tm.u[k])))
     except CollisionError as first:
         message = f"{first} (no end configuration of the pose is clear: {reasons})" if reasons else str(first)
         raise CollisionError(message, first.move, first.sample, first.t_s, first.bodies, first.distance_m,
@@ -342,12 +346,12 @@ class _MoveCandidates:
         same = next((c for c in self.prepared if _same_motion(c.pm, pm)), None)
         if same is not None:
             return replace(same, method=method, order=order, pm=pm)
-        path = None if any(c.pause is not None for c in pm.crossings) else _timing_path(pm)
+        path = None if stops(pm.crossings) else _timing_path(pm)
         if not self.compared:
             return Candidate(method, order, pm, path)
         bound_s = 0.0 if path is None else duration_bound_s(path, pm.limits, self.task.period_s)
-        why_not = refusal(self.robot, self.task, self.move, pm)
-        self.prepared.append(Candidate(method, order, pm, path, bound_s, why_not, screened=True))
+        why_not, deviation = screen(self.robot, self.task, self.move, pm)
+        self.prepared.append(Candidate(method, order, pm, path, bound_s, why_not, screened=True, deviation=deviation))
         return self.prepared[-1]
 
     def finish(self, c: Candidate, best: Rank | None) -> tuple[PlannedMove, TimedMove]:
@@ -364,29 +368,30 @@ class _MoveCandidates:
     def _timed_and_checked(self, c: Candidate, best: Rank | None
                            ) -> tuple[PlannedMove, TimedMove | PlanningError | BudgetError]:
         period_s = self.task.period_s
-        give_up = None if best is None or c.path is None else _cannot_beat(c, c.path, best, period_s)
+        cost = self.task.singularity.deviation_cost_percent / 100.0
+        give_up = None if best is None or c.path is None else _cannot_beat(c, c.path, best, period_s, cost)
         collision = self.place.collision
         if collision.active and len(self.prepared) > 1 and c.refusal is None and self.move.kind != "ptp":
-            error = screen(collision, c.pm, c.path)  # before timing: a joint path that collides is out
+            error = collide.screen(collision, c.pm, c.path)  # before timing: a joint path that collides is out
             if error is not None:
                 raise Refused(error)
         try:
             timed = _timed(c.pm, period_s, self.max_samples, c.path, give_up)
             check_config(self.robot, self.move, c.pm, timed.u, timed.q)
-            deviations = check_tolerances(self.robot, self.task, c.pm, timed, c.screened)
+            deviations = check_samples(self.robot, self.task, c.pm, timed, c.screened)
             if collision.active and c.refusal is not None:  # refused, timed for the full error
-                check_move(collision, timed.q, self.index, c.pm.kind, self.place.offset, period_s,
-                           lambda k: c.pm.describe(float(timed.u[k])))
+                collide.check_move(collision, timed.q, self.index, c.pm.kind, self.place.offset, period_s,
+                                   lambda k: c.pm.describe(float(timed.u[k])))
             return replace(c.pm, deviations=deviations), timed
         except (PlanningError, BudgetError) as exc:
             return c.pm, exc
 
 
-def _cannot_beat(c: Candidate, path: TimingPath, best: Rank, period_s: float) -> GiveUp:
+def _cannot_beat(c: Candidate, path: TimingPath, best: Rank, period_s: float, cost: float) -> GiveUp:
     """After a timing pass: the bound at the tightened limits, if it shows ``c`` cannot beat ``best``."""
     def give_up(scale: Scale, pass_s: float) -> float | None:
         bound_s = duration_bound_s(path, c.pm.limits, period_s, scale, pass_s)
-        return bound_s if Rank(bound_s, c.order) > best else None
+        return bound_s if c.rank(bound_s, cost) > best else None
 
     return give_up
 
@@ -395,7 +400,7 @@ def _same_motion(a: PlannedMove, b: PlannedMove) -> bool:
     """Whether two plans of one move give the same timing and checks: equal joint maps and zones, no pause."""
     if a.zones != b.zones or len(a.jmap.parts) != len(b.jmap.parts):
         return False
-    if any(c.pause is not None for c in (*a.crossings, *b.crossings)):
+    if stops(a.crossings) or stops(b.crossings):
         return False
     return all(p.kind == r.kind and p.axis == r.axis and p.exact == r.exact and _equal(p.u, r.u)
                and _equal(p.q, r.q) and _equal(p.dq_du, r.dq_du)

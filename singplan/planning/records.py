@@ -22,11 +22,12 @@ class SampleDeviations:
     q: np.ndarray  # (K+1, n)
     position_m: np.ndarray  # (K+1,) position error of each sample [m]
     orientation_rad: np.ndarray  # (K+1,) orientation error [rad] (five joints: between the tool z axes)
+    tcp_speed_ratio: np.ndarray  # (K,) each step's TCP speed over the move's programmed speed
 
-    def of(self, u: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """The errors, if these are the samples measured; None for any other samples."""
+    def of(self, u: np.ndarray, q: np.ndarray) -> SampleDeviations | None:
+        """These figures, if they are of these samples; None for any other samples."""
         if np.array_equal(u, self.u) and np.array_equal(q, self.q):
-            return self.position_m, self.orientation_rad
+            return self
         return None
 
 

@@ -14,13 +14,15 @@ durations are replaced by their bounds.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import NamedTuple
+from functools import partial
+from typing import NamedTuple, TypeVar
 
-from singplan.errors import PlanningError, SingularityError, UnreachableError
+from singplan.errors import MethodError, PlanningError, SingplanError, SingularityError, UnreachableError
 from singplan.kinematics.robot import Robot
-from singplan.planning.alternatives import Alternative
+from singplan.planning.alternatives import NO_DEVIATION, Alternative, Deviation
 from singplan.planning.budget import BudgetError
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Exact
@@ -36,14 +38,15 @@ class Candidate:
         method: the method.
         order: its place among the methods asked for (a tie goes to the earlier).
         pm: its joint map and what was found along it.
-        path: TOPP-RA's path of the joint map, made once for the bound and the timing (None: PTP
-            timing or a paused crossing, timed otherwise).
+        path: TOPP-RA's path of the joint map, made once for the bound and the timing (None: a move
+            that stops on its path, a null-space pause or a PTP jump, timed in pieces).
         bound_s: no timing of the joint map ends sooner [s] (0: no bound known).
         refusal: a failure certain before timing (the configuration the joint map ends in); the
             candidate is timed only if no other one plans the move, so that the error is the full one.
         screened: ``refusal`` was looked for (and the crossings' own joints found within the
             tolerances where it is None): the checks after timing need not look again.
         outrun: its timing stopped at a pass whose tightened limits gave ``bound_s``.
+        deviation: how far its crossings leave the pose, on their own joints (known before timing).
     """
 
     method: CrossingMethod
@@ -54,19 +57,26 @@ class Candidate:
     refusal: PlanningError | None = None
     screened: bool = False
     outrun: bool = False
+    deviation: Deviation = NO_DEVIATION
+
+    def rank(self, duration_s: float, cost: float) -> Rank:
+        """Where the candidate stands with this duration (or a bound on it) [s], its deviation counted
+        at ``cost`` (auto's rule: the fraction of the move's time a whole tolerance costs)."""
+        return Rank(duration_s * (1.0 + cost * self.deviation.share), self.order)
 
 
 class Rank(NamedTuple):
-    """Where a candidate stands: a shorter duration wins, a tie goes to the method asked for first."""
+    """Where a candidate stands: a shorter duration wins (its deviation counted, :meth:`Candidate.rank`),
+    a tie goes to the method asked for first."""
 
-    duration_s: float  # its duration, or a bound on it [s]
+    counted_s: float  # its duration, or a bound on it, with its deviation counted [s]
     order: int  # its place among the methods asked for
 
 
 class _Result(NamedTuple):
     pm: PlannedMove
     tm: TimedMove
-    order: int
+    candidate: Candidate
 
 
 class _Failure(NamedTuple):
@@ -86,21 +96,24 @@ class Refused(Exception):  # noqa: N818 - a candidate's outcome, not an error of
         self.error = error
 
 
+logger = logging.getLogger(__name__)
 Prepare = Callable[[CrossingMethod, int], Candidate]  # plan one method's joint map and bound its duration
 # time and check a candidate; it may stop (timing.Outrun) once it cannot beat the best so far
 Finish = Callable[[Candidate, Rank | None], tuple[PlannedMove, TimedMove]]
 
 
 def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prepare: Prepare,
-            finish: Finish) -> tuple[PlannedMove, TimedMove]:
-    """Plan the move with each method; keep the fastest within the tolerances.
+            finish: Finish, cost: float = 0.0) -> tuple[PlannedMove, TimedMove]:
+    """Plan the move with each method; keep the fastest within the tolerances, each candidate's
+    deviation counted at ``cost`` (``singularity.deviation_cost_percent`` / 100: a candidate whose
+    crossings use their whole tolerance counts as that fraction slower; 0: the fastest).
 
     A method this arm's family cannot use is never run in disguise: it is listed as infeasible
     with the reason, and asked for alone it is refused where the move meets a zone.
     """
     serving, refused = _serving(robot, methods)
-    candidates, failures = _prepared(serving or [Exact()], prepare)  # nothing serves: exact's motion, if no zone
-    results, skipped, timing_failures = _timed_best_first(candidates, finish)
+    candidates, failures = _prepared(i, kind, serving or [Exact()], prepare)  # nothing serves: exact's, if no zone
+    results, skipped, timing_failures = _timed_best_first(i, kind, candidates, finish, cost)
     if not serving and results and results[0].pm.zones:
         raise _refusal(robot, results[0].pm, refused)
     failures = sorted(failures + timing_failures, key=lambda f: f.order)
@@ -108,23 +121,27 @@ def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prep
                  for name, why in refused.items()]
     if not results:
         raise _no_plan(i, kind, failures)
-    results.sort(key=lambda r: Rank(r.tm.duration_s, r.order))
+    results.sort(key=lambda r: r.candidate.rank(r.tm.duration_s, cost))
     best = results[0]
-    alternatives = tuple([Alternative(r.pm.method, True, r.pm.variant, r.tm.duration_s) for r in results]
-                         + [_untimed(c, best.tm.duration_s) for c in skipped if c.refusal is None]
+    best_rank = best.candidate.rank(best.tm.duration_s, cost)
+    alternatives = tuple([Alternative(r.pm.method, True, r.pm.variant, r.tm.duration_s,
+                                      position_mm=r.candidate.deviation.position_mm,
+                                      orientation_deg=r.candidate.deviation.orientation_deg) for r in results]
+                         + [_untimed(c, best.tm.duration_s, best_rank, cost) for c in skipped if c.refusal is None]
                          + [Alternative(f.method, False, f.variant, reason=str(f.error)) for f in failures]
                          + [Alternative(c.method.name, False, c.method.variant, reason=str(c.refusal)) for c in skipped
                             if c.refusal is not None])
     return replace(best.pm, alternatives=alternatives if len(methods) > 1 else ()), best.tm
 
 
-def _prepared(methods: list[CrossingMethod], prepare: Prepare) -> tuple[list[Candidate], list[_Failure]]:
+def _prepared(i: int, kind: str, methods: list[CrossingMethod], prepare: Prepare
+              ) -> tuple[list[Candidate], list[_Failure]]:
     """Each method's candidate, or why it could not plan the joint map."""
     candidates: list[Candidate] = []
     failures: list[_Failure] = []
     for order, method in enumerate(methods):
         try:
-            candidate = prepare(method, order)
+            candidate = isolated(i, kind, method, partial(prepare, method, order))
         except (PlanningError, BudgetError) as exc:  # a slow method over the allowance: another may fit
             failures.append(_Failure(order, method.name, method.variant, exc))
             continue
@@ -134,22 +151,22 @@ def _prepared(methods: list[CrossingMethod], prepare: Prepare) -> tuple[list[Can
     return candidates, failures
 
 
-def _timed_best_first(candidates: list[Candidate], finish: Finish
+def _timed_best_first(i: int, kind: str, candidates: list[Candidate], finish: Finish, cost: float
                       ) -> tuple[list[_Result], list[Candidate], list[_Failure]]:
-    """Time and check the candidates fastest bound first, skipping those that cannot win."""
+    """Time and check the candidates best bound first (deviation counted), skipping those that cannot win."""
     results: list[_Result] = []
     skipped: list[Candidate] = []
     failures: list[_Failure] = []
     deferred: list[Candidate] = []  # refused before timing (Refused): timed only if nothing else plans
     best: Rank | None = None
-    order = sorted(candidates, key=lambda c: (c.refusal is not None, c.bound_s, c.order))
+    order = sorted(candidates, key=lambda c: (c.refusal is not None, c.rank(c.bound_s, cost)))
     while order:
         c = order.pop(0)
-        if best is not None and (c.refusal is not None or Rank(c.bound_s, c.order) > best):
+        if best is not None and (c.refusal is not None or c.rank(c.bound_s, cost) > best):
             skipped.append(c)
             continue
         try:
-            pm, tm = finish(c, best)
+            pm, tm = isolated(i, kind, c.method, partial(finish, c, best))
         except Outrun as stop:  # a timing pass tightened its limits past what could win
             skipped.append(replace(c, bound_s=stop.at_least_s, outrun=True))
             continue
@@ -161,18 +178,42 @@ def _timed_best_first(candidates: list[Candidate], finish: Finish
         except (PlanningError, BudgetError) as exc:
             failures.append(_Failure(c.order, c.method.name, c.method.variant, exc))
             continue
-        results.append(_Result(replace(pm, method=c.method.name, variant=c.method.variant), tm, c.order))
-        best = min(best or Rank(tm.duration_s, c.order), Rank(tm.duration_s, c.order))
+        results.append(_Result(replace(pm, method=c.method.name, variant=c.method.variant), tm, c))
+        best = min(best or c.rank(tm.duration_s, cost), c.rank(tm.duration_s, cost))
     skipped += deferred
-    return results, sorted(skipped, key=lambda c: (c.bound_s, c.order)), failures
+    return results, sorted(skipped, key=lambda c: c.rank(c.bound_s, cost)), failures
 
 
-def _untimed(c: Candidate, best_s: float) -> Alternative:
+T = TypeVar("T")
+
+
+def isolated(i: int, kind: str, method: CrossingMethod, work: Callable[[], T]) -> T:
+    """``work()`` (one method's planning or timing of move ``i``), a failure inside its own
+    computation (not a SingplanError: a solver that did not converge, a numerical error) turned into
+    :class:`~singplan.errors.MethodError`, so that one method cannot take the others down (exit 1).
+    The traceback is logged (debug level) for a report."""
+    try:
+        return work()
+    except (SingplanError, BudgetError, Outrun, Refused, MemoryError):
+        raise
+    except Exception as exc:
+        logger.debug("move %d: method %s failed", i, method.name, exc_info=True)
+        cause = f"{type(exc).__name__}: {exc}"
+        raise MethodError(f"move {i} ({kind}): method {method.name} failed in its own computation ({cause})",
+                            move=i, method=method.name, cause=cause) from exc
+
+
+def _untimed(c: Candidate, best_s: float, best: Rank, cost: float) -> Alternative:
     how = "timing stopped after a pass: at its tightened limits" if c.outrun else "not timed:"
-    tie = " (a tie goes to the method listed first)" if c.bound_s == best_s else ""
+    tie = " (a tie goes to the method listed first)" if c.rank(c.bound_s, cost).counted_s == best.counted_s else ""
+    counted = ""
+    if cost > 0.0 and (c.deviation.share > 0.0 or best.counted_s != best_s):
+        counted = (f" (with the deviations counted: at least {c.rank(c.bound_s, cost).counted_s:.3f} s against "
+                   f"{best.counted_s:.3f} s)")
     return Alternative(c.method.name, None, c.method.variant, at_least_s=c.bound_s,
                        reason=f"{how} no timing of its joint map ends before {c.bound_s:.3f} s, and the "
-                              f"chosen method's move takes {best_s:.3f} s{tie}")
+                              f"chosen method's move takes {best_s:.3f} s{counted}{tie}",
+                       position_mm=c.deviation.position_mm, orientation_deg=c.deviation.orientation_deg)
 
 
 def _no_plan(i: int, kind: str, failures: list[_Failure]) -> PlanningError | BudgetError:

@@ -39,6 +39,7 @@ from scipy.interpolate import CubicSpline
 
 from singplan.errors import PlanningError
 from singplan.kinematics.dynamics import PathDynamics, TorqueLimit, move_torque_ratio
+from singplan.kinematics.robot import Robot
 from singplan.planning import reachability
 from singplan.planning.budget import check_move_samples
 from singplan.planning.jerk import QuinticLaw, SCurveLaw, SmoothedLaw, jerk_ratio, quintic_duration
@@ -64,7 +65,11 @@ _WINDOW_FACTORS = (0.5, 1.0, 2.0, 4.0, 8.0)
 _S_CURVE_JERKS = (1.0, 0.5, 0.25)
 TimeLaw = QuinticLaw | SmoothedLaw | SCurveLaw  # S-curve candidates: path jerk x these (curved joint maps need less)
 _CLOCK_SUBSTEPS = 8  # differences per grid interval that find a chain clock's largest rate
-_DISCONTINUOUS = 4.0  # a first-pass overshoot this large means a jump, not TOPP-RA's grid
+# an overshoot this large means a jump in the joint map, not TOPP-RA's grid: tightening cannot help.
+# (A joint map that curves sharply between its reference samples, as exact's crossing right at a
+# wrist hit does, overshoots 4-7x on the first pass and is timed within the limits by tightening;
+# a jump of one degree between two 4 ms samples at 10 rad/s^2 is x109.)
+_DISCONTINUOUS = 10.0
 
 
 class TimingError(PlanningError):
@@ -131,6 +136,31 @@ class TimedMove:
 
 
 @dataclass(frozen=True)
+class TcpTrace:
+    """How far the TCP itself travels along a joint map that leaves its path (a crossing that
+    deviates in position: axis at the shoulder or elbow, the baselines), so that the programmed
+    speed caps the TCP and not only the path parameter.
+
+    ``s_m`` is the distance the timing's TCP coordinate covers from u = 0: over each step of the
+    dense samples the longer of the path's own advance (u step x length) and the TCP's chord, so
+    the path parameter never runs ahead of the programmed speed either, and where the joint map
+    stays on the path the coordinate is the path's arc length as without a trace.
+    """
+
+    robot: Robot
+    u: np.ndarray  # (K,) increasing, 0 .. 1
+    s_m: np.ndarray  # (K,) the TCP coordinate [m] at u
+
+    def at(self, u: np.ndarray) -> np.ndarray:
+        """The TCP coordinate [m] at u (N,), interpolated between the dense samples."""
+        return np.interp(u, self.u, self.s_m)
+
+    def steps_m(self, q: np.ndarray) -> np.ndarray:
+        """The TCP's chord [m] between consecutive joint samples q (K + 1, n): (K,)."""
+        return np.linalg.norm(np.diff(self.robot.tcp_positions(q), axis=0), axis=1)
+
+
+@dataclass(frozen=True)
 class MoveLimits:
     """Limits one move is timed under."""
 
@@ -147,6 +177,8 @@ class MoveLimits:
     # moves joined by fly-by corners: each move's own joint speed limits, (N,) u -> (N, n); None:
     # velocity_rad_s everywhere (which is then the largest of them)
     velocity_at: Callable[[np.ndarray], np.ndarray] | None = None
+    # a LIN / CIRC whose joint map leaves the path: the TCP's own travel (None: u * length_m)
+    trace: TcpTrace | None = None
 
     def step_velocities(self, u: np.ndarray) -> np.ndarray:
         """Joint speed limits [rad/s] of the steps between samples at u (K + 1,): (K, n), or (n,)
@@ -159,10 +191,61 @@ class MoveLimits:
             return self.clock(u)
         if not self.tcp_speed_m_s or self.length_m <= 0:
             return None
+        if self.trace is not None:
+            return self.trace.at(u) / self.tcp_speed_m_s
         return u * (self.length_m / self.tcp_speed_m_s)
 
+    def tcp_step_ratio(self, u: np.ndarray, q: np.ndarray, period_s: float) -> float:
+        """Largest TCP speed over its cap between samples (u (K + 1,), q (K + 1, n)): from the TCP's
+        clock, and where the joint map leaves the path from the samples' own TCP chords too (what a
+        checker measures; the clock interpolates between the trace's samples)."""
+        clock = self.tcp_clock(u)
+        if clock is None or len(u) < 2:
+            return 0.0
+        ratio = float(np.max(np.diff(clock)) / period_s)
+        if self.trace is not None and self.clock is None and self.tcp_speed_m_s:
+            ratio = max(ratio, float(np.max(self.trace.steps_m(q))) / (period_s * self.tcp_speed_m_s))
+        return ratio
 
-def _reference(jmap: JointMap) -> tuple[np.ndarray, np.ndarray]:
+
+_TRACE_STEP_M = 2.5e-4  # the trace's samples inside a part that leaves the path: every 0.25 mm of path ...
+_TRACE_STEP_RAD = math.radians(0.25)  # ... and 0.25 deg of any joint
+_TRACE_MIN, _TRACE_MAX = 64, 20_000  # samples a part, at least and at most
+
+
+def tcp_trace(jmap: JointMap, length_m: float) -> TcpTrace | None:
+    """The TCP's own travel along a LIN / CIRC joint map (:class:`TcpTrace`), where it has parts
+    that leave the path and its TCP runs ahead of the path somewhere; None where the path's arc
+    length bounds the TCP's (every part keeps the position, or the parts off it run no faster)."""
+    off = jmap.off_path_parts
+    if not off or length_m <= 0.0:
+        return None
+    u_ref, _ = jmap.reference()
+    dense = [u_ref]
+    for part in off:
+        travel = float(np.max(np.sum(np.abs(np.diff(part.q, axis=0)), axis=0), initial=0.0))
+        count = max(_TRACE_MIN, math.ceil((part.u1 - part.u0) * length_m / _TRACE_STEP_M),
+                    math.ceil(travel / _TRACE_STEP_RAD))
+        dense.append(np.linspace(part.u0, part.u1, min(count, _TRACE_MAX) + 1))
+    u = np.unique(np.concatenate(dense))
+    path_m = np.diff(u) * length_m
+    tcp_m = np.linalg.norm(np.diff(jmap.robot.tcp_positions(jmap.evaluate(u)), axis=0), axis=1)
+    if np.all(tcp_m <= path_m * (1.0 + 1e-9) + 1e-12):
+        return None  # the TCP never runs ahead of the path (an axis part that keeps to it): as without a trace
+    return TcpTrace(jmap.robot, u, np.concatenate([[0.0], np.cumsum(np.maximum(path_m, tcp_m))]))
+
+
+def _reference(jmap: JointMap, limits: MoveLimits) -> tuple[np.ndarray, np.ndarray]:
+    if limits.trace is not None and limits.clock is None and not jmap.straight:
+        # the TCP's travel where the map leaves the path: its dense samples in the reference too,
+        # so that TOPP-RA's TCP coordinate follows it (not on a straight joint line: see below; its
+        # samples' TCP speed is checked like any, and the limits tightened where it runs over)
+        u, q = _reference(jmap, replace(limits, trace=None))
+        extra = np.setdiff1d(limits.trace.u, u)
+        if extra.size == 0:
+            return u, q
+        order = np.argsort(np.concatenate([u, extra]), kind="stable")
+        return np.concatenate([u, extra])[order], np.concatenate([q, jmap.evaluate(extra)])[order]
     if jmap.straight:
         # A straight joint line: points graded toward the ends (below) only add round-off, in which
         # a joint that barely moves beside one that moves far made TOPP-RA's instance "not controllable".
@@ -237,7 +320,7 @@ def timing_path(jmap: JointMap, limits: MoveLimits, move_index: int) -> TimingPa
 
     Raises TimingError where the joint map has no joint values (no IK solution).
     """
-    u, q = _reference(jmap)
+    u, q = _reference(jmap, limits)
     missing = np.flatnonzero(~np.all(np.isfinite(q), axis=1))
     if len(missing):  # a joint map without IK somewhere: never hand NaN to TOPP-RA
         raise TimingError(move_index, float(u[missing[0]]), "no joint values (no inverse kinematics solution)")
@@ -462,7 +545,7 @@ def _optimal(jmap: JointMap, path: TimingPath, limits: MoveLimits, period_s: flo
         q = jmap.evaluate(u)
         speed, accel = sample_ratios(q, period_s, limits.step_velocities(u), limits.acceleration_rad_s2)
         torque, torque_at = move_torque_ratio(limits.torque, q, period_s) if limits.torque else (0.0, 0)
-        worst_c = _tcp_ratio(u, limits, period_s) / TCP_MARGIN
+        worst_c = limits.tcp_step_ratio(u, q, period_s) / TCP_MARGIN
         worst_v = speed / _SPEED_MARGIN
         worst_a = max(accel / _ACCEL_MARGIN,
                       end_step_ratio(q, period_s, limits.acceleration_rad_s2))  # may reach its bound exactly
@@ -500,14 +583,6 @@ def worst_sample(q: np.ndarray, period_s: float, vmax: np.ndarray, amax: np.ndar
     accel[[0, -1]] *= 2.0  # an end step's bound is amax * period^2 / 2 (end_step_ratio)
     over = np.maximum(accel, np.maximum(speed[:-1], speed[1:]))
     return int(np.argmax(over))
-
-
-def _tcp_ratio(u: np.ndarray, limits: MoveLimits, period_s: float) -> float:
-    """Largest TCP speed over its cap, from the TCP's clock (exact for LIN / CIRC)."""
-    clock = limits.tcp_clock(u)
-    if clock is None or len(u) < 2:
-        return 0.0
-    return float(np.max(np.diff(clock)) / period_s)
 
 
 def _surrogate(optimal: TimedMove) -> Callable[[np.ndarray], np.ndarray]:
@@ -551,7 +626,7 @@ def _measured(u: np.ndarray, q: np.ndarray, limits: MoveLimits, period_s: float)
     torque = move_torque_ratio(limits.torque, q, period_s)[0] if limits.torque else 0.0
     jerk = jerk_ratio(q, period_s, limits.jerk_rad_s3) if limits.jerk_rad_s3 is not None else 0.0
     accel_like = max(accel / _ACCEL_MARGIN, end_step_ratio(q, period_s, limits.acceleration_rad_s2))
-    worst = max(speed / _SPEED_MARGIN, _tcp_ratio(u, limits, period_s) / TCP_MARGIN, math.sqrt(accel_like),
+    worst = max(speed / _SPEED_MARGIN, limits.tcp_step_ratio(u, q, period_s) / TCP_MARGIN, math.sqrt(accel_like),
                 (jerk / _JERK_MARGIN) ** (1.0 / 3.0), math.sqrt(torque / _TORQUE_MARGIN))
     duration = (len(u) - 1) * period_s
     return TimedMove(u, q, duration, speed, accel, torque, jerk), worst

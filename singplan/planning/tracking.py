@@ -49,6 +49,13 @@ class TrackedPath:
     coarse_from_u: float = math.inf
 
 
+_CONTINUE_DU = 1e-3  # a pose this near (in u) one whose branches were searched continues them by Newton
+# full all-branch searches a move's tracking makes where a branch ends (~0.5 s each); past them the
+# branches of the nearest searched pose are carried on, which bounds the time a fold or the
+# workspace's edge costs on an arm without a closed form (a valid task spent 75 s there)
+_SEARCHES = 8
+
+
 class BranchCandidates:
     """All IK branches of the poses at given parameters, computed once per parameter."""
 
@@ -58,6 +65,8 @@ class BranchCandidates:
         self.u = np.empty(0)  # (M,) sorted parameters solved so far
         self.sols = np.empty((0, 0, robot.n_joints))  # (M, B, n)
         self.free = np.empty(0, dtype=bool)  # (M,) a branch sits on a singularity: some joints are free
+        self._all: dict[float, np.ndarray] = {}  # every branch of a parameter's pose, where one was searched for
+        self._searches = 0  # full all-branch searches made
 
     def fill(self, u: np.ndarray) -> None:
         """Solve the parameters of ``u`` (sorted, distinct) not solved yet."""
@@ -96,9 +105,34 @@ class BranchCandidates:
         if q is not None:
             return q[None]
         # the seeded branch ends here (it folds back at a singularity of an arm without a closed
-        # form): every other branch, so the path goes on in the nearest one (a jump in a zone)
-        rows, _ = ik_numeric.all_branches(self.robot, pose, seed)
-        return np.array(rows) if rows else np.full((1, self.robot.n_joints), np.nan)
+        # form): every other branch, so the path goes on in the nearest one (a jump in a zone). The
+        # search is the costly part of tracking such an arm (~1 s a pose; a path leaving the
+        # workspace asks again for each sample it refines toward the edge): once per parameter
+        if u not in self._all:
+            carried = self._continued(u, pose)
+            if carried is not None and (len(carried) == self._near_count(u) or self._searches >= _SEARCHES):
+                rows = carried
+            else:
+                self._searches += 1
+                found, _ = ik_numeric.all_branches(self.robot, pose, seed)
+                rows = np.array(found) if found else np.full((1, self.robot.n_joints), np.nan)
+            self._all[u] = rows
+        return self._all[u]
+
+    def _near_count(self, u: float) -> int:
+        near = min(self._all, key=lambda v: abs(v - u))
+        return int(np.count_nonzero(np.all(np.isfinite(self._all[near]), axis=1)))
+
+    def _continued(self, u: float, pose: pin.SE3) -> np.ndarray | None:
+        """The branches of the nearest pose searched (within ``_CONTINUE_DU`` in u: a refinement's new
+        samples lie between searched ones) carried to the pose at ``u`` by Newton, distinct (one that
+        ends there is left out; a NaN row where none carries on); None where no pose is that near."""
+        near = min(self._all, key=lambda v: abs(v - u), default=None)
+        if near is None or abs(near - u) > _CONTINUE_DU:
+            return None
+        rows = [solve_newton(self.robot, pose, r) for r in self._all[near] if np.all(np.isfinite(r))]
+        kept = list({tuple(np.round(r, 9)): r for r in rows if r is not None}.values())
+        return np.array(kept) if kept else np.full((1, self.robot.n_joints), np.nan)
 
 
 def nearest_candidate(candidates: np.ndarray, q_prev: np.ndarray) -> tuple[np.ndarray, float]:
@@ -206,7 +240,11 @@ def track(robot: Robot, poses: PoseFunction, u0: np.ndarray, q_start: np.ndarray
         if lost.size:  # the path leaves the workspace: nothing to refine past that sample
             u, q, steps = u[:lost[0] + 1], q[:lost[0] + 1], steps[:lost[0] + 1]
         held = _held_intervals(hold, q)
-        big = np.nonzero((steps[1:] > max_joint_step_rad) & (np.diff(u) > min_du) & ~held)[0]
+        # the step into a lost sample is not refined: where the path leaves the workspace is told to
+        # the grid, and on an arm without a closed form each sample past the edge costs an
+        # all-branch search (a valid task spent 75 s locating an edge that way)
+        big = np.nonzero(np.isfinite(steps[1:]) & (steps[1:] > max_joint_step_rad) & (np.diff(u) > min_du)
+                         & ~held)[0]
         if big.size == 0 or len(u) > _MAX_SAMPLES:
             break
         u = np.sort(np.concatenate([u, _subdivide(u, big, steps[big + 1] / max_joint_step_rad)]))

@@ -2,7 +2,9 @@
 
 Per sample, the signed distances of :mod:`singplan.kinematics.configuration` (wrist and elbow angles
 [rad], shoulder distance [m]). A zone of one kind is a maximal run of the path where its
-|distance| is under the task's threshold; its entry and exit (SEEDS 000's points 48 and 50)
+|distance| is under the task's threshold and whose closest approach comes within
+:data:`SINGULAR_REACH` of the singularity (10 deg, 66.7 mm: a run under a wide threshold that stays
+further off needs no crossing); its entry and exit (SEEDS 000's points 48 and 50)
 are interpolated between samples. Each zone also records where the path comes closest to
 the singularity and how close, refined between samples by zooming in on a vectorised grid.
 """
@@ -20,6 +22,13 @@ from singplan.kinematics.robot import Robot
 
 KINDS = ("wrist", "shoulder", "elbow")
 KIND_INDEX = {kind: i for i, kind in enumerate(KINDS)}  # columns of the signed distances
+# A crossing passes near its singularity: a segment marked crossing holds a sample this close (an
+# independent checker's measure: wrist and elbow 15 deg, shoulder 100 mm) ...
+NEAR_SINGULAR = {"wrist": math.radians(15.0), "shoulder": 0.10, "elbow": math.radians(15.0)}
+# ... and a zone is a singular zone only where its closest approach is within two thirds of that: under
+# a wide threshold (up to 90 deg, 1000 mm) a stretch that stays further from every singularity needs
+# no crossing, and one that comes this close keeps a sample within NEAR_SINGULAR around its closest point
+SINGULAR_REACH = {kind: value * 2.0 / 3.0 for kind, value in NEAR_SINGULAR.items()}
 # closest-point search: 17 points a round, 4 rounds narrow two sample intervals 8**4-fold
 # (to ~0.5 um of path on the 2 mm grid); each point costs an exact IK of all branches
 _ZOOM = (17, 4)
@@ -88,7 +97,9 @@ def find_zones(u: np.ndarray, dist: np.ndarray, thresholds: np.ndarray,
     for i, kind in enumerate(KINDS):
         for start, stop in zip(start_k[start_i == i].tolist(), stop_k[stop_i == i].tolist(), strict=True):
             refine = None if kind == continued and start == 0 else abs_distance_at
-            zones.append(_zone(kind, u, d[:, i], thresholds[i], start, stop - 1, refine, i))
+            zone = _zone(kind, u, d[:, i], thresholds[i], start, stop - 1, refine, i)
+            if zone.min_distance < SINGULAR_REACH[kind] or (kind == continued and start == 0):
+                zones.append(zone)
     return sorted(zones, key=lambda z: z.u_entry)
 
 

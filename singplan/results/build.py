@@ -26,6 +26,7 @@ from singplan.kinematics.robot import Robot
 from singplan.kinematics.stopping import stopping_distances, worst_stopping
 from singplan.kinematics.vendor_config import vendor_configs
 from singplan.planning.blending import Blend
+from singplan.planning.checks import tcp_speed_ratios
 from singplan.planning.jerk import third_difference_ratio
 from singplan.planning.path import sample_deviations
 from singplan.planning.records import PlannedMove
@@ -90,13 +91,14 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     crossings: list[CrossingReport] = []
     worst_pos, worst_ori = 0.0, 0.0
     k0 = 0
-    pos_all, ori_all = [np.zeros(1)], [np.zeros(1)]
+    pos_all, ori_all, tcp_all = [np.zeros(1)], [np.zeros(1)], [np.zeros(1)]
     flown = {b.move: b for b in blends if b.jmap is not None}
-    for pm, tm in zip(planned, timed, strict=True):
+    for i, (pm, tm) in enumerate(zip(planned, timed, strict=True)):
         k1 = k0 + len(tm.q) - 1
-        pos_err, ori_err = _deviations(robot, pm, tm)
+        pos_err, ori_err, tcp = _deviations(robot, pm, tm, period, planned[i + 1] if i + 1 < len(planned) else None)
         pos_all.append(pos_err[1:])
         ori_all.append(ori_err[1:])
+        tcp_all.append(tcp)
         worst_pos = max(worst_pos, float(pos_err.max(initial=0.0)))
         worst_ori = max(worst_ori, float(ori_err.max(initial=0.0)))
         spans = _own_spans(pm, tm, k1 - k0)  # once for the move's segments and its zone events
@@ -112,13 +114,15 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     qd, qdd = central_differences(q, period)
     stopping_m = stopping_distances(arm, q, qd, arm.acceleration_rad_s2)
     stop_mm, stop_at_s = worst_stopping(stopping_m, t)
+    tcp_ratio = np.concatenate(tcp_all)  # (K,) the TCP speed over the programmed one, of the step arriving at k
     metrics = Metrics(worst_pos * 1e3, math.degrees(worst_ori), speed, accel, float(t[-1]), planning_time_s, len(t),
                       method, tuple(crossings), _torque_metrics(arm, task, q, t), stop_mm, stop_at_s,
                       _jerk_metrics(arm, task, q, timed), _blend_reports(blends),
-                      _clearance_figures(*collision, period) if collision is not None else None)
+                      _clearance_figures(*collision, period) if collision is not None else None,
+                      float(tcp_ratio.max(initial=0.0)))
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
     samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all),
-               "stopping_distance_m": stopping_m}
+               "stopping_distance_m": stopping_m, "tcp_speed_ratio": tcp_ratio}
     if not np.isnan(distances).all():  # an arm without labels (7 joints) has no singular distances to store
         samples["distances"] = distances
     least = collision[1].least if collision is not None and collision[0].active else None
@@ -245,17 +249,24 @@ def _merged_spans(pm: PlannedMove, tm: TimedMove, last: int) -> Spans:
     return spans
 
 
-def _deviations(robot: Robot, pm: PlannedMove, tm: TimedMove) -> tuple[np.ndarray, np.ndarray]:
-    """Each sample's position [m] and orientation [rad] deviation from the move's path: the ones
-    measured when the move was checked where its samples are those; a fly-by corner's samples leave
-    the path on purpose (their own figures) and count 0."""
+def _deviations(robot: Robot, pm: PlannedMove, tm: TimedMove, period: float,
+                nxt: PlannedMove | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each sample's position [m] and orientation [rad] deviation from the move's path, and each
+    step's TCP speed over the programmed one: the figures measured when the move was checked where
+    its samples are those. A fly-by corner's samples leave the path on purpose (their own figures)
+    and count 0; their TCP speed is held to the faster of the two moves' (when both have one)."""
     measured = pm.deviations.of(tm.u, tm.q) if pm.deviations is not None else None
     if measured is not None:
-        return measured
+        return measured.position_m, measured.orientation_rad, measured.tcp_speed_ratio
     own = len(tm.q) if tm.blend_from is None else tm.blend_from + 1
-    pos, ori = np.zeros(len(tm.q)), np.zeros(len(tm.q))
+    pos, ori, tcp = np.zeros(len(tm.q)), np.zeros(len(tm.q)), np.zeros(len(tm.q) - 1)
     pos[:own], ori[:own] = sample_deviations(robot, pm.piece, tm.u[:own], tm.q[:own])
-    return pos, ori
+    tcp[:own - 1] = tcp_speed_ratios(robot, pm, tm.u[:own], tm.q[:own], period)
+    speeds = [p.limits.tcp_speed_m_s or 0.0 for p in (pm, nxt) if p is not None and p.piece is not None]
+    if own < len(tm.q) and len(speeds) == 2 and min(speeds) > 0.0:
+        corner = np.linalg.norm(np.diff(robot.tcp_positions(tm.q[own - 1:]), axis=0), axis=1)
+        tcp[own - 1:] = corner / (period * max(speeds))
+    return pos, ori, tcp
 
 
 def _blend_reports(blends: tuple[Blend, ...]) -> tuple[BlendReport, ...]:

@@ -261,6 +261,9 @@ class Metrics(JsonRecord):
     jerk: JerkFigures | None = None
     blends: tuple[BlendReport, ...] = ()
     clearance: ClearanceFigures | None = None  # the collision check (None: the task and robot have nothing to check)
+    # the TCP speed on the samples over the move's programmed speed (fly-by corners: the faster
+    # neighbour's), the largest; 0 for a trajectory of PTP moves only
+    max_tcp_speed_ratio: float = 0.0
 
     def to_json(self) -> dict[str, Any]:
         torques = {"torques": self.torques} if isinstance(self.torques, str) else self.torques.to_json()
@@ -268,6 +271,7 @@ class Metrics(JsonRecord):
             "max_position_error_mm": self.max_position_error_mm,
             "max_orientation_error_deg": self.max_orientation_error_deg,
             "max_joint_speed_ratio": self.max_joint_speed_ratio, "max_joint_accel_ratio": self.max_joint_accel_ratio,
+            "max_tcp_speed_ratio": self.max_tcp_speed_ratio,
             "duration_s": self.duration_s, "planning_time_s": self.planning_time_s, "samples": self.samples,
             "method": self.method, "crossings": [c.to_json() for c in self.crossings], **torques,
             **(self.jerk.to_json() if self.jerk is not None else {}),
@@ -293,7 +297,8 @@ class Metrics(JsonRecord):
                    tuple(CrossingReport.from_json(c) for c in doc.get("crossings", ())), torques,
                    _f(doc.get("max_stopping_distance_mm", 0.0)), _f(doc.get("max_stopping_distance_at_s", 0.0)),
                    jerk, tuple(BlendReport.from_json(b) for b in doc.get("blends", ())),
-                   ClearanceFigures.from_json(doc["collision"]) if doc.get("collision") is not None else None)
+                   ClearanceFigures.from_json(doc["collision"]) if doc.get("collision") is not None else None,
+                   _f(doc.get("max_tcp_speed_ratio", 0.0)))
 
     @classmethod
     def of_samples(cls, duration_s: float, samples: int) -> Metrics:

@@ -17,11 +17,14 @@ from singplan.errors import JointLimitError, PlanningError
 from singplan.kinematics.clearance import Clearance
 from singplan.kinematics.collision import CollisionModel
 from singplan.kinematics.robot import Robot
+from singplan.planning.checks import ROUND_OFF, TCP_ROUND_OFF
 from singplan.planning.collide import check_trajectory
 from singplan.planning.crossing.base import CrossingMethod
+from singplan.planning.crossing.methods import EXACT_ORIENTATION_TOL_RAD
 from singplan.planning.planner import PlannedTask, Progress, plan_moves
 from singplan.planning.records import PlannedMove
 from singplan.planning.timing import TimedMove, worst_sample
+from singplan.planning.zones import KIND_INDEX, KINDS, NEAR_SINGULAR
 from singplan.results.build import build_trajectory
 from singplan.results.trajectory import Trajectory
 from singplan.task.schema import Task
@@ -62,18 +65,23 @@ def _clearance(planned: PlannedTask) -> tuple[CollisionModel, Clearance] | None:
     return model, check_trajectory(model, q, spans, [pm.kind for pm in planned.moves], planned.task.period_s)
 
 
-_ROUND_OFF = 1e-9  # a metric ratio this far over 1 is round-off, more is a violated limit
-
-
 def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: list[TimedMove],
                    traj: Trajectory) -> None:
     """The last gate: no plan is returned whose own samples break a limit or leave the path
-    (whatever the cause)."""
+    (whatever the cause). It measures what an independent checker does on the output samples: joint
+    positions, speeds, accelerations (jerk, torque when limited), the TCP speed against each move's
+    programmed speed, the deviation from the path (the orientation kept outside crossings), each
+    crossing near its singularity, and each move starting and ending at rest where it is not flown."""
     _check_positions(robot, planned, timed, traj)
     _check_path(task, planned, timed, traj)
-    unlimited = () if task.limits.torque_scale is not None else ("max_torque_ratio",)  # reported, not a limit
+    _check_tcp_speed(planned, timed, traj)
+    _check_rest(robot, planned, timed, traj)
+    _check_outside_crossings(planned, timed, traj)
+    _check_crossings_near(robot, traj)
+    unlimited: tuple[str, ...] = ("max_tcp_speed_ratio",)  # checked above, on its own round-off
+    unlimited += () if task.limits.torque_scale is not None else ("max_torque_ratio",)  # reported, not a limit
     over = {k: v for k, v in traj.metrics.limit_ratios().items()  # `not <=`: a NaN ratio is a violation too
-            if not v <= 1.0 + _ROUND_OFF and k not in unlimited}
+            if not v <= 1.0 + ROUND_OFF and k not in unlimited}
     if not over:
         return
     vmax, amax = robot.velocity_rad_s * task.joint_speed_scale(), robot.acceleration_rad_s2
@@ -116,6 +124,81 @@ def _check_path(task: Task, planned: list[PlannedMove], timed: list[TimedMove], 
     raise PlanningError(f"move {m} ({pm.kind}): sample {k} (t = {k * traj.period:.4f} s) is "
                         f"{traj.metrics.max_position_error_mm:.4f} mm from the path, over the tolerance {tol_mm:g} mm, "
                         f"at {pm.describe(float(timed[m].u[k_move]))}")
+
+
+def _check_tcp_speed(planned: list[PlannedMove], timed: list[TimedMove], traj: Trajectory) -> None:
+    """The TCP on the samples no faster than each move's programmed speed (a fly-by corner: the faster
+    neighbour's), the chord between consecutive samples over the period, as a checker measures it."""
+    ratio = traj.samples.get("tcp_speed_ratio")
+    if ratio is None or len(ratio) == 0:
+        return
+    k = int(np.argmax(ratio))
+    if ratio[k] <= 1.0 + TCP_ROUND_OFF:
+        return
+    m, k_move = _move_of_sample(timed, k)
+    pm = planned[m]
+    raise PlanningError(f"move {m} ({pm.kind}): the TCP runs at x{ratio[k]:.4f} its programmed speed "
+                        f"({pm.limits.tcp_speed_m_s:g} m/s) between samples {k - 1} and {k} "
+                        f"(t = {k * traj.period:.4f} s) at {pm.describe(float(timed[m].u[k_move]))}")
+
+
+def _check_rest(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], traj: Trajectory) -> None:
+    """Each move starts and ends at rest where it is not flown: the steps next to its end samples no
+    longer than one period's travel from rest at the acceleration limit (amax * period^2)."""
+    flown = {b.move for b in traj.metrics.blends if b.flown}
+    ends = np.cumsum([0] + [len(tm.q) - 1 for tm in timed])  # each move's first sample; the last sample
+    rest_step = robot.acceleration_rad_s2 * traj.period ** 2 * (1.0 + ROUND_OFF) + 1e-12
+    for m, k in enumerate(ends.tolist()):
+        if m > 0 and (m - 1) in flown:
+            continue  # a corner flown into move m: its first sample is under way
+        steps = [np.abs(traj.q[k + d] - traj.q[k + d - 1]) for d in (0, 1) if 0 < k + d < len(traj.q)]
+        if any(np.any(step > rest_step) for step in steps):
+            i = min(m, len(planned) - 1)
+            side = "starts" if m < len(planned) else "ends"
+            raise PlanningError(f"move {i} ({planned[i].kind}) {side} at sample {k} (t = {k * traj.period:.4f} s) "
+                                f"without being at rest")
+
+
+def _check_outside_crossings(planned: list[PlannedMove], timed: list[TimedMove], traj: Trajectory) -> None:
+    """Outside the segments marked crossing (and fly-by corners, PTP moves) the orientation is kept
+    to 0.01 deg: only a crossing may trade orientation for the singularity."""
+    ori = traj.samples.get("orientation_error_rad")
+    if ori is None:
+        return
+    kept = np.ones(len(ori), dtype=bool)
+    for seg in traj.segments:
+        if seg.kind in ("crossing", "blend", "ptp"):
+            kept[round(seg.t0 / traj.period):round(seg.t1 / traj.period) + 1] = False
+    over = np.flatnonzero(kept & ~(ori <= EXACT_ORIENTATION_TOL_RAD * (1.0 + 1e-6)))
+    if over.size:
+        k = int(over[np.argmax(ori[over])])
+        m, k_move = _move_of_sample(timed, k)
+        pm = planned[m]
+        raise PlanningError(f"move {m} ({pm.kind}): sample {k} (t = {k * traj.period:.4f} s) turns the tool "
+                            f"{math.degrees(ori[k]):.4f} deg from the path outside any crossing (at most 0.01 deg), "
+                            f"at {pm.describe(float(timed[m].u[k_move]))}")
+
+
+def _check_crossings_near(robot: Robot, traj: Trajectory) -> None:
+    """Every segment marked crossing passes near its singularity: a sample in it within
+    :data:`~singplan.planning.zones.NEAR_SINGULAR` (a six-joint arm's wrist, shoulder or elbow)."""
+    distances = traj.samples.get("distances")
+    if distances is None or robot.n_joints != 6:
+        return
+    near = np.array([NEAR_SINGULAR[kind] for kind in KINDS])
+    for seg in traj.segments:
+        if seg.kind != "crossing" or seg.singularity is None:
+            continue
+        i = KIND_INDEX[seg.singularity]
+        d = np.abs(distances[round(seg.t0 / traj.period):round(seg.t1 / traj.period) + 1, i])
+        if not np.any(d < near[i]):
+            raise PlanningError(f"move {seg.move}: the segment marked as a {seg.singularity} crossing at "
+                                f"t = {seg.t0:.4f} .. {seg.t1:.4f} s comes no nearer the singularity than "
+                                f"{_distance_text(seg.singularity, float(d.min(initial=math.inf)))}")
+
+
+def _distance_text(kind: str, value: float) -> str:
+    return f"{value * 1e3:.1f} mm" if kind == "shoulder" else f"{math.degrees(value):.2f} deg"
 
 
 def _move_of_sample(timed: list[TimedMove], k: int) -> tuple[int, int]:

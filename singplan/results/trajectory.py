@@ -227,6 +227,8 @@ def _sample_series(samples: dict[str, np.ndarray]) -> dict[str, Any]:
                                      "elbow_deg": np.degrees(d[:, 2])}
     if "stopping_distance_m" in samples:  # in metres as computed: loading gives back the same floats
         out["stopping_distance_m"] = samples["stopping_distance_m"]
+    if "tcp_speed_ratio" in samples:  # the step arriving at each sample: TCP speed / programmed speed
+        out["tcp_speed_ratio"] = samples["tcp_speed_ratio"]
     return out
 
 
@@ -244,6 +246,8 @@ def _samples_from_file(series: Mapping[str, Any]) -> dict[str, np.ndarray]:
                                             np.radians(np.asarray(d["elbow_deg"], dtype=float))])
     if "stopping_distance_m" in series:
         out["stopping_distance_m"] = np.asarray(series["stopping_distance_m"], dtype=float)
+    if "tcp_speed_ratio" in series:
+        out["tcp_speed_ratio"] = np.asarray(series["tcp_speed_ratio"], dtype=float)
     return out
 
 

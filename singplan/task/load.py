@@ -30,6 +30,7 @@ from singplan.task.schema import (
     DEFAULT_BLEND_MM,
     DEFAULT_CLEARANCE_MM,
     DEFAULT_CONFIG,
+    DEFAULT_DEVIATION_COST_PERCENT,
     DEFAULT_METHOD,
     DEFAULT_ORIENTATION_TOLERANCE_DEG,
     DEFAULT_PERIOD_S,
@@ -43,6 +44,7 @@ from singplan.task.schema import (
     DEFAULT_ZONE_ELBOW_DEG,
     DEFAULT_ZONE_SHOULDER_MM,
     DEFAULT_ZONE_WRIST_DEG,
+    DEVIATION_COST_PERCENT,
     JERK_RAD_S3,
     JOINT_DEG,
     MAX_CELL_SHAPES,
@@ -428,7 +430,8 @@ def _ptp_scale(where: str, spec: Mapping[str, Any]) -> float:
 
 def _singularity(value: Any) -> SingularitySettings:
     _check_keys("singularity", value,
-                optional=("method", "orientation_tolerance_deg", "position_tolerance_mm", "zone"))
+                optional=("method", "orientation_tolerance_deg", "position_tolerance_mm", "zone",
+                          "deviation_cost_percent"))
     zone = _optional_mapping(value, "zone", "singularity")
     _check_keys("singularity.zone", zone, optional=("wrist_deg", "shoulder_mm", "elbow_deg"))
     return SingularitySettings(
@@ -445,7 +448,10 @@ def _singularity(value: Any) -> SingularitySettings:
             shoulder_mm=_number("singularity.zone.shoulder_mm", zone.get("shoulder_mm", DEFAULT_ZONE_SHOULDER_MM),
                                 ZONE_SHOULDER_MM),
             elbow_deg=_number("singularity.zone.elbow_deg", zone.get("elbow_deg", DEFAULT_ZONE_ELBOW_DEG),
-                              ZONE_ANGLE_DEG)))
+                              ZONE_ANGLE_DEG)),
+        deviation_cost_percent=_number(
+            "singularity.deviation_cost_percent",
+            value.get("deviation_cost_percent", DEFAULT_DEVIATION_COST_PERCENT), DEVIATION_COST_PERCENT))
 
 
 def _limits(value: Any) -> Limits:

@@ -25,6 +25,7 @@ singularity.position_tolerance_mm      0.0001 .. 1000       mm
 singularity.orientation_tolerance_deg  0.001 .. 180         deg
 singularity.zone wrist/elbow_deg       0.001 .. 90          deg
 singularity.zone.shoulder_mm           0.001 .. 1000        mm
+singularity.deviation_cost_percent     0 .. 1000            percent of a move's time
 output.period                          0.0001 .. 1          s
 weave.amplitude_mm                     0.001 .. 1000        mm
 weave.wavelength_mm                    0.1 .. 100000        mm
@@ -43,7 +44,7 @@ from __future__ import annotations
 import difflib
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -80,6 +81,7 @@ DEFAULT_POSITION_TOLERANCE_MM = 0.01
 DEFAULT_ZONE_WRIST_DEG = 5.0
 DEFAULT_ZONE_SHOULDER_MM = 20.0
 DEFAULT_ZONE_ELBOW_DEG = 5.0
+DEFAULT_DEVIATION_COST_PERCENT = 3.0  # singularity.deviation_cost_percent: what a whole tolerance costs auto
 DEFAULT_PERIOD_S = 0.004  # output.period
 DEFAULT_WEAVE_PATTERN = "sine"
 DEFAULT_BLEND_MM = 0.0  # a move ends at rest on its point
@@ -114,6 +116,7 @@ POSITION_TOLERANCE_MM = Range(1e-4, 1000.0, "mm")
 ORIENTATION_TOLERANCE_DEG = Range(1e-3, 180.0, "deg")
 ZONE_ANGLE_DEG = Range(1e-3, 90.0, "deg")
 ZONE_SHOULDER_MM = Range(1e-3, 1000.0, "mm")
+DEVIATION_COST_PERCENT = Range(0.0, 1000.0, "%")
 PERIOD_S = Range(1e-4, 1.0, "s")
 WEAVE_AMPLITUDE_MM = Range(1e-3, 1000.0, "mm")
 WEAVE_WAVELENGTH_MM = Range(0.1, 1e5, "mm")
@@ -200,6 +203,10 @@ class SingularitySettings:
     orientation_tolerance_deg: float = DEFAULT_ORIENTATION_TOLERANCE_DEG
     position_tolerance_mm: float = DEFAULT_POSITION_TOLERANCE_MM
     zone: ZoneThresholds = field(default_factory=ZoneThresholds)
+    # auto's rule: a candidate whose crossings use their whole tolerance (the larger share of the
+    # position or the orientation tolerance) counts this many percent slower, one that uses a fifth
+    # of it a fifth as much; auto keeps the least duration so counted (0: the fastest within the tolerances)
+    deviation_cost_percent: float = DEFAULT_DEVIATION_COST_PERCENT
 
 
 @dataclass(frozen=True)
@@ -263,8 +270,7 @@ class Task:
         """The same task planned with another crossing method; ``given_as`` names where the name came
         from in the message of an unknown one (e.g. ``--method``: the user did not write this field)."""
         check_method_name(given_as, method)
-        settings = SingularitySettings(method, self.singularity.orientation_tolerance_deg,
-                                       self.singularity.position_tolerance_mm, self.singularity.zone)
+        settings = replace(self.singularity, method=method)
         return Task(**{**self.__dict__, "singularity": settings})
 
     def to_mapping(self) -> dict[str, Any]:

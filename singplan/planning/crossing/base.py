@@ -68,6 +68,14 @@ class Crossing:
     q_exit: np.ndarray  # (n,)
     # null-space: the TCP waits at the end of ``blend`` while the joints move; ``pause.after`` goes on
     pause: Pause | None = None
+    # a PTP jump (SEEDS 004): ``blend`` is a joint line that starts and ends at rest, as a PTP move does
+    stops: bool = False
+
+    @property
+    def at_rest(self) -> bool:
+        """Whether the move stops inside this crossing (a pause or a PTP jump): it is timed in pieces
+        from rest to rest (:mod:`singplan.planning.stops`) and cannot be flown through."""
+        return self.pause is not None or self.stops
 
     @property
     def parts(self) -> list[JointPart]:

@@ -35,8 +35,8 @@ from singplan.kinematics.ik.solve import closed_form_branches
 from singplan.kinematics.robot import Robot
 from singplan.planning.crossing.base import Crossing, MoveContext
 from singplan.planning.jointmap import JointMap, JointPart, hermite
-from singplan.planning.path import CartesianPiece
-from singplan.planning.tracking import nearest_candidate
+from singplan.planning.path import STEP_M, STEP_RAD, CartesianPiece
+from singplan.planning.tracking import TrackedPath, nearest_candidate, track
 from singplan.planning.zones import KIND_INDEX, Zone
 
 EXACT_ORIENTATION_TOL_RAD = math.radians(0.01)
@@ -259,7 +259,16 @@ class Axis:
 
 
 class Ptp:
-    """Baseline (SEEDS 004): jump over the zone with a joint-space straight line."""
+    """Baseline (SEEDS 004): jump over the zone's singular stretch with a joint-space straight line.
+
+    The jump spans the singular sample: from the last point of the path's sampling grid (every
+    2 mm / 0.5 deg) before the zone's closest point to the first after it, each at least 0.05 deg
+    (0.5 mm at the shoulder) off the singularity (the rest of the zone is followed as exact does),
+    and lands on the
+    branch nearest its start from which the rest of the move can be followed inside the joint
+    limits. It is a PTP motion: it starts and ends at rest (:mod:`singplan.planning.stops`), as a
+    controller runs one, and the TCP leaves the path on it (its speed is held to the move's).
+    """
 
     name = "ptp"
     variant = ""
@@ -269,33 +278,84 @@ class Ptp:
         if b <= a:
             return None
         u, q = ctx.tracked.u, ctx.tracked.q
-        q_exit = _exit_joints(ctx, zone, q[a], float(u[b]), None, change=False)
-        if q_exit is None:
+        # the singular sample's neighbours on the path's sampling grid (tracked samples: the grid is among
+        # them), each clear of the singular point itself (where the branches meet and joints are free)
+        grid = ctx.piece.grid(STEP_M, STEP_RAD)
+        on_grid = np.isin(u, grid)
+        clear = on_grid & (np.abs(ctx.distances[:, KIND_INDEX[zone.kind]]) >= _EDGE_MIN[zone.kind])
+        before = np.nonzero(clear[:b + 1] & (u[:b + 1] < zone.u_closest))[0]
+        after = np.nonzero(clear[a:] & (u[a:] > zone.u_closest))[0]
+        a = max(a, int(before[-1])) if before.size else a
+        b = min(b, a + int(after[0])) if after.size else b
+        options = exit_candidates(ctx, float(u[b]))
+        if not options:
             return None
+        # the nearest branch from which the rest of the move can be followed inside the joint limits,
+        # one that keeps the other kinds' configuration letters first (it jumps over this zone only)
+        shifted = [nearest_candidate(np.array([c]), q[a]) for c in options]
+        sides = distances_batch(ctx.robot, np.array([q[a]] + [c for c, _ in shifted])) >= 0  # (1 + M, 3)
+        others = [k for k in range(3) if k != KIND_INDEX[zone.kind]]
+        same = [bool(np.all(row[others] == sides[0, others])) for row in sides[1:]]
+        ranked = [c for (c, _), _ in sorted(zip(shifted, same, strict=True), key=lambda cs: (not cs[1], cs[0][1]))]
+        q_exit = next((c for c in ranked if _rest_followed(ctx, float(u[b]), c)), ranked[0])
         line = JointPart("ptp", np.array([u[a], u[b]]), np.array([q[a], q_exit]))
-        return Crossing(zone, self.name, line, q_exit)
+        return Crossing(zone, self.name, line, q_exit, stops=True)
+
+
+def rest_of_move(ctx: MoveContext, u_from: float, q_from: np.ndarray) -> TrackedPath | None:
+    """The rest of the move followed with the full pose from ``q_from`` at ``u_from`` (on the tracked
+    grid ahead), or None at the move's end."""
+    if u_from >= 1.0 - 1e-12:
+        return None
+    grid = ctx.tracked.u
+    inner = grid[(grid > u_from + 1e-12) & (grid < 1.0 - 1e-12)]
+    return track(ctx.robot, ctx.piece.poses, np.concatenate([[u_from], inner, [1.0]]), q_from)
+
+
+def _rest_followed(ctx: MoveContext, u_from: float, q_from: np.ndarray) -> bool:
+    """Whether the rest of the move can be followed from ``q_from`` continuously inside the joint limits."""
+    rest = rest_of_move(ctx, u_from, q_from)
+    if rest is None:
+        return True
+    inside = np.all((rest.q >= ctx.robot.lower_rad - 1e-9) & (rest.q <= ctx.robot.upper_rad + 1e-9))
+    return bool(rest.gap_index < 0 and inside)
 
 
 class Average:
-    """Baseline (SEEDS 004): near the singular point, replace each sample's joints by the
-    average of its neighbours; the branch (and its swing) is otherwise kept."""
+    """Baseline (SEEDS 004): follow the path as ``exact`` does, and replace the joints of each
+    singular sample (|distance| under a fifth of the zone's threshold) by the average of its
+    neighbours, weighted by where it lies between them (the plain average on a uniform grid).
+
+    The samples are exact's: the tracked branch in full where it keeps the branch (a near miss),
+    the samples of its through-crossing where it goes through (a hit). The joints run a smooth
+    spline through them, their slopes the path's at the ends; the averaged samples leave the path
+    by what the averaging changes, which the planner measures.
+    """
 
     name = "average"
     variant = ""
     _CORE = 0.2  # the "singular samples": |distance| under this fraction of the threshold
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
-        a, b = _zone_span(ctx, zone)
-        if b - a < 2:
-            return None
-        i = KIND_INDEX[zone.kind]
-        u, q = ctx.tracked.u[a:b + 1], ctx.tracked.q[a:b + 1].copy()
-        core = np.abs(ctx.distances[a:b + 1, i]) < self._CORE * zone.threshold
+        through_crossing = Exact().cross(ctx, zone)
+        if through_crossing is not None:
+            part = through_crossing.blend
+            u, q, slopes = part.u, part.q.copy(), part.dq_du
+            distances = distances_batch(ctx.robot, q)[:, KIND_INDEX[zone.kind]]
+        else:
+            a, b = _zone_span(ctx, zone)
+            if b - a < 2 or ctx.tracked.coarse_from_u <= ctx.tracked.u[b]:
+                return None  # kept for now: the planner tracks a coarse zone in full and asks again
+            u, q = ctx.tracked.u[a:b + 1], ctx.tracked.q[a:b + 1].copy()
+            distances = ctx.distances[a:b + 1, KIND_INDEX[zone.kind]]
+            slopes = _seam_slopes(ctx, a, float(u[-1]), q[-1])
+        core = np.abs(distances) < self._CORE * zone.threshold
         core[0] = core[-1] = False
-        original = q.copy()
-        for k in np.nonzero(core)[0]:
-            q[k] = 0.5 * (original[k - 1] + original[k + 1])
-        return Crossing(zone, self.name, JointPart("ptp", u, q), q[-1])
+        k = np.nonzero(core)[0]
+        if k.size:
+            t = ((u[k] - u[k - 1]) / (u[k + 1] - u[k - 1]))[:, None]
+            q[k] = (1.0 - t) * q[k - 1] + t * q[k + 1]  # from the samples as followed, not as averaged
+        return Crossing(zone, self.name, JointPart("spline", u, q, slopes), q[-1])
 
 
 class Dls:
@@ -304,7 +364,8 @@ class Dls:
     ``qd = J^T (J J^T + lambda^2 I)^-1 e`` with the pose error ``e`` to the next path pose
     (lambda = 0.01). Near the singularity the damping trades tracking for bounded joint speed,
     so the tool leaves the path; at the zone exit the motion rejoins the nearest exact
-    solution. The deviation is measured and reported.
+    solution. The joints run a smooth spline through the servo samples; the deviation is
+    measured and reported.
     """
 
     name = "dls"
@@ -327,7 +388,8 @@ class Dls:
         if q_exit is None:
             return None
         q[-1] = q_exit
-        return Crossing(zone, self.name, JointPart("ptp", u, q), q_exit)
+        slopes = _seam_slopes(ctx, a, float(u[-1]), q_exit)
+        return Crossing(zone, self.name, JointPart("spline", u, q, slopes), q_exit)
 
     def _step(self, robot: Robot, q: np.ndarray, T_target: np.ndarray) -> np.ndarray:
         return q + ik_numeric.damped_step(robot.jacobian(q), ik_numeric.pose_error(robot, q, T_target), self.damping**2)

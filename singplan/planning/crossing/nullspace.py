@@ -12,7 +12,7 @@ How the pause is represented (one move, three timed pieces). A move's joint map 
 of the path parameter u; a pause is a joint motion at one u, which no such function holds. So a
 :class:`Crossing` with a pause carries two joint-map parts, ``blend`` up to the singular point
 ``u_s`` and ``pause.after`` from it, and the :class:`Pause` itself: reference joint values of the
-null-space motion. :func:`time_with_pauses` times the move as pieces that each start and end at
+null-space motion. :func:`singplan.planning.stops.time_in_pieces` times the move as pieces that each start and end at
 rest (the path up to ``u_s``, the pause, the path after it, ...) with the same TOPP-RA timing as
 any move, and joins them: every sample of the pause carries ``u = u_s``, so the segment labelling
 puts it inside the crossing, and the seams are within the acceleration limit because every
@@ -35,7 +35,6 @@ import numpy as np
 
 from singplan.errors import JointLimitError, SingularityError
 from singplan.kinematics.configuration import distances_batch
-from singplan.kinematics.dynamics import move_torque_ratio
 from singplan.kinematics.ik.numeric import damped_solve, pose_error
 from singplan.kinematics.robot import Robot
 from singplan.planning.crossing.base import Crossing, MoveContext, Pause
@@ -44,12 +43,12 @@ from singplan.planning.crossing.methods import (
     Exact,
     exit_candidates,
     path_slope,
+    rest_of_move,
     sample_densely,
     through,
 )
 from singplan.planning.jointmap import JointMap, JointPart, interpolate
-from singplan.planning.timing import MoveLimits, TimedMove, TimingError, sample_ratios, time_move
-from singplan.planning.tracking import nearest_candidate, track
+from singplan.planning.tracking import nearest_candidate
 from singplan.planning.zones import KIND_INDEX, Zone
 
 # turns of the driven joint tried, smallest first: half a turn changes the branch, a whole one
@@ -187,11 +186,9 @@ def _outside(robot: Robot, q: np.ndarray, where: str) -> _Blocked | None:
 
 def _rest_blocked(ctx: MoveContext, u_from: float, q_from: np.ndarray) -> _Blocked | None:
     """Where following the rest of the move with the full pose from ``q_from`` leaves a limit."""
-    if u_from >= 1.0 - 1e-12:
+    rest = rest_of_move(ctx, u_from, q_from)
+    if rest is None:
         return None
-    grid = ctx.tracked.u
-    inner = grid[(grid > u_from + 1e-12) & (grid < 1.0 - 1e-12)]
-    rest = track(ctx.robot, ctx.piece.poses, np.concatenate([[u_from], inner, [1.0]]), q_from)
     blocked = _outside(ctx.robot, rest.q, "")
     return None if blocked is None else replace(blocked, where=ctx.piece.describe(float(rest.u[blocked.sample])))
 
@@ -276,7 +273,10 @@ def self_motion(robot: Robot, q0: np.ndarray, T_target: np.ndarray, joint: int, 
     out = np.empty((steps + 1, robot.n_joints))
     out[0] = q0
     for k in range(1, steps + 1):
-        n = np.linalg.svd(robot.jacobian(out[k - 1]))[2][-1]
+        J = robot.jacobian(out[k - 1])
+        if not np.all(np.isfinite(J)):  # the hold before did not converge to joint values: no way on
+            raise _NoSelfMotionError(f"turning {robot.joint_names[joint]} loses the pose after {k - 1} steps")
+        n = np.linalg.svd(J)[2][-1]
         if abs(n[joint]) < 0.1 * float(np.max(np.abs(n))):
             raise _NoSelfMotionError(f"the Jacobian's null space does not move {robot.joint_names[joint]} here")
         guess = out[k - 1] + n / n[joint] * (turn_rad / steps)
@@ -293,22 +293,7 @@ def self_motion(robot: Robot, q0: np.ndarray, T_target: np.ndarray, joint: int, 
     return out
 
 
-class _PieceMap(JointMap):
-    """A stretch [u0, u1] of a move's joint map, re-parameterised to [0, 1] for the timing."""
-
-    def __init__(self, robot: Robot, inner: JointMap, parts: list[JointPart]) -> None:
-        super().__init__(robot, inner.poses, parts)
-        self.u0, self.u1 = parts[0].u0, parts[-1].u1
-
-    def reference(self) -> tuple[np.ndarray, np.ndarray]:
-        u, q = super().reference()
-        return (u - self.u0) / (self.u1 - self.u0), q
-
-    def evaluate(self, u: np.ndarray) -> np.ndarray:
-        return super().evaluate(self.u0 + np.asarray(u, dtype=float) * (self.u1 - self.u0))
-
-
-class _PauseMap(JointMap):
+class PauseMap(JointMap):
     """The pause as a joint map of v in [0, 1]: the reference samples interpolated, then the pose
     restored with the driven joint held, so every sample keeps the pose."""
 
@@ -323,43 +308,3 @@ class _PauseMap(JointMap):
         for k in np.nonzero(inner)[0]:
             q[k] = hold_pose(self.robot, q[k], self.pause.T_target, self.pause.joint)
         return q
-
-
-def time_with_pauses(jmap: JointMap, crossings: tuple[Crossing, ...], limits: MoveLimits, period_s: float,
-                     move_index: int, max_samples: int) -> TimedMove:
-    """Time a move whose crossings pause: path pieces and pauses each from rest to rest, joined."""
-    pauses = {id(c.blend): c.pause for c in crossings if c.pause is not None}
-    pieces: list[tuple[JointMap, MoveLimits, float, float]] = []  # map, limits, u at its start, at its end
-    current: list[JointPart] = []
-    for part in jmap.parts:
-        current.append(part)
-        pause = pauses.get(id(part))
-        if pause is not None:
-            pieces.append(_path_piece(jmap, current, limits))
-            pieces.append((_PauseMap(jmap.robot, pause), replace(limits, length_m=0.0, tcp_speed_m_s=None),
-                           pause.u, pause.u))
-            current = []
-    pieces.append(_path_piece(jmap, current, limits))
-    us: list[np.ndarray] = []
-    qs: list[np.ndarray] = []
-    duration, left = 0.0, max_samples
-    for piece_map, piece_limits, u0, u1 in pieces:
-        try:
-            tm = time_move(piece_map, piece_limits, period_s, move_index, left)
-        except TimingError as exc:
-            raise TimingError(move_index, u0 + exc.u * (u1 - u0), exc.reason) from exc
-        first = 0 if not us else 1  # the pieces share their end samples (at rest)
-        us.append(u0 + tm.u[first:] * (u1 - u0))
-        qs.append(tm.q[first:])
-        duration += tm.duration_s
-        left -= len(tm.q) - 1
-    u, q = np.concatenate(us), np.concatenate(qs)
-    speed, accel = sample_ratios(q, period_s, limits.velocity_rad_s, limits.acceleration_rad_s2)
-    torque = move_torque_ratio(limits.torque, q, period_s)[0] if limits.torque else 0.0
-    return TimedMove(u, q, duration, speed, accel, torque)
-
-
-def _path_piece(jmap: JointMap, parts: list[JointPart],
-                limits: MoveLimits) -> tuple[JointMap, MoveLimits, float, float]:
-    piece = _PieceMap(jmap.robot, jmap, parts)
-    return piece, replace(limits, length_m=limits.length_m * (piece.u1 - piece.u0)), piece.u0, piece.u1

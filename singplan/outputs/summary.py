@@ -179,7 +179,8 @@ def _choice(alternatives: Sequence[Alternative], cost_percent: float) -> list[st
     lines = [f"auto chose {_name(best)} ({rule}, singularity.deviation_cost_percent):",
              f"  {'method':{width}s}  {'move':>10s}  deviation"]
     for a in rows:
-        lines.append(f"  {_name(a):{width}s}  {_move_time(a):>10s}  {_alternative_deviation(a):22s}  {_note(a, best)}".rstrip())
+        row = f"  {_name(a):{width}s}  {_move_time(a):>10s}  {_alternative_deviation(a):22s}  {_note(a, best)}"
+        lines.append(row.rstrip())
     return lines
 
 

@@ -51,6 +51,17 @@ def test_a_scenario_of_each_kind_plans_as_its_kind(name: str, tmp_path: Path) ->
         avoided = want["reason"].split("auto crosses with ", 1)[1].split(",", 1)[0]
         crossings = [s for s in doc["segments"] if s["kind"] == "crossing"]
         assert crossings and all(s["method"] != avoided for s in crossings)
+        # by the fastest rule alone (no deviation cost) the avoided crossing would win: the collision drops it
+        fastest = yaml.safe_load(task.read_text())
+        fastest.setdefault("singularity", {})["deviation_cost_percent"] = 0
+        (tmp_path / task.name).write_text(yaml.safe_dump(fastest))
+        for name in {m["mesh"]["file"] for m in fastest.get("cell", ()) if "mesh" in m}:
+            (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+            (tmp_path / name).write_bytes((KINDS / name).read_bytes())
+        assert _plan(tmp_path / task.name, tmp_path / "fastest", "--no-report", "--no-replay", "--quiet")[0] == 0
+        segments = json.loads((tmp_path / "fastest" / "trajectory.json").read_text())["segments"]
+        crossings = [s for s in segments if s["kind"] == "crossing"]
+        assert crossings and all(s["method"] != avoided for s in crossings)
         assert any(a["method"] == avoided and a["feasible"] is False and "obstacle" in a["reason"]
                    for a in crossings[0]["alternatives"])
     if want["kind"].startswith("b-"):  # not the nearest end configuration, whose joint line the sphere blocks

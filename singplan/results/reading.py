@@ -284,7 +284,7 @@ def _move(f: FieldChecks, field: str, value: Any, n_moves: int, duration: float)
     return move
 
 
-_SERIES = ("position_error_mm", "orientation_error_deg", "stopping_distance_m")
+_SERIES = ("position_error_mm", "orientation_error_deg", "stopping_distance_m", "tcp_speed_ratio")
 _DISTANCES = ("wrist_deg", "shoulder_mm", "elbow_deg")
 
 

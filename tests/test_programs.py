@@ -314,8 +314,9 @@ def test_the_reconstructed_motion_passes_the_checker_on_every_scenario(name: str
 
 # Random valid tasks (tests/task_strategies.py) of the bundled KUKA, ABB and FANUC arms that plan:
 # other arms (M-10iA, R-2000iB, KR 6 R700, KR 120, IRB 6700), random periods (1-20 ms), tolerances,
-# tools, speeds and methods. Seeds found by planning seeds 0-30 and keeping those that plan.
-GENERATED_SEEDS = (4, 11, 13, 14, 15, 16, 17, 18, 21, 22, 29, 30)
+# tools, speeds and methods. Seeds found by planning seeds 0-30 and keeping those that plan (seed 18
+# starts the LR Mate folded into its own base: refused, exit 3, since the bundled arms check self-collision).
+GENERATED_SEEDS = (4, 11, 12, 13, 14, 15, 16, 17, 21, 22, 29, 30)
 
 
 @cache

@@ -232,6 +232,12 @@ def _bounded(mapping: dict[str, object]) -> None:
         return  # nothing planned: nothing to bound (check may still pass; see tests/test_check.py)
     found = detect(task)
     d = traj.samples["stopping_distance_m"]
-    for move, record in zip(found, traj.moves, strict=True):
-        planned = d[round(record.t0 / traj.period):round(record.t1 / traj.period) + 1].max()
+    bounds = [move.stopping.bound_m for move in found]
+    for m, (move, record) in enumerate(zip(found, traj.moves, strict=True)):
+        first, last = round(record.t0 / traj.period), round(record.t1 / traj.period)
+        planned = d[first + 1:last].max(initial=0.0)  # the move's own samples
         assert planned <= move.stopping.bound_m, (move.index, planned, move.stopping)
+        # a sample two moves share: its speeds are central differences over both, so either bound may hold it
+        for k, neighbour in ((first, m - 1), (last, m + 1)):
+            shared = max(move.stopping.bound_m, bounds[neighbour] if 0 <= neighbour < len(bounds) else 0.0)
+            assert d[k] <= shared, (move.index, k, d[k], shared)

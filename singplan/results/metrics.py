@@ -227,6 +227,10 @@ class ClearanceFigures(JsonRecord):
     def from_json(cls, doc: Mapping[str, Any]) -> ClearanceFigures:
         pair, points = doc.get("min_clearance_pair"), doc.get("min_clearance_points")
         least = doc.get("min_clearance_mm")
+        closest = (least, pair, doc.get("min_clearance_t"), points)
+        if any(v is None for v in closest) and any(v is not None for v in closest):  # a closest approach is whole
+            raise ValueError("min_clearance_mm, min_clearance_pair, min_clearance_t and min_clearance_points "
+                             "are given together or not at all")
         return cls(_f(doc["clearance_mm"]), None if least is None else _f(least),
                    None if pair is None else (str(pair[0]), str(pair[1])),
                    None if doc.get("min_clearance_t") is None else _f(doc["min_clearance_t"]),

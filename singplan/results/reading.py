@@ -133,7 +133,7 @@ class FieldChecks:
             return make()
         except KeyError as exc:
             self.fail(field, f"missing the key {shorten(str(exc), 60)}")
-        except (TypeError, ValueError, AttributeError, OverflowError) as exc:
+        except (TypeError, ValueError, AttributeError, OverflowError, IndexError) as exc:
             self.fail(field, f"malformed ({type(exc).__name__}: {shorten(str(exc), 100)})")
 
 

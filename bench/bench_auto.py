@@ -32,8 +32,8 @@ import pinocchio as pin
 import yaml
 
 from singplan.errors import SingplanError
-from singplan.planning.planner import plan_moves
-from singplan.planning.targets import load_task_robot
+from singplan.planning.orchestration.planner import plan_moves
+from singplan.planning.orchestration.targets import load_task_robot
 from singplan.results.plan import trajectory_of
 from singplan.task.load import load_task, parse_task
 from singplan.task.schema import Task

@@ -45,7 +45,7 @@ import toppra.constraint as ta_constraint
 from singplan.errors import SingplanError
 from singplan.kinematics.ik.solve import solve_all, solve_newton
 from singplan.kinematics.robot import Robot
-from singplan.planning.targets import load_task_robot
+from singplan.planning.orchestration.targets import load_task_robot
 from singplan.results.plan import plan
 from singplan.task.load import load_task, parse_task
 from singplan.task.schema import Task

@@ -12,7 +12,7 @@ an address-space limit and a timeout, in three modes (``--modes`` adds ``plan --
 * ``plan`` (report and replay): the CLI's default.
 
 The base line is the same LIN, fast (~180 samples), i.e. the process's imports and kernels.
-The figures feed the memory model of singplan/planning/budget.py; the table shows that model's
+The figures feed the memory model of singplan/planning/orchestration/budget.py; the table shows that model's
 estimate of each task next to the measured peak (the budget refuses what it puts over 1.5 GB).
 """
 
@@ -94,10 +94,11 @@ def run(task: Path, mode: str, out: Path) -> tuple[int, float, float]:
 
 
 def model_mb(task: Path) -> float:
-    """The budget's estimate [MB] of a task's peak (singplan/planning/budget.py, as the planner calls it)."""
-    from singplan.planning.budget import check_task, memory_mb
-    from singplan.planning.path import STEP_M, STEP_RAD
-    from singplan.planning.targets import load_task_robot
+    """The budget's estimate [MB] of a task's peak (singplan/planning/orchestration/budget.py, as the planner
+    calls it)."""
+    from singplan.planning.orchestration.budget import check_task, memory_mb
+    from singplan.planning.orchestration.targets import load_task_robot
+    from singplan.planning.path.cartesian import STEP_M, STEP_RAD
     from singplan.task.load import load_task
 
     spec = load_task(task)
@@ -129,7 +130,8 @@ def table(runs: list[Run]) -> str:
              f"at {PERIOD_S * 1e3:g} ms (KUKA KR 6 R900-2), and wall time; MB per million output samples is "
              f"(peak - base) / N with the base of a short task ({base:.0f} MB: the imports and kernels). "
              "Budget of DESIGN.md: 600 MB per million samples, 1.5 GB in all. The model column is "
-             "singplan/planning/budget.py's estimate of the task's peak, what the budget refuses above 1.5 GB.", "",
+             "singplan/planning/orchestration/budget.py's estimate of the task's peak, what the budget refuses "
+             "above 1.5 GB.", "",
              "| output samples [M] | mode | exit | peak RSS [MB] | MB per million | model [MB] | time [s] |",
              "|---:|---|---:|---:|---:|---:|---:|"]
     for r in runs:

@@ -23,9 +23,9 @@ import numpy as np
 import yaml
 
 from singplan.errors import SingplanError
-from singplan.planning import move_plan, targets
 from singplan.planning.crossing import registry
-from singplan.planning.records import PlannedMove
+from singplan.planning.orchestration import move_plan, targets
+from singplan.planning.orchestration.records import PlannedMove
 from singplan.results.plan import plan
 from singplan.task.load import load_task, parse_task
 from singplan.task.schema import Task

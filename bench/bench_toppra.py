@@ -9,7 +9,7 @@ path) and a torque-limited UR5 task (tests/test_dynamics.py's). Each pass is the
 - toppra 0.6 itself: its ``TOPPRA`` instance with its Seidel solver and the constraints singplan
   handed it before (``JointVelocityConstraint`` or ``...Varying``, ``JointAccelerationConstraint``
   with its default interpolation scheme, ``JointTorqueConstraint``): the reference;
-- singplan's compiled port (``singplan.planning.reachability``, what ``timing`` calls now);
+- singplan's compiled port (``singplan.planning.timing.reachability``, what ``timing`` calls now);
 - copp-py's TOPP2-RA (Rust), when installed (it is not a dependency: ``pip install copp-py``),
   on the same rows (toppra's single-precision speed bounds as its first-order rows, the
   acceleration rows at both ends of each interval as its second-order rows), with its default
@@ -36,7 +36,8 @@ import numpy as np
 import toppra.algorithm as ta_algo
 import toppra.constraint as ta_constraint
 
-from singplan.planning import reachability, timing
+from singplan.planning.timing import move, reachability, toppra
+from singplan.planning.timing.records import LimitScale, MoveLimits
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
 
@@ -48,7 +49,7 @@ UR5_TORQUE = {"robot": "ur5", "start": {"joints_deg": [0, -90, 90, -90, -90, 0]}
                         {"lin": {"to": {"xyz": [0.3, 0.3, 0.4], "rpy_deg": [180, 0, 0]}, "speed": 1.0}}],
               "limits": {"acceleration": 40.0, "torque_scale": 0.45}}
 
-Case = tuple[timing.TimingPath, timing.MoveLimits, timing.Scale]
+Case = tuple[toppra.TimingPath, MoveLimits, LimitScale]
 
 
 def capture(moves: int) -> list[Case]:
@@ -56,28 +57,28 @@ def capture(moves: int) -> list[Case]:
     from bench_program import program  # its neighbour's program (bench/ is on the path of a script run)
 
     cases: list[Case] = []
-    solve = timing._toppra_profile
+    solve = move.toppra_profile
 
-    def recording(path: timing.TimingPath, limits: timing.MoveLimits, scale: timing.Scale, move: int) -> Any:
+    def recording(path: toppra.TimingPath, limits: MoveLimits, scale: LimitScale, move: int) -> Any:
         cases.append((path, limits, scale))
         return solve(path, limits, scale, move)
 
-    timing._toppra_profile = recording  # type: ignore[assignment]
+    move.toppra_profile = recording  # type: ignore[assignment]
     try:
         plan(parse_task(program(moves, "auto")))
         plan(FLYBY)
         plan(parse_task(UR5_TORQUE))
     finally:
-        timing._toppra_profile = solve  # type: ignore[assignment]
+        move.toppra_profile = solve  # type: ignore[assignment]
     return cases
 
 
-def toppra_pass(path: timing.TimingPath, limits: timing.MoveLimits, scale: timing.Scale
+def toppra_pass(path: toppra.TimingPath, limits: MoveLimits, scale: LimitScale
                 ) -> tuple[np.ndarray | None, np.ndarray | None]:
     """toppra's own instance on the pass: (controllable sets (G, 2), path speeds (G,)); None if it fails."""
-    scale_v, scale_c, _, scale_t = scale
     tau, vmax_1, amax_1 = path.scaled_limits(limits, scale)
-    speeds = timing._velocity_bounds(limits, vmax_1, scale_v * tau / path.length, scale_c * tau, path.grid)
+    speeds = toppra._velocity_bounds(limits, vmax_1, scale.velocity * tau / path.length, scale.tcp_speed * tau,
+                                     path.grid)
     if speeds.ndim == 1:
         velocity: ta_constraint.LinearConstraint = ta_constraint.JointVelocityConstraint(
             np.stack([-speeds, speeds], axis=1))
@@ -86,28 +87,28 @@ def toppra_pass(path: timing.TimingPath, limits: timing.MoveLimits, scale: timin
         velocity = ta_constraint.JointVelocityConstraintVarying(lambda s: np.stack([-rows[s], rows[s]], axis=1))
     constraints = [velocity, ta_constraint.JointAccelerationConstraint(np.stack([-amax_1, amax_1], axis=1))]
     if limits.torque is not None:
-        constraints.append(timing._torque_constraint(limits.torque, path.q[0], path.length, tau, scale_t))
+        constraints.append(toppra._torque_constraint(limits.torque, path.q[0], path.length, tau, scale.torque))
     instance = ta_algo.TOPPRA(constraints, path.spline, gridpoints=path.grid)
     _, sd, _, sets = instance.compute_parameterization(0.0, 0.0, return_data=True)
     return sets, sd
 
 
-def compiled_pass(path: timing.TimingPath, limits: timing.MoveLimits, scale: timing.Scale
+def compiled_pass(path: toppra.TimingPath, limits: MoveLimits, scale: LimitScale
                   ) -> tuple[np.ndarray | None, np.ndarray | None]:
     """singplan's compiled engine with the rows timing builds."""
-    scale_v, scale_c, _, scale_t = scale
     tau, vmax_1, amax_1 = path.scaled_limits(limits, scale)
     d1, d2 = path.derivatives
     rows = [reachability.acceleration_rows(path.grid, d1, d2, amax_1)]
     if limits.torque is not None:
-        torque = timing._torque_constraint(limits.torque, path.q[0], path.length, tau, scale_t)
+        torque = toppra._torque_constraint(limits.torque, path.q[0], path.length, tau, scale.torque)
         rows.append(reachability.toppra_rows(torque, path.spline, path.grid))
-    speeds = timing._velocity_bounds(limits, vmax_1, scale_v * tau / path.length, scale_c * tau, path.grid)
+    speeds = toppra._velocity_bounds(limits, vmax_1, scale.velocity * tau / path.length, scale.tcp_speed * tau,
+                                     path.grid)
     result = reachability.solve(path.grid, rows, reachability.velocity_x_bounds(d1, speeds))
     return result.sets, result.sd
 
 
-def copp_pass(tolerance: float | None) -> Callable[[timing.TimingPath, timing.MoveLimits, timing.Scale],
+def copp_pass(tolerance: float | None) -> Callable[[toppra.TimingPath, MoveLimits, LimitScale],
                                                    tuple[np.ndarray | None, np.ndarray | None]]:
     """copp-py's TOPP2-RA on toppra's rows (its default tolerances, or all set to ``tolerance``)."""
     import copp_py as copp
@@ -115,12 +116,12 @@ def copp_pass(tolerance: float | None) -> Callable[[timing.TimingPath, timing.Mo
     options = (None if tolerance is None else
                copp.solver.topp2_ra.Options(lp_feas_tol=tolerance, a_cmp_abs_tol=tolerance, a_cmp_rel_tol=tolerance))
 
-    def solve(path: timing.TimingPath, limits: timing.MoveLimits, scale: timing.Scale
+    def solve(path: toppra.TimingPath, limits: MoveLimits, scale: LimitScale
               ) -> tuple[np.ndarray | None, np.ndarray | None]:
-        scale_v, scale_c, _, _ = scale
         tau, vmax_1, amax_1 = path.scaled_limits(limits, scale)
         d1, d2 = path.derivatives
-        speeds = timing._velocity_bounds(limits, vmax_1, scale_v * tau / path.length, scale_c * tau, path.grid)
+        speeds = toppra._velocity_bounds(limits, vmax_1, scale.velocity * tau / path.length, scale.tcp_speed * tau,
+                                     path.grid)
         g, m = d1.shape
         rows = copp.constraints.Constraints(m, capacity=g)
         rows.append_s(path.grid)

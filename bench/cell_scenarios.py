@@ -42,7 +42,7 @@ from singplan.kinematics.clearance import check_clearance
 from singplan.kinematics.collision import collision_model
 from singplan.kinematics.robot import Robot, load_robot
 from singplan.kinematics.shapes import CollisionSettings, Shape
-from singplan.planning.targets import ptp_targets
+from singplan.planning.orchestration.targets import ptp_targets
 from singplan.results.plan import plan
 from singplan.results.trajectory import Trajectory
 from singplan.task.load import load_task

@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from singplan.kinematics.ik.solve import IkSolutions, opw_batch, solve_all
     from singplan.kinematics.robot import Robot, bundled_robots, load_robot
     from singplan.outputs.viewer import replay
-    from singplan.planning.detect import detect
+    from singplan.planning.orchestration.detect import detect
     from singplan.results.plan import plan
     from singplan.results.trajectory import Segment, Trajectory, save
     from singplan.task.load import load_task, parse_task
@@ -53,7 +53,7 @@ _HOMES = {  # public name -> the module that defines it
     "Task": "singplan.task.schema",
     "load_task": "singplan.task.load",
     "parse_task": "singplan.task.load",
-    "detect": "singplan.planning.detect",
+    "detect": "singplan.planning.orchestration.detect",
     "plan": "singplan.results.plan",
     "Segment": "singplan.results.trajectory",
     "Trajectory": "singplan.results.trajectory",

@@ -8,7 +8,7 @@ interrupted). Two ways to run the workers:
 - local (default): ``workers`` long-lived worker processes, each planning one task at a time.
   A worker that dies (a segfault, the kernel's OOM killer) loses only its current task, which
   is recorded with exit code 1, and is replaced. Each worker is a whole process, so each task
-  has the memory budget of :mod:`singplan.planning.budget`; N workers may take N x 1.5 GB in all.
+  has the memory budget of :mod:`singplan.planning.orchestration.budget`; N workers may take N x 1.5 GB in all.
   A worker that dies before taking any task (WorkerStartError) means none can start: the
   tasks not yet run are recorded as not run, with exit code 1.
 - Dask (``scheduler``): the tasks are submitted to a ``dask.distributed`` cluster. The workers
@@ -36,10 +36,10 @@ from typing import Any, TextIO
 
 from singplan.errors import InputError, SingplanError
 from singplan.outputs.plan_folder import OUTPUT_FILES, plan_into
-from singplan.planning.budget import TASK_MEMORY_MB
 from singplan.results.files import check_output_dir, hold_output_folder, remove_temporary_files, write_files
 from singplan.results.trajectory import Trajectory
 from singplan.task.load import load_task
+from singplan.task.schema import TASK_MEMORY_MB
 
 FORMAT = "singplan.batch/1"
 SUMMARY_CSV = "summary.csv"

@@ -46,8 +46,8 @@ if TYPE_CHECKING:
     import pinocchio as pin
 
     from singplan.kinematics.robot import Robot, RobotEntry
-    from singplan.planning.detect import MoveZones
-    from singplan.planning.redundancy import HeldJoint
+    from singplan.planning.orchestration.detect import MoveZones
+    from singplan.planning.orchestration.redundancy import HeldJoint
 
 
 def _reach_m(robot: Robot) -> float:
@@ -190,7 +190,7 @@ def _pose(xyz: Sequence[float], rpy_deg: Sequence[float]) -> pin.SE3:
 
 def _hold(robot: Robot, text: str | None) -> HeldJoint | None:
     """``--hold JOINT=DEG`` on a 7-joint arm: the joint locked at the value."""
-    from singplan.planning.redundancy import hold_joint
+    from singplan.planning.orchestration.redundancy import hold_joint
 
     if text is None:
         return None
@@ -340,7 +340,7 @@ def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from singplan.planning.detect import detect
+    from singplan.planning.orchestration.detect import detect
     from singplan.task.load import load_task
 
     task = load_task(args.task)

@@ -62,6 +62,22 @@ class TaskError(InputError):
         super().__init__(f"{field}: {reason}" if field else reason)
 
 
+class BudgetError(TaskError):
+    """A task (or one of its moves) would exceed the sample caps or the memory budget (exit code 2).
+
+    Attributes:
+        move: index of the move at which the running total crosses the cap.
+        value: the figure that crosses it (samples, or MB for memory).
+        cap: the cap it crosses, in the same unit.
+    """
+
+    def __init__(self, field: str, reason: str, move: int, value: float, cap: float) -> None:
+        self.move = move
+        self.value = value
+        self.cap = cap
+        super().__init__(field, reason)
+
+
 class PlanningError(SingplanError):
     """A well-formed task cannot be executed within the limits and tolerances (exit code 3)."""
 

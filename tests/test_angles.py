@@ -22,7 +22,7 @@ from singplan.kinematics.angles import (
     wrap_to_pi,
 )
 from singplan.kinematics.ik import opw
-from singplan.planning import tracking
+from singplan.planning.path import tracking
 
 
 def test_wrap_to_pi_lands_in_the_half_open_interval_and_keeps_the_angle() -> None:

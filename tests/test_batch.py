@@ -28,7 +28,7 @@ import yaml
 from singplan import batch
 from singplan.batch import TaskJob, TaskRecord, folder_names, make_jobs, plan_many, plan_task
 from singplan.cli import main
-from singplan.planning import targets
+from singplan.planning.orchestration import targets
 
 START_DEG = [10, -80, 95, 20, 40, 0]
 TARGET = {"xyz": [0.55, -0.08, 0.66], "rpy_deg": [-157.09, 31.93, -172.02]}  # ~40 mm from the start

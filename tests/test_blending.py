@@ -18,10 +18,10 @@ from hypothesis import strategies as st
 from singplan.cli import main
 from singplan.errors import TaskError
 from singplan.kinematics.robot import load_robot
-from singplan.planning import planner as planner_module
-from singplan.planning.blending import RAMPS, Ramp, ramps
-from singplan.planning.chain import chain_map
-from singplan.planning.planner import plan_moves
+from singplan.planning.orchestration import planner as planner_module
+from singplan.planning.orchestration.blending import RAMPS, Ramp, ramps
+from singplan.planning.orchestration.chain import chain_map
+from singplan.planning.orchestration.planner import plan_moves
 from singplan.results.plan import plan, trajectory_of
 from singplan.results.trajectory import Trajectory, save
 from singplan.task.load import parse_task

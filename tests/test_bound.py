@@ -10,18 +10,20 @@ from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given, reject, settings
 from hypothesis import strategies as st
 
 from singplan.errors import PlanningError
 from singplan.kinematics.robot import load_robot
-from singplan.planning import planner
-from singplan.planning.bound import duration_bound_s, speed_caps
 from singplan.planning.crossing.registry import candidates
-from singplan.planning.jointmap import JointMap, JointPart
-from singplan.planning.move_plan import plan_move
-from singplan.planning.targets import task_arm
-from singplan.planning.timing import MoveLimits, Outrun, _toppra_profile, time_move, timing_path
+from singplan.planning.orchestration import planner
+from singplan.planning.orchestration.move_plan import plan_move
+from singplan.planning.orchestration.targets import task_arm
+from singplan.planning.path.jointmap import JointMap, JointPart
+from singplan.planning.timing.bound import duration_bound_s, speed_caps
+from singplan.planning.timing.move import time_move
+from singplan.planning.timing.records import UNSCALED, LimitScale, MoveLimits, Outrun, TimedMove, TimingError
+from singplan.planning.timing.toppra import timing_path, toppra_profile
 from singplan.results.plan import plan
 from singplan.task.load import load_task, parse_task
 from singplan.task.schema import Task
@@ -104,15 +106,18 @@ def test_a_bound_at_the_tightened_limits_is_never_above_the_timing(points: list[
     path = timing_path(jmap, limits, 0)
     asked: list[float] = []
 
-    def record(scale: tuple[float, float, float, float], pass_s: float) -> None:
+    def record(scale: LimitScale, pass_s: float) -> None:
         asked.append(duration_bound_s(path, limits, PERIOD_S, scale, pass_s))
 
-    duration = time_move(jmap, limits, PERIOD_S, 0, 10_000_000, path, record).duration_s
-    assert all(bound <= duration for bound in asked)
+    try:
+        timed = time_move(jmap, limits, PERIOD_S, 0, 10_000_000, path, record)
+    except TimingError:  # a loop back to its start bulging in one joint: TOPP-RA finds no timing to bound
+        reject()
+    assert isinstance(timed, TimedMove)
+    assert all(bound <= timed.duration_s for bound in asked)
     if asked:  # a pass was tightened: giving its bound back stops the timing there
-        with pytest.raises(Outrun) as stop:
-            time_move(jmap, limits, PERIOD_S, 0, 10_000_000, path, lambda scale, pass_s: asked[0])
-        assert stop.value.at_least_s == asked[0]
+        stopped = time_move(jmap, limits, PERIOD_S, 0, 10_000_000, path, lambda scale, pass_s: asked[0])
+        assert stopped == Outrun(asked[0])
 
 
 def test_no_bound_where_the_timing_is_not_topp_ra_alone() -> None:
@@ -172,9 +177,9 @@ def test_topp_ra_keeps_under_the_speed_caps_within_the_margin(example: str) -> N
         except PlanningError:
             continue
         path = timing_path(pm.jmap, pm.limits, 0)
-        tau, vmax_1, amax_1 = path.scaled_limits(pm.limits, (1.0, 1.0, 1.0, 1.0))
+        tau, vmax_1, amax_1 = path.scaled_limits(pm.limits, UNSCALED)
         caps = speed_caps(path, vmax_1, amax_1)
-        profile = _toppra_profile(path, pm.limits, (1.0, 1.0, 1.0, 1.0), 0)
+        profile = toppra_profile(path, pm.limits, UNSCALED, 0)
         np.testing.assert_array_equal(profile.grid, path.grid)
         assert np.all((profile.sd * tau) ** 2 <= caps * (1.0 + 1e-6) + 1e-12)
         checked += 1

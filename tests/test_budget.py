@@ -16,23 +16,16 @@ import numpy as np
 import pytest
 import yaml
 
-from singplan.planning import planner
-from singplan.planning.budget import (
-    MAX_PATH_SAMPLES,
-    TASK_MEMORY_MB,
-    BudgetError,
-    TaskEstimate,
-    check_task,
-    estimate_moves,
-    memory_mb,
-)
-from singplan.planning.path import STEP_M, STEP_RAD
-from singplan.planning.targets import load_task_robot
-from singplan.planning.timing import sample_ratios
+from singplan.errors import BudgetError
+from singplan.planning.orchestration import planner
+from singplan.planning.orchestration.budget import MAX_PATH_SAMPLES, TaskEstimate, check_task, estimate_moves, memory_mb
+from singplan.planning.orchestration.targets import load_task_robot
+from singplan.planning.path.cartesian import STEP_M, STEP_RAD
+from singplan.planning.timing.ratios import sample_ratios
 from singplan.results import build as trajectory_build
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
-from singplan.task.schema import MAX_OUTPUT_SAMPLES, Task
+from singplan.task.schema import MAX_OUTPUT_SAMPLES, TASK_MEMORY_MB, Task
 
 START_DEG = [0, -80, 100, 0, 40, 0]
 GUARD_BYTES = 3_000_000_000  # the subprocess's address space: a regression fails, it cannot eat the machine

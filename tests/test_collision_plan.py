@@ -16,7 +16,7 @@ import yaml
 
 from singplan.cli import main
 from singplan.kinematics.robot import load_robot
-from singplan.planning.targets import ptp_targets, task_arm
+from singplan.planning.orchestration.targets import ptp_targets, task_arm
 from singplan.results.plan import plan
 from singplan.results.trajectory import load
 from singplan.task.load import load_task

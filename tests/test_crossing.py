@@ -15,7 +15,7 @@ from singplan.errors import PlanningError, SingularityError
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import load_robot
 from singplan.planning.crossing.registry import candidates
-from singplan.planning.targets import load_task_robot
+from singplan.planning.orchestration.targets import load_task_robot
 from singplan.results.plan import plan
 from singplan.task.load import load_task, parse_task
 
@@ -54,7 +54,7 @@ def test_wrist_crossings_keep_the_position_exact_and_report_the_true_deviation(m
 
 @pytest.mark.parametrize("method", ["wrist-joint", "axis"])
 def test_crossing_seams_are_c1(method: str) -> None:
-    from singplan.planning.move_plan import plan_move as _plan_move  # the joint map before timing
+    from singplan.planning.orchestration.move_plan import plan_move as _plan_move  # the joint map before timing
 
     task = load_task(NEAR_MISS).with_method(method)
     robot = load_task_robot(task)
@@ -127,7 +127,7 @@ def test_axis_at_the_shoulder_keeps_the_orientation_and_leaves_the_path_by_about
 
 def test_axis_seams_at_the_shoulder_are_c1() -> None:
     from singplan.planning.crossing.methods import Axis
-    from singplan.planning.move_plan import plan_move as _plan_move
+    from singplan.planning.orchestration.move_plan import plan_move as _plan_move
 
     task = parse_task(_shoulder_near_miss(0.001))
     robot = load_task_robot(task)

@@ -11,7 +11,7 @@ import pytest
 from singplan.kinematics.ik.numeric import damped_solve, damped_solve_rows, damped_step, pose_error
 from singplan.kinematics.robot import load_robot
 from singplan.planning.crossing.nullspace import hold_pose
-from singplan.planning.jointmap import axis_solve, exact_orientation, position_solve
+from singplan.planning.path.jointmap import axis_solve, exact_orientation, position_solve
 
 
 def test_damped_step_minimises_the_damped_residual_in_each_form() -> None:

@@ -133,7 +133,7 @@ def test_max_tcp_speed_ratio_is_measured_as_the_checker_measures_it(tmp_path: Pa
 def test_without_the_tcp_trace_the_gate_refuses_the_overspeed(monkeypatch: pytest.MonkeyPatch) -> None:
     """The timing held only the path's progress to the programmed speed before; with that back, the
     TCP runs over it where axis leaves the path, and the plan is refused naming move and samples."""
-    from singplan.planning import move_plan
+    from singplan.planning.orchestration import move_plan
 
     monkeypatch.setattr(move_plan, "tcp_trace", lambda *args, **kwargs: None)
     with pytest.raises(PlanningError, match=r"move 0 \(circ\): the TCP runs at x1\.00\d+ its programmed speed "
@@ -151,7 +151,7 @@ def test_null_space_pieces_that_do_not_meet_are_bridged(tmp_path: Path) -> None:
 def test_without_the_bridge_the_seam_is_refused_naming_the_sample(monkeypatch: pytest.MonkeyPatch) -> None:
     """The candidate check measures a move timed in pieces across its seams: the jump the bridge
     removes breaks the acceleration limit, and the method alone is refused naming move and sample."""
-    from singplan.planning import stops
+    from singplan.planning.orchestration import stops
 
     monkeypatch.setattr(stops, "_with_bridges", lambda jmap, pieces, limits: pieces)
     with pytest.raises(PlanningError, match=r"move 0 \(circ\): its samples break the joint limits \(acceleration "
@@ -245,7 +245,7 @@ def test_a_path_leaving_the_workspace_bounds_its_all_branch_searches(monkeypatch
     """Random valid task 219 (an SO-101, no closed form) spent 75 s locating where its CIRC leaves the
     workspace: each refined sample past the edge searched every branch. Now the step into a lost
     sample is not refined and a tracked stretch makes at most 8 full searches."""
-    from singplan.planning import tracking
+    from singplan.planning.path import tracking
 
     from .task_strategies import seeded_task
 

@@ -11,8 +11,8 @@ import pytest
 
 from singplan.errors import PlanningError
 from singplan.kinematics.robot import load_robot
-from singplan.planning import planner
-from singplan.planning.timing import TimedMove
+from singplan.planning.orchestration import planner
+from singplan.planning.timing.records import TimedMove
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
 

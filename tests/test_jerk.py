@@ -18,8 +18,9 @@ import yaml
 
 from singplan.cli import main
 from singplan.errors import InputError, PlanningError, TaskError
-from singplan.planning.jerk import QuinticLaw, SmoothedLaw, jerk_ratio, quintic_duration
-from singplan.planning.planner import plan_moves
+from singplan.planning.orchestration.planner import plan_moves
+from singplan.planning.timing.laws import QuinticLaw, SmoothedLaw, quintic_duration
+from singplan.planning.timing.ratios import jerk_ratio
 from singplan.results.plan import _check_metrics, plan, trajectory_of
 from singplan.results.trajectory import Trajectory
 from singplan.task.load import load_task, parse_task
@@ -226,8 +227,10 @@ def test_jerk_ratio_holds_a_seam_with_any_resting_neighbour() -> None:
 @pytest.mark.parametrize("quintic", [False, True])
 def test_a_rest_to_rest_move_of_any_size_keeps_the_jerk_limit(size_rad: float, quintic: bool) -> None:
     from singplan.kinematics.robot import load_robot
-    from singplan.planning.jointmap import JointMap, JointPart
-    from singplan.planning.timing import MoveLimits, end_step_ratio, time_move
+    from singplan.planning.path.jointmap import JointMap, JointPart
+    from singplan.planning.timing.move import time_move
+    from singplan.planning.timing.ratios import end_step_ratio
+    from singplan.planning.timing.records import MoveLimits
 
     robot = load_robot("abb_irb2400")
     q0 = np.radians([0, 10, 20, 0, 30, 0])
@@ -255,8 +258,9 @@ def test_a_ptp_with_joints_that_barely_move_is_timed() -> None:
     """Found by bench_jerk.py on the pick-and-place program: a PTP from the end of a LIN (some joints
     1e-7 rad from the target) failed in TOPP-RA ("not controllable"), with or without a jerk limit."""
     from singplan.kinematics.robot import load_robot
-    from singplan.planning.jointmap import JointMap, JointPart
-    from singplan.planning.timing import MoveLimits, time_move
+    from singplan.planning.path.jointmap import JointMap, JointPart
+    from singplan.planning.timing.move import time_move
+    from singplan.planning.timing.records import MoveLimits
 
     robot = load_robot("abb_irb2400")
     q0 = np.radians([-7.99997399, 20.0000078, 24.9999977, -9.9e-15, 44.9999945, 2.60087365e-05])
@@ -277,7 +281,7 @@ def test_jerk_limited_plans_are_deterministic() -> None:
 @pytest.mark.parametrize(("speed", "accel", "jerk"), [(2.0, 4.0, 30.0), (0.5, 4.0, 30.0), (10.0, 100.0, 30.0),
                                                       (1.0, 1.0, 1.0)])
 def test_s_curve_goes_from_rest_to_rest_within_its_limits(speed: float, accel: float, jerk: float) -> None:
-    from singplan.planning.jerk import SCurveLaw
+    from singplan.planning.timing.laws import SCurveLaw
 
     law = SCurveLaw(speed, accel, jerk)
     t = np.linspace(0.0, law.duration_s, 20001)
@@ -300,8 +304,9 @@ def test_a_joint_map_that_jumps_within_one_sample_is_a_planning_failure() -> Non
     """A step small enough for the acceleration limit but not for the jerk limit cannot be
     stretched away: exit 3 naming where, not a runaway stretch."""
     from singplan.kinematics.robot import load_robot
-    from singplan.planning.jointmap import JointMap, JointPart
-    from singplan.planning.timing import MoveLimits, TimingError, time_move
+    from singplan.planning.path.jointmap import JointMap, JointPart
+    from singplan.planning.timing.move import time_move
+    from singplan.planning.timing.records import MoveLimits, TimingError
 
     class Stepped(JointMap):
         def evaluate(self, u: np.ndarray) -> np.ndarray:
@@ -340,7 +345,7 @@ def test_random_ptp_programs_keep_every_limit_on_the_samples(rng: np.random.Gene
 
 def test_random_lins_keep_every_limit_on_the_samples(rng: np.random.Generator) -> None:
     """Seeded random LINs near the demo's start (KR 6 R900-2), jerks 20-2000 rad/s^3: whatever plans keeps them."""
-    from singplan.planning.targets import load_task_robot
+    from singplan.planning.orchestration.targets import load_task_robot
 
     base = load_task(DEMO)
     start = load_task_robot(base).fk(np.radians(base.start_joints_deg))
@@ -365,7 +370,7 @@ def test_random_lins_keep_every_limit_on_the_samples(rng: np.random.Generator) -
 
 
 def test_third_difference_ratio_over_chunks_is_exact(rng: np.random.Generator) -> None:
-    from singplan.planning.jerk import third_difference_ratio
+    from singplan.planning.timing.ratios import third_difference_ratio
 
     q = rng.normal(size=(3 * 65536 + 5, 3))
     jmax = np.array([1.0, 2.0, 3.0])

@@ -26,8 +26,8 @@ from singplan.kinematics.configuration import distances_batch
 from singplan.kinematics.ik.numeric import pose_error
 from singplan.kinematics.robot import bundled_robots, load_robot
 from singplan.planning.crossing.nullspace import _NoSelfMotionError, self_motion
-from singplan.planning.path import rotation_angle
-from singplan.planning.zones import KIND_INDEX
+from singplan.planning.path.cartesian import rotation_angle
+from singplan.planning.path.zones import KIND_INDEX
 
 from .shared import PROGRAMS, require, run_checker
 

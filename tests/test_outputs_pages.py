@@ -40,7 +40,7 @@ from singplan.outputs.timeline import (
     timeline,
 )
 from singplan.outputs.viewer import joint_travel, programmed_path, replay_html, robot_of, tcp_path, viewer_dir
-from singplan.planning.pieces import move_piece
+from singplan.planning.path.pieces import move_piece
 from singplan.results.plan import plan
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.load import parse_task
@@ -298,7 +298,7 @@ def test_the_viewer_imports_neither_the_planner_nor_pinocchio_viewers() -> None:
     # singplan.task.load is imported: a trajectory.json's task is checked as a task when it is read
     # (singplan.results.reading); the programmed path is still drawn from the record, not re-parsed
     code = ("import sys, singplan.outputs.viewer, singplan.outputs.report; "
-            "print([m for m in ('singplan.planning.planner', 'pinocchio.visualize', "
+            "print([m for m in ('singplan.planning.orchestration.planner', 'pinocchio.visualize', "
             "'matplotlib') if m in sys.modules])")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True,
                          env={"PYTHONPATH": str(ROOT), "PATH": ""})

@@ -16,7 +16,7 @@ from singplan.kinematics.geometry import (
     rotation_logs,
     rpy_deg_to_rotation,
 )
-from singplan.planning.path import make_circ, make_lin
+from singplan.planning.path.cartesian import make_circ, make_lin
 
 
 def se3(xyz: list[float], rpy_deg: list[float]) -> pin.SE3:

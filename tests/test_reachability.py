@@ -1,4 +1,4 @@
-"""The compiled TOPP-RA (singplan.planning.reachability) against toppra itself, the reference:
+"""The compiled TOPP-RA (singplan.planning.timing.reachability) against toppra itself, the reference:
 the same controllable sets and path speeds on seeded random paths, grids and limits."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import toppra.algorithm as ta_algo
 import toppra.constraint as ta_constraint
 from toppra._CythonUtils import _create_velocity_constraint, _create_velocity_constraint_varying
 
-from singplan.planning import reachability
+from singplan.planning.timing import reachability
 
 _REL = 1e-9  # relative agreement required (they agree bit for bit on every case tried)
 

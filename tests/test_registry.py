@@ -15,7 +15,7 @@ from singplan.errors import InputError, SingularityError, TaskError
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import Crossing, MoveContext
 from singplan.planning.crossing.methods import WristJoint
-from singplan.planning.zones import Zone
+from singplan.planning.path.zones import Zone
 from singplan.results.plan import plan
 from singplan.task import schema
 from singplan.task.load import load_task

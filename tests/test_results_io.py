@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from singplan.outputs.report import report_html
-from singplan.planning.targets import load_task_robot
+from singplan.planning.orchestration.targets import load_task_robot
 from singplan.results.plan import plan
 from singplan.results.trajectory import Trajectory, load, save
 from singplan.task.load import load_task

@@ -9,8 +9,8 @@ import pytest
 
 from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
 from singplan.kinematics.robot import load_robot
-from singplan.planning.redundancy import hold_joint
-from singplan.planning.targets import load_task_robot
+from singplan.planning.orchestration.redundancy import hold_joint
+from singplan.planning.orchestration.targets import load_task_robot
 from singplan.task.load import parse_task
 
 TASK = {"robot": "abb_irb2400", "start": {"joints_deg": [0, 10, 20, 0, 30, 0]},

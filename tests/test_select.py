@@ -14,11 +14,11 @@ import pytest
 from singplan.errors import PlanningError
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import load_robot
-from singplan.planning import checks, move_plan, planner, targets
 from singplan.planning.crossing.methods import Axis
 from singplan.planning.crossing.registry import candidates
-from singplan.planning.jointmap import axis_solve, hermite
-from singplan.planning.path import sample_deviations
+from singplan.planning.orchestration import checks, move_plan, planner, targets
+from singplan.planning.path.cartesian import sample_deviations
+from singplan.planning.path.jointmap import axis_solve, hermite
 from singplan.results import build
 from singplan.results.plan import plan
 from singplan.task.load import load_task, parse_task

@@ -18,9 +18,9 @@ import yaml
 
 from singplan.cli import main
 from singplan.kinematics.robot import Robot, load_robot
-from singplan.planning.pieces import move_piece
-from singplan.planning.redundancy import HeldJoint, hold_joint
-from singplan.planning.targets import task_arm
+from singplan.planning.orchestration.redundancy import HeldJoint, hold_joint
+from singplan.planning.orchestration.targets import task_arm
+from singplan.planning.path.pieces import move_piece
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
 

@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from singplan.kinematics.robot import load_robot
-from singplan.planning.jointmap import JointMap, JointPart
-from singplan.planning.timing import MoveLimits, end_step_ratio, time_move
+from singplan.planning.path.jointmap import JointMap, JointPart
+from singplan.planning.timing.move import time_move
+from singplan.planning.timing.ratios import end_step_ratio
+from singplan.planning.timing.records import MoveLimits
 
 
 def _ptp(robot, q0: np.ndarray, q1: np.ndarray) -> JointMap:

@@ -20,9 +20,9 @@ from scipy.spatial.transform import Rotation, Slerp
 from singplan.cli import main
 from singplan.errors import TaskError
 from singplan.kinematics.geometry import rpy_deg_to_rotation
-from singplan.planning.path import CartesianPiece
-from singplan.planning.pieces import move_piece
-from singplan.planning.weave import WovenPiece, wave, whole_periods, woven_moves
+from singplan.planning.path.cartesian import CartesianPiece
+from singplan.planning.path.pieces import move_piece
+from singplan.planning.path.weave import WovenPiece, wave, whole_periods, woven_moves
 from singplan.results.plan import plan
 from singplan.results.trajectory import save
 from singplan.task.load import parse_task

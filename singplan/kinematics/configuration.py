@@ -34,7 +34,7 @@ the IK's list, the planner's configuration checks, trajectory.json) comes from i
 A 7-joint arm (family ``seven``) has none of these: its self-motion joins what would be
 branches of a 6R arm, and its singularities are not the 6R wrist, shoulder and elbow. Its
 distances are NaN and its label is ``-`` (:data:`NO_LABEL`). Holding one joint
-(:mod:`singplan.planning.redundancy`) makes it a 6R chain, labelled by the definitions above.
+(:mod:`singplan.planning.orchestration.redundancy`) makes it a 6R chain, labelled by the definitions above.
 
 Five-joint arms have their own shoulder and elbow definitions and no wrist flip
 (:mod:`singplan.kinematics.reduced`).

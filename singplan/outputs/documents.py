@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # only annotations: `singplan ik --json` need not import the planner
     from singplan.outputs.plan_folder import PlannedFolder
-    from singplan.planning.detect import MoveZones
+    from singplan.planning.orchestration.detect import MoveZones
 
 COMMANDS = ("plan", "check", "ik")
 VERSION = 1

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from singplan.outputs.pages import PAGE_FILES, build_pages, page_names
-from singplan.planning.planner import Progress, plan_moves
+from singplan.planning.orchestration.planner import Progress, plan_moves
 from singplan.results.files import hold_output_folder
 from singplan.results.plan import trajectory_of
 from singplan.results.trajectory import ROBOT_FILES, TRAJECTORY_FILES, Trajectory, robot_files, save

@@ -2,7 +2,7 @@
 
 ``singplan plan`` calls :func:`plan_bar` around planning. On a terminal (and without
 ``--quiet``) the bar appears as soon as planning starts, counts the moves as the planner
-finishes them (``progress(done, total)`` of :mod:`singplan.planning.planner`) with tqdm's rate
+finishes them (``progress(done, total)`` of :mod:`singplan.planning.orchestration.planner`) with tqdm's rate
 and time left, and once every move is planned says what remains (fly-by corners timed
 together, the samples checked, the files written) until the bar is closed. Anywhere else (a
 pipe, a file, a CI log) nothing is drawn: the bar is for people watching.

@@ -20,7 +20,7 @@ import pinocchio as pin
 
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot, bundled_robots, load_robot
-from singplan.planning.weave import woven_moves
+from singplan.planning.path.weave import woven_moves
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.schema import DEFAULT_VELOCITY_SCALE
 

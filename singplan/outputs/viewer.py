@@ -60,9 +60,9 @@ from singplan.outputs.timeline import (
     tcp_track,
     timeline,
 )
-from singplan.planning.path import move_target
-from singplan.planning.pieces import move_piece
-from singplan.planning.weave import woven_moves
+from singplan.planning.path.cartesian import move_target
+from singplan.planning.path.pieces import move_piece
+from singplan.planning.path.weave import woven_moves
 from singplan.results.files import check_output_file, hold_output_folder, text_writer, write_file
 from singplan.results.trajectory import Segment, Trajectory, load
 from singplan.task.schema import Move

@@ -25,14 +25,14 @@ from singplan.kinematics.dynamics import central_differences, effort_limits_nm, 
 from singplan.kinematics.robot import Robot
 from singplan.kinematics.stopping import stopping_distances, worst_stopping
 from singplan.kinematics.vendor_config import vendor_configs
-from singplan.planning.blending import Blend
-from singplan.planning.checks import tcp_speed_ratios
-from singplan.planning.jerk import third_difference_ratio
-from singplan.planning.path import sample_deviations
-from singplan.planning.records import PlannedMove
-from singplan.planning.redundancy import HeldJoint
-from singplan.planning.timing import TimedMove, sample_ratios
-from singplan.planning.zones import Zone
+from singplan.planning.orchestration.blending import Blend
+from singplan.planning.orchestration.checks import tcp_speed_ratios
+from singplan.planning.orchestration.records import PlannedMove
+from singplan.planning.orchestration.redundancy import HeldJoint
+from singplan.planning.path.cartesian import sample_deviations
+from singplan.planning.path.zones import Zone
+from singplan.planning.timing.ratios import sample_ratios, third_difference_ratio
+from singplan.planning.timing.records import TimedMove
 from singplan.results.metrics import (
     BlendFigures,
     BlendReport,

@@ -12,7 +12,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from singplan.planning.alternatives import Alternative, JsonRecord
+from singplan.planning.orchestration.alternatives import Alternative, JsonRecord
 
 
 def _f(value: Any) -> float:

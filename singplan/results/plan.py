@@ -1,6 +1,6 @@
 """plan(task) -> Trajectory: the planning stages, then the trajectory record built and checked.
 
-The moves are planned and timed in :mod:`singplan.planning.planner`; here they become one
+The moves are planned and timed in :mod:`singplan.planning.orchestration.planner`; here they become one
 :class:`Trajectory` (:mod:`singplan.results.build`), and its own samples pass the last gate:
 no plan is returned whose output breaks a limit, whatever the cause.
 """
@@ -17,14 +17,15 @@ from singplan.errors import JointLimitError, PlanningError
 from singplan.kinematics.clearance import Clearance
 from singplan.kinematics.collision import CollisionModel
 from singplan.kinematics.robot import Robot
-from singplan.planning.checks import ROUND_OFF, TCP_ROUND_OFF
-from singplan.planning.collide import check_trajectory
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import EXACT_ORIENTATION_TOL_RAD
-from singplan.planning.planner import PlannedTask, Progress, plan_moves
-from singplan.planning.records import PlannedMove
-from singplan.planning.timing import TimedMove, worst_sample
-from singplan.planning.zones import KIND_INDEX, KINDS, NEAR_SINGULAR
+from singplan.planning.orchestration.checks import ROUND_OFF, TCP_ROUND_OFF
+from singplan.planning.orchestration.collide import check_trajectory
+from singplan.planning.orchestration.planner import PlannedTask, Progress, plan_moves
+from singplan.planning.orchestration.records import PlannedMove
+from singplan.planning.path.zones import KIND_INDEX, KINDS, NEAR_SINGULAR
+from singplan.planning.timing.ratios import worst_sample
+from singplan.planning.timing.records import TimedMove
 from singplan.results.build import build_trajectory
 from singplan.results.trajectory import Trajectory
 from singplan.task.schema import Task
@@ -181,7 +182,7 @@ def _check_outside_crossings(planned: list[PlannedMove], timed: list[TimedMove],
 
 def _check_crossings_near(robot: Robot, traj: Trajectory) -> None:
     """Every segment marked crossing passes near its singularity: a sample in it within
-    :data:`~singplan.planning.zones.NEAR_SINGULAR` (a six-joint arm's wrist, shoulder or elbow)."""
+    :data:`~singplan.planning.path.zones.NEAR_SINGULAR` (a six-joint arm's wrist, shoulder or elbow)."""
     distances = traj.samples.get("distances")
     if distances is None or robot.n_joints != 6:
         return

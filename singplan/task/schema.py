@@ -58,6 +58,7 @@ from singplan.kinematics.yamldoc import shorten as _short
 
 MAX_MOVES = 10_000
 MAX_OUTPUT_SAMPLES = 10_000_000
+TASK_MEMORY_MB = 1500.0  # DESIGN.md "Bounded resources": the whole process, in all (planning.orchestration.budget)
 MAX_FILE_BYTES = 8 * 1024 * 1024
 MAX_DEPTH = 64  # nesting levels of the YAML document
 MAX_YAML_NODES = 500_000  # 10 000 moves need < 300 000; building 1 M nodes takes ~10 s and ~400 MB
@@ -65,7 +66,7 @@ MAX_SCALAR_CHARS = 10_000
 MAX_NAME_CHARS = 256
 MAX_PATH_CHARS = 4096
 MAX_JOINTS = 64
-AUTO_METHOD = "auto"  # not a method: auto compares the pose-keeping ones (singplan.planning.select)
+AUTO_METHOD = "auto"  # not a method: auto compares the pose-keeping ones (singplan.planning.orchestration.select)
 # The one list of the built-in crossing method names. It is here, below planning, so a task is
 # checked without importing the planner; singplan.planning.crossing.registry gives each its objects.
 METHODS = (AUTO_METHOD, "wrist-joint", "axis", "null-space", "exact", "dls", "average", "ptp", "stop")
@@ -140,7 +141,7 @@ class PoseSpec:
 @dataclass(frozen=True)
 class Weave:
     """A move's ``weave`` as given in the task (millimetres, as written; the geometry is
-    :mod:`singplan.planning.weave`)."""
+    :mod:`singplan.planning.path.weave`)."""
 
     pattern: str  # "sine" | "triangle"
     amplitude_mm: float

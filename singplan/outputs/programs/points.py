@@ -43,8 +43,8 @@ import numpy as np
 from singplan.kinematics.geometry import rotation_angles
 from singplan.kinematics.robot import Robot
 from singplan.outputs.timeline import pause_window, sample_range
-from singplan.planning.pieces import move_piece
-from singplan.planning.weave import whole_periods
+from singplan.planning.path.pieces import move_piece
+from singplan.planning.path.weave import whole_periods
 from singplan.results.trajectory import Trajectory
 from singplan.task.schema import Move
 

@@ -8,10 +8,10 @@ from typing import Protocol
 import numpy as np
 
 from singplan.kinematics.robot import Robot
-from singplan.planning.jointmap import JointPart
-from singplan.planning.path import CartesianPiece
-from singplan.planning.tracking import TrackedPath
-from singplan.planning.zones import Zone
+from singplan.planning.path.cartesian import CartesianPiece
+from singplan.planning.path.jointmap import JointPart
+from singplan.planning.path.tracking import TrackedPath
+from singplan.planning.path.zones import Zone
 
 
 @dataclass(frozen=True)
@@ -74,7 +74,7 @@ class Crossing:
     @property
     def at_rest(self) -> bool:
         """Whether the move stops inside this crossing (a pause or a PTP jump): it is timed in pieces
-        from rest to rest (:mod:`singplan.planning.stops`) and cannot be flown through."""
+        from rest to rest (:mod:`singplan.planning.orchestration.stops`) and cannot be flown through."""
         return self.pause is not None or self.stops
 
     @property

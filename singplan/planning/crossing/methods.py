@@ -34,10 +34,10 @@ from singplan.kinematics.ik import numeric as ik_numeric
 from singplan.kinematics.ik.solve import closed_form_branches
 from singplan.kinematics.robot import Robot
 from singplan.planning.crossing.base import Crossing, MoveContext
-from singplan.planning.jointmap import JointMap, JointPart, hermite
-from singplan.planning.path import STEP_M, STEP_RAD, CartesianPiece
-from singplan.planning.tracking import TrackedPath, nearest_candidate, track
-from singplan.planning.zones import KIND_INDEX, Zone
+from singplan.planning.path.cartesian import STEP_M, STEP_RAD, CartesianPiece
+from singplan.planning.path.jointmap import JointMap, JointPart, hermite
+from singplan.planning.path.tracking import TrackedPath, nearest_candidate, track
+from singplan.planning.path.zones import KIND_INDEX, Zone
 
 EXACT_ORIENTATION_TOL_RAD = math.radians(0.01)
 # a through-crossing blends where the in-branch swing has not started: |distance| above
@@ -266,7 +266,7 @@ class Ptp:
     (0.5 mm at the shoulder) off the singularity (the rest of the zone is followed as exact does),
     and lands on the
     branch nearest its start from which the rest of the move can be followed inside the joint
-    limits. It is a PTP motion: it starts and ends at rest (:mod:`singplan.planning.stops`), as a
+    limits. It is a PTP motion: it starts and ends at rest (:mod:`singplan.planning.orchestration.stops`), as a
     controller runs one, and the TCP leaves the path on it (its speed is held to the move's).
     """
 

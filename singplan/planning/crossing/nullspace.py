@@ -47,9 +47,9 @@ from singplan.planning.crossing.methods import (
     sample_densely,
     through,
 )
-from singplan.planning.jointmap import JointMap, JointPart, interpolate
-from singplan.planning.tracking import nearest_candidate
-from singplan.planning.zones import KIND_INDEX, Zone
+from singplan.planning.path.jointmap import JointMap, JointPart, interpolate
+from singplan.planning.path.tracking import nearest_candidate
+from singplan.planning.path.zones import KIND_INDEX, Zone
 
 # turns of the driven joint tried, smallest first: half a turn changes the branch, a whole one
 # only the joint's turn number

@@ -1,6 +1,6 @@
 """Crossing method names -> method objects: the one list the planner, auto and the CLI read.
 
-``auto`` is not a method but a choice among the pose-keeping ones (:mod:`singplan.planning.select`).
+``auto`` is not a method but a choice among the pose-keeping ones (:mod:`singplan.planning.orchestration.select`).
 A user adds a method with :func:`register`; tasks may then name it (``singularity.method``), or
 the object is passed to :func:`singplan.plan` directly (see docs/architecture.md).
 """

@@ -1,6 +1,6 @@
 """Jerk-limited time laws of one move (``limits.jerk``) and SEEDS 003's quintic PTP law.
 
-TOPP-RA (timing.py) has no jerk constraint: its path acceleration is bang-bang, so joint
+TOPP-RA (:mod:`~singplan.planning.timing.toppra`) has no jerk constraint: its path acceleration is bang-bang, so joint
 accelerations jump within one sample. A time law here is a monotone u(t) from rest (u = 0)
 to rest (u = 1) whose acceleration is zero at both ends and whose jerk is bounded:
 
@@ -15,9 +15,9 @@ to rest (u = 1) whose acceleration is zero at both ends and whose jerk is bounde
 - :class:`QuinticLaw`: u = 10 r^3 - 15 r^4 + 6 r^5 with r = t / T (SEEDS 003).
 
 Joint jerk is q''' = f' u''' + 3 f'' u' u'' + f''' u'^3 for the joint map f(u): near a singular
-zone the last terms dominate whatever the law. So timing.py stretches a law uniformly in time
-by k (joint speed scales by 1/k, acceleration by 1/k^2, jerk by 1/k^3) until the output samples
-keep every limit, and picks the window that ends soonest.
+zone the last terms dominate whatever the law. So :mod:`~singplan.planning.timing.smoothing`
+stretches a law uniformly in time by k (joint speed scales by 1/k, acceleration by 1/k^2, jerk
+by 1/k^3) until the output samples keep every limit, and picks the window that ends soonest.
 """
 
 from __future__ import annotations
@@ -126,38 +126,3 @@ def quintic_duration(travel_rad: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
     if jmax is not None:
         need.append(np.cbrt(jerk * travel_rad / jmax))
     return float(np.max(need))
-
-
-def jerk_ratio(q: np.ndarray, period_s: float, jmax: np.ndarray) -> float:
-    """Largest joint jerk of samples q (K+1, n) over jmax, by third differences / period^3, seams included.
-
-    A move starts and ends at rest on a sample, its neighbour too. The third differences across a
-    seam mix both moves' end steps: with first steps d1, d2 of this move and the last step e of the
-    neighbour, d2 - 2 d1 + e and d1 - 2 e + e'. A move that keeps |d1| <= J P^3 / 6 and
-    |d2 - 2 d1| <= 5/6 J P^3 (what any law with zero end acceleration and jerk within J gives)
-    keeps both within J P^3 whatever its neighbour does under the same rule.
-    """
-    steps = np.diff(q, axis=0)
-    if len(steps) == 0:
-        return 0.0
-    unit = jmax * period_s**3
-    worst = float(np.max(np.abs(steps[[0, -1]]) / (unit / 6.0)))
-    if len(steps) >= 2:
-        second = np.abs(np.stack([steps[1] - 2.0 * steps[0], steps[-2] - 2.0 * steps[-1]]))
-        worst = max(worst, float(np.max(second / (unit * 5.0 / 6.0))))
-    return max(worst, third_difference_ratio(q, period_s, jmax))
-
-
-_CHUNK_SAMPLES = 65536  # bounds the temporaries of a long trajectory's differences
-
-
-def third_difference_ratio(q: np.ndarray, period_s: float, jmax: np.ndarray) -> float:
-    """Largest |third difference| / (jmax period^3) of samples q (K, n), as a checker measures it.
-
-    A chunk at a time; chunks overlap by the three samples a third difference spans, so the maximum is exact.
-    """
-    worst = 0.0
-    for k in range(0, max(len(q) - 3, 0), _CHUNK_SAMPLES):
-        chunk = np.diff(q[k:k + _CHUNK_SAMPLES + 3], n=3, axis=0)
-        worst = max(worst, float(np.max(np.abs(chunk) / (jmax * period_s**3))))
-    return worst

@@ -2,13 +2,12 @@
 
 For each move: the Cartesian path (LIN / CIRC) is sampled and tracked by continuous IK,
 singular zones are detected on the tracked joints, the crossing method decides what happens
-in each zone (:mod:`~singplan.planning.select` keeps the fastest of several candidates), and
+in each zone (:mod:`~singplan.planning.orchestration.select` keeps the fastest of several candidates), and
 the resulting joint map is timed by TOPP-RA and resampled at the controller period. PTP moves
 are straight lines in joint space. :func:`singplan.results.plan.plan` stitches the moves into
-the trajectory record. Orchestration only: one move's joint map is :mod:`~singplan.planning.move_plan`'s,
-the validators are :mod:`~singplan.planning.checks`', the IK of targets :mod:`~singplan.planning.targets`',
-fly-by corners :mod:`~singplan.planning.blending` and :mod:`~singplan.planning.chain`'s; the
-geometry-only pass of ``singplan check`` is :mod:`~singplan.planning.detect`.
+the trajectory record. Orchestration only: one move's joint map is :mod:`.move_plan`'s, the
+validators are :mod:`.checks`', the IK of targets :mod:`.targets`', fly-by corners
+:mod:`.blending` and :mod:`.chain`'s; the geometry-only pass of ``singplan check`` is :mod:`.detect`.
 """
 
 from __future__ import annotations
@@ -21,36 +20,29 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from singplan.errors import CollisionError, PlanningError
+from singplan.errors import BudgetError, CollisionError, PlanningError
 from singplan.kinematics.clearance import check_clearance
 from singplan.kinematics.collision import CollisionModel, describe_distance
 from singplan.kinematics.configuration import classify
 from singplan.kinematics.robot import Robot
-from singplan.planning import collide
-from singplan.planning.blending import RAMPS, Blend, corners, side_of, stopped
-from singplan.planning.bound import duration_bound_s
-from singplan.planning.budget import BudgetError, check_task
-from singplan.planning.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
-from singplan.planning.checks import check_config, check_samples, screen
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
-from singplan.planning.move_plan import MoveTracking, plan_move
-from singplan.planning.path import STEP_M, STEP_RAD
-from singplan.planning.records import PlannedMove
-from singplan.planning.redundancy import HeldJoint
-from singplan.planning.select import Candidate, Rank, Refused, best_of
-from singplan.planning.stops import stops, time_in_pieces
-from singplan.planning.targets import move_limits, ptp_targets, task_arm
-from singplan.planning.timing import (
-    GiveUp,
-    MoveLimits,
-    Scale,
-    TimedMove,
-    TimingError,
-    TimingPath,
-    time_move,
-    timing_path,
-)
+from singplan.planning.orchestration import collide
+from singplan.planning.orchestration.blending import RAMPS, Blend, corners, side_of, stopped
+from singplan.planning.orchestration.budget import check_task
+from singplan.planning.orchestration.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
+from singplan.planning.orchestration.checks import check_config, check_samples, screen
+from singplan.planning.orchestration.move_plan import MoveTracking, plan_move
+from singplan.planning.orchestration.records import PlannedMove
+from singplan.planning.orchestration.redundancy import HeldJoint
+from singplan.planning.orchestration.select import Candidate, Rank, Refused, best_of
+from singplan.planning.orchestration.stops import stops, time_in_pieces
+from singplan.planning.orchestration.targets import move_limits, ptp_targets, task_arm
+from singplan.planning.path.cartesian import STEP_M, STEP_RAD
+from singplan.planning.timing.bound import duration_bound_s
+from singplan.planning.timing.move import time_move
+from singplan.planning.timing.records import GiveUp, LimitScale, MoveLimits, Outrun, TimedMove, TimingError
+from singplan.planning.timing.toppra import TimingPath, timing_path
 from singplan.task.load import load_task
 from singplan.task.schema import Move, Task
 
@@ -217,9 +209,9 @@ def _blocked_corner(collision: CollisionModel, group: list[int], parts: list[Tim
 
 
 def _timed(pm: PlannedMove, period_s: float, max_samples: int, path: TimingPath | None = None,
-           give_up: GiveUp | None = None) -> TimedMove:
-    """time_move (``path``: the joint map's timing path, where made; ``give_up``: see there), a
-    failure located on the move."""
+           give_up: GiveUp | None = None) -> TimedMove | Outrun:
+    """time_move (``path``: the joint map's timing path, where made; ``give_up``: see there, the
+    timing then may stop with an :class:`Outrun`), a failure located on the move."""
     try:
         if stops(pm.crossings):  # the TCP waits or jumps: timed in pieces
             return time_in_pieces(pm.jmap, pm.crossings, pm.limits, period_s, pm.index, max_samples)
@@ -354,11 +346,15 @@ class _MoveCandidates:
         self.prepared.append(Candidate(method, order, pm, path, bound_s, why_not, screened=True, deviation=deviation))
         return self.prepared[-1]
 
-    def finish(self, c: Candidate, best: Rank | None) -> tuple[PlannedMove, TimedMove]:
-        """The candidate timed and checked (timing.Outrun once it cannot beat ``best``)."""
+    def finish(self, c: Candidate, best: Rank | None) -> tuple[PlannedMove, TimedMove] | Outrun:
+        """The candidate timed and checked, or the :class:`Outrun` of a timing that stopped once it
+        could not beat ``best`` (not kept: another candidate of the same motion is timed afresh)."""
         same = next(((seen, done) for seen, done in self.outcomes if _same_motion(seen, c.pm)), None)
         if same is None:
-            same = self._timed_and_checked(c, best)
+            found = self._timed_and_checked(c, best)
+            if isinstance(found, Outrun):
+                return found
+            same = found
             self.outcomes.append(same)
         seen, outcome = same
         if isinstance(outcome, (PlanningError, BudgetError)):
@@ -366,7 +362,7 @@ class _MoveCandidates:
         return replace(c.pm, deviations=seen.deviations), outcome
 
     def _timed_and_checked(self, c: Candidate, best: Rank | None
-                           ) -> tuple[PlannedMove, TimedMove | PlanningError | BudgetError]:
+                           ) -> tuple[PlannedMove, TimedMove | PlanningError | BudgetError] | Outrun:
         period_s = self.task.period_s
         cost = self.task.singularity.deviation_cost_percent / 100.0
         give_up = None if best is None or c.path is None else _cannot_beat(c, c.path, best, period_s, cost)
@@ -377,6 +373,8 @@ class _MoveCandidates:
                 raise Refused(error)
         try:
             timed = _timed(c.pm, period_s, self.max_samples, c.path, give_up)
+            if isinstance(timed, Outrun):
+                return timed
             check_config(self.robot, self.move, c.pm, timed.u, timed.q)
             deviations = check_samples(self.robot, self.task, c.pm, timed, c.screened)
             if collision.active and c.refusal is not None:  # refused, timed for the full error
@@ -389,7 +387,7 @@ class _MoveCandidates:
 
 def _cannot_beat(c: Candidate, path: TimingPath, best: Rank, period_s: float, cost: float) -> GiveUp:
     """After a timing pass: the bound at the tightened limits, if it shows ``c`` cannot beat ``best``."""
-    def give_up(scale: Scale, pass_s: float) -> float | None:
+    def give_up(scale: LimitScale, pass_s: float) -> float | None:
         bound_s = duration_bound_s(path, c.pm.limits, period_s, scale, pass_s)
         return bound_s if c.rank(bound_s, cost) > best else None
 

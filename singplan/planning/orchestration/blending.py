@@ -11,7 +11,7 @@ accelerating ramp beta(v) = 1 - alpha(1 - v), v in [0, 1]:
 (positions added as offsets from the corner, orientations composed as rotations relative to
 the corner's). Two ramps are offered (:func:`ramps`), both with alpha' = 2 at the start and
 alpha' = 0 at the end, so that with the chain's shares of its parameter
-(:mod:`singplan.planning.chain`) the joint path is C1 at the seams: the quartic
+(:mod:`singplan.planning.orchestration.chain`) the joint path is C1 at the seams: the quartic
 ``alpha(v) = 2 v - 2 v^3 + v^4`` also has alpha'' = 0 at both ends (C2: neither the acceleration
 nor, with a jerk limit, the jerk jumps where the corner begins or ends), the quadratic
 ``alpha(v) = 1 - (1 - v)^2`` (the parabolic blend) curves less sharply in the middle; the planner
@@ -42,8 +42,8 @@ import pinocchio as pin
 
 from singplan.kinematics.geometry import rotation_angle
 from singplan.kinematics.robot import Robot
-from singplan.planning.jointmap import JointMap, JointPart
-from singplan.planning.tracking import track
+from singplan.planning.path.jointmap import JointMap, JointPart
+from singplan.planning.path.tracking import track
 
 _SHRINK_STEPS = 6  # halvings of the radius tried before the corner is stopped at instead
 _CHECK_POINTS = 65  # samples along a blend verified against the sphere and the orientation bound

@@ -7,7 +7,7 @@ initial grid will hold (from the LIN / CIRC length and rotation) and a LOWER bou
 output samples (a LIN / CIRC takes at least length / speed; a PTP with joint targets at least
 max_j |dq_j| / v_j). A lower bound never refuses a task that fits; the exact sample count of
 each timed move is checked again against what is left of the task's allowance before its
-samples are allocated (:func:`check_move_samples`, called by the timing).
+samples are allocated (:func:`~singplan.planning.timing.records.check_move_samples`, called by the timing).
 
 The memory model is measured, not derived (bench/bench_memory.py, docs/benchmarks.md):
 peak RSS ~ base + output samples x per-output-sample + (largest move's path samples) x
@@ -21,13 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from singplan.errors import TaskError
+from singplan.errors import BudgetError
 from singplan.kinematics.robot import Robot
-from singplan.planning.path import move_target
-from singplan.planning.pieces import move_piece
-from singplan.task.schema import MAX_OUTPUT_SAMPLES, Move, Task
+from singplan.planning.path.cartesian import move_target
+from singplan.planning.path.pieces import move_piece
+from singplan.task.schema import MAX_OUTPUT_SAMPLES, TASK_MEMORY_MB, Move, Task
 
-TASK_MEMORY_MB = 1500.0  # DESIGN.md "Bounded resources": the whole process, in all
 # Peak RSS of a short task (interpreter, numpy, pinocchio, numba kernels, TOPP-RA): 388 MB; of a
 # 0.1 M-sample one 449-450 MB whatever the outputs (the chunked evaluation's fixed ~60 MB of
 # temporaries). bench/bench_memory.py, 2026-11-23, AMD EPYC, 2 cores (docs/benchmarks.md): 450 MB.
@@ -47,22 +46,6 @@ PATH_KB_PER_SAMPLE_KEPT = 0.2
 # A bound of work rather than memory: path samples over all moves (about 20 us of IK and detection
 # each, so ~100 s of geometry at the cap). 10 000 moves of 0.9 m at the 2 mm step stay under it.
 MAX_PATH_SAMPLES = 5_000_000
-
-
-class BudgetError(TaskError):
-    """A task (or one of its moves) would exceed the sample caps or the memory budget (exit code 2).
-
-    Attributes:
-        move: index of the move at which the running total crosses the cap.
-        value: the figure that crosses it (samples, or MB for memory).
-        cap: the cap it crosses, in the same unit.
-    """
-
-    def __init__(self, field: str, reason: str, move: int, value: float, cap: float) -> None:
-        self.move = move
-        self.value = value
-        self.cap = cap
-        super().__init__(field, reason)
 
 
 @dataclass(frozen=True)
@@ -148,17 +131,6 @@ def check_task(task: Task, robot: Robot, q_start: np.ndarray, step_m: float, ste
     spare_mb = budget_mb - memory_mb(0, path_largest, path_total)
     allowance = int(min(max_output_samples, spare_mb * 1e6 / OUTPUT_MB_PER_MILLION))
     return TaskEstimate(tuple(moves), allowance)
-
-
-def check_move_samples(move_index: int, count: int, remaining: int, duration_s: float, period_s: float) -> None:
-    """Refuse a timed move whose exact sample count is over what is left of the task's allowance."""
-    if count <= remaining:
-        return
-    raise BudgetError(f"moves[{move_index}]", f"move {move_index} lasts {duration_s:.1f} s: {count} samples at "
-                      f"{period_s:g} s, but only {max(remaining, 0)} of the task's output samples are left (the "
-                      f"cap is {MAX_OUTPUT_SAMPLES} for all moves together, less if the memory budget of "
-                      f"{TASK_MEMORY_MB:.0f} MB is reached first); raise output.period or the speeds, or split the "
-                      f"task", move_index, count, remaining)
 
 
 def _check_path(m: MoveEstimate, path_total: int) -> None:

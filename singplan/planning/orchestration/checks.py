@@ -11,13 +11,14 @@ import numpy as np
 from singplan.errors import JointLimitError, PlanningError, SingularityError, UnreachableError
 from singplan.kinematics.configuration import distances_batch, labels_from_distances, parse_configuration
 from singplan.kinematics.robot import Robot
-from singplan.planning.alternatives import NO_DEVIATION, Deviation
-from singplan.planning.path import CartesianPiece, sample_deviations
-from singplan.planning.records import PlannedMove, SampleDeviations
-from singplan.planning.timing import TimedMove, worst_sample
-from singplan.planning.tracking import TrackedPath
-from singplan.planning.weave import WovenPiece
-from singplan.planning.zones import Zone
+from singplan.planning.orchestration.alternatives import NO_DEVIATION, Deviation
+from singplan.planning.orchestration.records import PlannedMove, SampleDeviations
+from singplan.planning.path.cartesian import CartesianPiece, sample_deviations
+from singplan.planning.path.tracking import TrackedPath
+from singplan.planning.path.weave import WovenPiece
+from singplan.planning.path.zones import Zone
+from singplan.planning.timing.ratios import worst_sample
+from singplan.planning.timing.records import TimedMove
 from singplan.task.schema import Move, Task
 
 ROUND_OFF = 1e-9  # a limit ratio this far over 1 is round-off, more is a violated limit

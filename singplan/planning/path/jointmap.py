@@ -11,7 +11,7 @@ output sample lies on the path. It is stitched from parts:
 * ``axis``: one joint follows the blend; the others keep one pose component exact and
   minimise the error of the other (SEEDS 000, :func:`axis_solve`).
 * ``ptp``: piecewise-linear in joint space (PTP moves, and the ``ptp`` baseline's jump, which
-  starts and ends at rest: :mod:`singplan.planning.stops`).
+  starts and ends at rest: :mod:`singplan.planning.orchestration.stops`).
 * ``spline``: a C2 cubic spline through the samples of a baseline (``average``, ``dls``), its end
   slopes the neighbouring path's, so the joints move smoothly through them and on.
 """
@@ -31,7 +31,7 @@ from singplan.kinematics.ik.numeric import damped_solve_rows
 from singplan.kinematics.ik.solve import closed_form_branches, opw_arm_for_point, solve_newton
 from singplan.kinematics.ik.ur import ur_arm_for_point
 from singplan.kinematics.robot import Robot
-from singplan.planning.tracking import PoseFunction
+from singplan.planning.path.tracking import PoseFunction
 
 _DAMPING = 1e-6  # Levenberg-Marquardt lambda^2 of the position re-solve [m^2]
 _CHUNK = 65_536  # samples evaluated at once: the IK's temporaries take ~0.8 kB a sample

@@ -1,5 +1,5 @@
-"""A move's Cartesian piece: its LIN or CIRC (:mod:`singplan.planning.path`), woven when the move
-asks for it (:mod:`singplan.planning.weave`); the one home of a move's geometry for the planner,
+"""A move's Cartesian piece: its LIN or CIRC (:mod:`singplan.planning.path.cartesian`), woven when the move
+asks for it (:mod:`singplan.planning.path.weave`); the one home of a move's geometry for the planner,
 the budget and the replay."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from singplan.planning.path import CartesianPiece, make_circ, make_lin, move_target
-from singplan.planning.weave import woven
+from singplan.planning.path.cartesian import CartesianPiece, make_circ, make_lin, move_target
+from singplan.planning.path.weave import woven
 from singplan.task.schema import Move
 
 

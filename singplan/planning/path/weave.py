@@ -10,7 +10,7 @@ tangent, so the weave turns with the path and the tool. The orientation is the b
 wavelength is adjusted to a whole number of periods ``P = max(1, round(L / lambda))`` along the
 move, so the weave starts and ends on the path.
 
-A :class:`WovenPiece` is a :class:`~singplan.planning.path.CartesianPiece` whose poses carry the offset;
+A :class:`WovenPiece` is a :class:`~singplan.planning.path.cartesian.CartesianPiece` whose poses carry the offset;
 its parameter ``u`` and ``length_m`` stay those of the base path, so the timing's arc-length
 coordinate ``u * L`` (capped at the programmed speed) is the speed along the base path, as
 DESIGN.md asks; the TCP itself moves faster by the lateral motion.
@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from singplan.errors import TaskError
-from singplan.planning.path import CartesianPiece
+from singplan.planning.path.cartesian import CartesianPiece
 from singplan.task.schema import Weave
 
 # Path samples per weave period, uniform: a multiple of 4, so that with a whole number of periods

@@ -21,8 +21,10 @@ import numpy as np
 from singplan.kinematics.dynamics import move_torque_ratio
 from singplan.planning.crossing.base import Crossing
 from singplan.planning.crossing.nullspace import PauseMap
-from singplan.planning.jointmap import JointMap, JointPart
-from singplan.planning.timing import MoveLimits, TcpTrace, TimedMove, TimingError, sample_ratios, time_move
+from singplan.planning.path.jointmap import JointMap, JointPart
+from singplan.planning.timing.move import time_move
+from singplan.planning.timing.ratios import sample_ratios
+from singplan.planning.timing.records import MoveLimits, TcpTrace, TimedMove, TimingError
 
 Piece = tuple[JointMap, MoveLimits, float, float]  # a piece's map, its limits, and u at its start and end
 

@@ -13,16 +13,16 @@ import pinocchio as pin
 
 from singplan.kinematics.configuration import distances_batch
 from singplan.kinematics.robot import Robot
-from singplan.planning.checks import check_limits, check_tracked
 from singplan.planning.crossing.base import Crossing, CrossingMethod, MoveContext
-from singplan.planning.jointmap import JointMap, JointPart
-from singplan.planning.path import STEP_M, STEP_RAD
-from singplan.planning.pieces import move_piece
-from singplan.planning.records import PlannedMove
-from singplan.planning.targets import move_limits, ptp_target
-from singplan.planning.timing import tcp_trace
-from singplan.planning.tracking import BranchCandidates, track
-from singplan.planning.zones import DistanceFunction, Zone, find_zones
+from singplan.planning.orchestration.checks import check_limits, check_tracked
+from singplan.planning.orchestration.records import PlannedMove
+from singplan.planning.orchestration.targets import move_limits, ptp_target
+from singplan.planning.path.cartesian import STEP_M, STEP_RAD
+from singplan.planning.path.jointmap import JointMap, JointPart
+from singplan.planning.path.pieces import move_piece
+from singplan.planning.path.tracking import BranchCandidates, track
+from singplan.planning.path.zones import DistanceFunction, Zone, find_zones
+from singplan.planning.timing.trace import tcp_trace
 from singplan.task.schema import Move, Task
 
 

@@ -4,11 +4,11 @@ A candidate that fails (a limit, a tolerance, the move's size budget) is listed 
 a method this arm's family cannot use is never run in disguise: it is listed as infeasible with
 the reason, and asked for alone it is refused where the move meets a zone.
 
-Every candidate's joint map is planned first and bounded (:mod:`~singplan.planning.bound`: no
+Every candidate's joint map is planned first and bounded (:mod:`~singplan.planning.timing.bound`: no
 timing of it can end sooner); they are then timed and checked fastest bound first, and one whose
 bound cannot beat the best duration found so far is not timed at all, or no further than the
-timing pass whose tightened limits show it (:class:`~singplan.planning.timing.Outrun`). Ties go to the method asked
-for first, as if every candidate had been timed: the choice is the same, only the losers'
+timing pass whose tightened limits show it (:class:`~singplan.planning.timing.records.Outrun`). Ties
+go to the method asked for first, as if every candidate had been timed: the choice is the same, only the losers'
 durations are replaced by their bounds.
 """
 
@@ -20,14 +20,14 @@ from dataclasses import dataclass, replace
 from functools import partial
 from typing import NamedTuple, TypeVar
 
-from singplan.errors import MethodError, PlanningError, SingplanError, SingularityError, UnreachableError
+from singplan.errors import BudgetError, MethodError, PlanningError, SingplanError, SingularityError, UnreachableError
 from singplan.kinematics.robot import Robot
-from singplan.planning.alternatives import NO_DEVIATION, Alternative, Deviation
-from singplan.planning.budget import BudgetError
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Exact
-from singplan.planning.records import PlannedMove
-from singplan.planning.timing import Outrun, TimedMove, TimingPath
+from singplan.planning.orchestration.alternatives import NO_DEVIATION, Alternative, Deviation
+from singplan.planning.orchestration.records import PlannedMove
+from singplan.planning.timing.records import Outrun, TimedMove
+from singplan.planning.timing.toppra import TimingPath
 
 
 @dataclass(frozen=True)
@@ -98,8 +98,8 @@ class Refused(Exception):  # noqa: N818 - a candidate's outcome, not an error of
 
 logger = logging.getLogger(__name__)
 Prepare = Callable[[CrossingMethod, int], Candidate]  # plan one method's joint map and bound its duration
-# time and check a candidate; it may stop (timing.Outrun) once it cannot beat the best so far
-Finish = Callable[[Candidate, Rank | None], tuple[PlannedMove, TimedMove]]
+# time and check a candidate; it may stop (an Outrun) once it cannot beat the best so far
+Finish = Callable[[Candidate, Rank | None], tuple[PlannedMove, TimedMove] | Outrun]
 
 
 def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prepare: Prepare,
@@ -166,10 +166,7 @@ def _timed_best_first(i: int, kind: str, candidates: list[Candidate], finish: Fi
             skipped.append(c)
             continue
         try:
-            pm, tm = isolated(i, kind, c.method, partial(finish, c, best))
-        except Outrun as stop:  # a timing pass tightened its limits past what could win
-            skipped.append(replace(c, bound_s=stop.at_least_s, outrun=True))
-            continue
+            done = isolated(i, kind, c.method, partial(finish, c, best))
         except Refused as refused:
             deferred.append(replace(c, refusal=refused.error))
             if not order and best is None:  # nothing else planned: time them for their full errors
@@ -178,6 +175,10 @@ def _timed_best_first(i: int, kind: str, candidates: list[Candidate], finish: Fi
         except (PlanningError, BudgetError) as exc:
             failures.append(_Failure(c.order, c.method.name, c.method.variant, exc))
             continue
+        if isinstance(done, Outrun):  # a timing pass tightened its limits past what could win
+            skipped.append(replace(c, bound_s=done.at_least_s, outrun=True))
+            continue
+        pm, tm = done
         results.append(_Result(replace(pm, method=c.method.name, variant=c.method.variant), tm, c))
         best = min(best or c.rank(tm.duration_s, cost), c.rank(tm.duration_s, cost))
     skipped += deferred
@@ -194,7 +195,7 @@ def isolated(i: int, kind: str, method: CrossingMethod, work: Callable[[], T]) -
     The traceback is logged (debug level) for a report."""
     try:
         return work()
-    except (SingplanError, BudgetError, Outrun, Refused, MemoryError):
+    except (SingplanError, BudgetError, Refused, MemoryError):
         raise
     except Exception as exc:
         logger.debug("move %d: method %s failed", i, method.name, exc_info=True)

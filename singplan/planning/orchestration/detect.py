@@ -1,7 +1,7 @@
 """``detect(task)``: what ``singplan check`` reports, the singular zones along every move and a bound
 of the stopping distance, found by the planner's own stages without timing anything.
 
-Each LIN / CIRC is tracked as the planner tracks it (:class:`~singplan.planning.move_plan.MoveTracking`:
+Each LIN / CIRC is tracked as the planner tracks it (:class:`~singplan.planning.orchestration.move_plan.MoveTracking`:
 the same IK following, singular zones held coarse for a crossing method to replace, the same zone
 detection), so ``check`` refuses a move (exit 3) only where every method's plan fails as well: the
 path leaves the workspace, or the IK jumps outside any singular zone.
@@ -44,17 +44,17 @@ from singplan.kinematics.stopping import (
     stopping_bound,
     travel,
 )
-from singplan.planning.budget import check_task
-from singplan.planning.checks import screen
-from singplan.planning.collide import line_samples
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Exact
-from singplan.planning.move_plan import MoveTracking, plan_cartesian
-from singplan.planning.path import STEP_M, STEP_RAD
-from singplan.planning.records import PlannedMove
-from singplan.planning.targets import ptp_target, task_arm
-from singplan.planning.zones import Zone
+from singplan.planning.orchestration.budget import check_task
+from singplan.planning.orchestration.checks import screen
+from singplan.planning.orchestration.collide import line_samples
+from singplan.planning.orchestration.move_plan import MoveTracking, plan_cartesian
+from singplan.planning.orchestration.records import PlannedMove
+from singplan.planning.orchestration.targets import ptp_target, task_arm
+from singplan.planning.path.cartesian import STEP_M, STEP_RAD
+from singplan.planning.path.zones import Zone
 from singplan.task.load import load_task
 from singplan.task.schema import AUTO_METHOD, Move, Task
 
@@ -66,7 +66,7 @@ _BATCH = 256  # states whose figure is computed at once, the largest joint-by-jo
 
 
 class StoppingFigure(NamedTuple):
-    """``singplan check``'s stopping distance of one move (see :mod:`singplan.planning.detect`)."""
+    """``singplan check``'s stopping distance of one move (see :mod:`singplan.planning.orchestration.detect`)."""
 
     bound_m: float  # no output sample of any plan of the move stops farther [m]
     at: float  # where the bound is reached: path parameter u (LIN / CIRC) or fraction of the joint motion (PTP)

@@ -2,7 +2,7 @@
 back into its moves.
 
 A chain is move a's path up to its corner, the corner's blend, move a+1's path from the end
-of that blend to its own corner, ... (:mod:`singplan.planning.blending`). Its parameter ``w``
+of that blend to its own corner, ... (:mod:`singplan.planning.orchestration.blending`). Its parameter ``w``
 in [0, 1] is shared out so the joint path is C1 at every seam: a blend's ramps start and end
 with slope 2 in v, so a blend gets ``2 (1 - u_leave)`` times the share per unit u of the move
 before it, and the move after it gets the blend's share over ``2 u_join`` per unit u. The TCP
@@ -18,10 +18,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from singplan.planning.blending import Blend
-from singplan.planning.jointmap import JointMap
-from singplan.planning.records import PlannedMove
-from singplan.planning.timing import MoveLimits, TimedMove, sample_ratios
+from singplan.planning.orchestration.blending import Blend
+from singplan.planning.orchestration.records import PlannedMove
+from singplan.planning.path.jointmap import JointMap
+from singplan.planning.timing.ratios import sample_ratios
+from singplan.planning.timing.records import MoveLimits, TimedMove
 
 
 @dataclass(frozen=True)

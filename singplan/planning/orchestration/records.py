@@ -6,12 +6,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from singplan.planning.alternatives import Alternative
 from singplan.planning.crossing.methods import Crossing
-from singplan.planning.jointmap import JointMap
-from singplan.planning.path import CartesianPiece
-from singplan.planning.timing import MoveLimits
-from singplan.planning.zones import Zone
+from singplan.planning.orchestration.alternatives import Alternative
+from singplan.planning.path.cartesian import CartesianPiece
+from singplan.planning.path.jointmap import JointMap
+from singplan.planning.path.zones import Zone
+from singplan.planning.timing.records import MoveLimits
 
 
 @dataclass(frozen=True)

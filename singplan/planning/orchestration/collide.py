@@ -15,8 +15,8 @@ import numpy as np
 from singplan.errors import CollisionError
 from singplan.kinematics.clearance import Clearance, Contact, check_clearance
 from singplan.kinematics.collision import CollisionModel, describe_distance
-from singplan.planning.records import PlannedMove
-from singplan.planning.timing import TimingPath
+from singplan.planning.orchestration.records import PlannedMove
+from singplan.planning.timing.toppra import TimingPath
 
 NO_FREE_SPACE = "singplan keeps the programmed path and does not plan around obstacles (free-space planning is " \
                 "not part of it)"

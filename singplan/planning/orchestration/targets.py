@@ -17,9 +17,9 @@ from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import Robot, load_robot
 from singplan.kinematics.vendor_config import convention_for
-from singplan.planning.path import move_target
-from singplan.planning.redundancy import HeldJoint, hold_for_task
-from singplan.planning.timing import MoveLimits
+from singplan.planning.orchestration.redundancy import HeldJoint, hold_for_task
+from singplan.planning.path.cartesian import move_target
+from singplan.planning.timing.records import MoveLimits
 from singplan.task.load import check_against_robot
 from singplan.task.schema import Move, Task
 

@@ -1,4 +1,4 @@
-"""A lower bound on the duration :func:`~singplan.planning.timing.time_move` gives a joint map,
+"""A lower bound on the duration :func:`~singplan.planning.timing.move.time_move` gives a joint map,
 cheap enough to rank auto's candidates before any of them is timed.
 
 **Speeds no timing can exceed.** TOPP-RA solves, on its grid s_0 < ... < s_N, for squared path
@@ -20,7 +20,7 @@ profile a timing's samples are taken from stays under C.
 **Samples.** The samples are that profile at every period, so between two of them the path
 advances at most as far as C lets it in one period; and an accepted timing's samples advance
 the TCP clock (time at the programmed speed) by at most ``TCP_MARGIN`` periods each (the check
-of :mod:`~singplan.planning.timing`, exact for LIN and CIRC; where the joint map leaves the path
+of :mod:`~singplan.planning.timing.move`, exact for LIN and CIRC; where the joint map leaves the path
 the clock follows the TCP's own travel, never less than the path's). Stepping as far as both allow,
 sample after sample, reaches the end in the fewest samples any accepted timing can have (each
 step's reach only grows with where it starts): that count of periods is the bound, up to
@@ -34,8 +34,10 @@ import math
 import numpy as np
 
 from singplan.kinematics.compiled import jit
-from singplan.planning.profile import fewest_samples
-from singplan.planning.timing import TCP_MARGIN, MoveLimits, Scale, TimingPath
+from singplan.planning.timing.profile import fewest_samples
+from singplan.planning.timing.ratios import TCP_MARGIN
+from singplan.planning.timing.records import UNSCALED, LimitScale, MoveLimits
+from singplan.planning.timing.toppra import TimingPath
 
 # TOPP-RA's profile was measured up to 3.3e-8 (relative) over the caps on the public examples (its
 # constraint data pass through single precision); tests/test_bound.py holds it under this margin
@@ -43,7 +45,7 @@ _MARGIN = 1.0 + 1e-6
 
 
 def duration_bound_s(path: TimingPath, limits: MoveLimits, period_s: float,
-                     scale: Scale = (1.0, 1.0, 1.0, 1.0), pass_s: float = 0.0) -> float:
+                     scale: LimitScale = UNSCALED, pass_s: float = 0.0) -> float:
     """No timing of ``path`` under ``limits`` ends sooner than this [s], a whole number of periods.
 
     ``scale``: where a timing pass has tightened the limits to these factors (the later passes

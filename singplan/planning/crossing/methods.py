@@ -34,7 +34,7 @@ from singplan.kinematics.ik import numeric as ik_numeric
 from singplan.kinematics.ik.solve import closed_form_branches
 from singplan.kinematics.robot import Robot
 from singplan.planning.crossing.base import Crossing, MoveContext
-from singplan.planning.path.cartesian import STEP_M, STEP_RAD, CartesianPiece
+from singplan.planning.path.cartesian import CartesianPiece
 from singplan.planning.path.jointmap import JointMap, JointPart, hermite
 from singplan.planning.path.tracking import TrackedPath, nearest_candidate, track
 from singplan.planning.path.zones import KIND_INDEX, Zone
@@ -69,10 +69,14 @@ class Exact:
     variant = ""
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
-        limit = ctx.position_tolerance_m if zone.kind == "shoulder" else EXACT_ORIENTATION_TOL_RAD
-        if zone.min_distance >= limit:
+        if zone.min_distance >= _exact_limit(ctx, zone):
             return None  # a near miss: stay in the branch, the timing slows the swing
         return through(ctx, zone, self.name)
+
+
+def _exact_limit(ctx: MoveContext, zone: Zone) -> float:
+    """The singular distance under which exact goes through the zone (above it: a near miss it follows)."""
+    return ctx.position_tolerance_m if zone.kind == "shoulder" else EXACT_ORIENTATION_TOL_RAD
 
 
 def through(ctx: MoveContext, zone: Zone, method: str) -> Crossing | None:
@@ -261,12 +265,12 @@ class Axis:
 class Ptp:
     """Baseline (SEEDS 004): jump over the zone's singular stretch with a joint-space straight line.
 
-    The jump spans the singular sample: from the last point of the path's sampling grid (every
-    2 mm / 0.5 deg) before the zone's closest point to the first after it, each at least 0.05 deg
-    (0.5 mm at the shoulder) off the singularity (the rest of the zone is followed as exact does),
-    and lands on the
-    branch nearest its start from which the rest of the move can be followed inside the joint
-    limits. It is a PTP motion: it starts and ends at rest (:mod:`singplan.planning.orchestration.stops`), as a
+    The jump spans the singular sample: from the last tracked sample before the zone's closest
+    point to the first after it, each at least 0.05 deg (0.5 mm at the shoulder) off the
+    singularity (the rest of the zone is followed as exact does), so that it is the smallest span
+    the IK cannot follow; a near miss is tracked in full first. It lands on the branch nearest its
+    start from which the rest of the move can be followed inside the joint limits. It is a PTP
+    motion: it starts and ends at rest (:mod:`singplan.planning.orchestration.stops`), as a
     controller runs one, and the TCP leaves the path on it (its speed is held to the move's).
     """
 
@@ -278,15 +282,16 @@ class Ptp:
         if b <= a:
             return None
         u, q = ctx.tracked.u, ctx.tracked.q
-        # the singular sample's neighbours on the path's sampling grid (tracked samples: the grid is among
-        # them), each clear of the singular point itself (where the branches meet and joints are free)
-        grid = ctx.piece.grid(STEP_M, STEP_RAD)
-        on_grid = np.isin(u, grid)
-        clear = on_grid & (np.abs(ctx.distances[:, KIND_INDEX[zone.kind]]) >= _EDGE_MIN[zone.kind])
-        before = np.nonzero(clear[:b + 1] & (u[:b + 1] < zone.u_closest))[0]
-        after = np.nonzero(clear[a:] & (u[a:] > zone.u_closest))[0]
-        a = max(a, int(before[-1])) if before.size else a
-        b = min(b, a + int(after[0])) if after.size else b
+        # the tracked samples next to the singular point, each clear of it (where the branches meet and
+        # joints are free): the smallest span the IK cannot follow, widened only that far
+        index = np.arange(len(u))
+        clear = (index >= a) & (index <= b) & (np.abs(ctx.distances[:, KIND_INDEX[zone.kind]]) >= _EDGE_MIN[zone.kind])
+        before = np.nonzero(clear & (u < zone.u_closest))[0]
+        after = np.nonzero(clear & (u > zone.u_closest))[0]
+        a = int(before[-1]) if before.size else a
+        b = int(after[0]) if after.size else b
+        if zone.min_distance >= _exact_limit(ctx, zone) and ctx.tracked.coarse_from_u <= u[b]:
+            return None  # a near miss the tracking left coarse: the planner tracks the swing in full and asks again
         options = exit_candidates(ctx, float(u[b]))
         if not options:
             return None

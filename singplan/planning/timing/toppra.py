@@ -34,6 +34,7 @@ logging.getLogger("toppra").setLevel(logging.ERROR)  # its retries are not our w
 
 _UNLIMITED = 1e9
 _CLOCK_SUBSTEPS = 8  # differences per grid interval that find a chain clock's largest rate
+_KNOT_GAP = 1e-12  # reference samples closer than this in u are one
 
 
 def _reference(jmap: JointMap, limits: MoveLimits) -> tuple[np.ndarray, np.ndarray]:
@@ -42,7 +43,7 @@ def _reference(jmap: JointMap, limits: MoveLimits) -> tuple[np.ndarray, np.ndarr
         # so that TOPP-RA's TCP coordinate follows it (not on a straight joint line: see below; its
         # samples' TCP speed is checked like any, and the limits tightened where it runs over)
         u, q = _reference(jmap, replace(limits, trace=None))
-        extra = np.setdiff1d(limits.trace.u, u)
+        extra = _apart(limits.trace.u, u)
         if extra.size == 0:
             return u, q
         order = np.argsort(np.concatenate([u, extra]), kind="stable")
@@ -61,12 +62,23 @@ def _reference(jmap: JointMap, limits: MoveLimits) -> tuple[np.ndarray, np.ndarr
     extra = np.setdiff1d(np.concatenate([ends, 1.0 - ends]), u)  # only these need solving
     order = np.argsort(np.concatenate([u, extra]), kind="stable")
     u, q = np.concatenate([u, extra])[order], np.concatenate([q, jmap.evaluate(extra)])[order]
-    keep = np.concatenate([[True], np.diff(u) > 1e-12])
+    keep = np.concatenate([[True], np.diff(u) > _KNOT_GAP])
     u, q = u[keep], q[keep]
     if len(u) < 4:  # a spline needs a few points; add interior ones (straight PTP lines)
         dense = np.linspace(0.0, 1.0, 9)
         return dense, jmap.evaluate(dense)
     return u, q
+
+
+def _apart(points: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """The points (sorted) more than ``_KNOT_GAP`` from every sample of u (sorted) and from each other:
+    two samples a rounding apart (a trace point beside the map's own) make a degenerate spline interval
+    and a TOPP-RA stage of zero width, whose sets come out empty ("not controllable")."""
+    points = np.setdiff1d(points, u)
+    points = points[np.concatenate([[True], np.diff(points) > _KNOT_GAP])] if points.size else points
+    k = np.searchsorted(u, points)
+    gap = np.minimum(np.abs(points - u[np.maximum(k - 1, 0)]), np.abs(u[np.minimum(k, len(u) - 1)] - points))
+    return points[gap > _KNOT_GAP]
 
 
 def path_scale(q: np.ndarray, limits: MoveLimits) -> float:

@@ -150,7 +150,7 @@ def test_auto_keeps_exact_tracking_when_the_tolerance_is_tight() -> None:
                      r"over the tolerance 0\.01 mm / 5 deg", text), text
 
 
-@pytest.mark.parametrize("method", ["ptp", "dls", "average"])
+@pytest.mark.parametrize("method", ["dls", "average"])
 def test_baselines_leave_the_path_and_say_so(method: str) -> None:
     """Refused for the deviation itself: an acceleration limit the baselines' abrupt joints can keep
     leaves the tolerance (0.01 mm / 2 deg) as the only thing they break."""
@@ -161,8 +161,20 @@ def test_baselines_leave_the_path_and_say_so(method: str) -> None:
     found = re.search(r"move 0 \(lin\): the crossing in the wrist zone deviates (\d+\.\d+) mm / (\d+\.\d+) deg "
                       r"at s = [\d.]+ mm along the path .*, over the tolerance 0\.01 mm / 2 deg", str(info.value))
     assert found, str(info.value)
-    assert float(found.group(1)) > 0.01  # [mm]: over the tolerance (0.013 mm for ptp's jump, up to 11 mm)
+    assert float(found.group(1)) > 0.01  # [mm]: over the tolerance (up to 11 mm)
     assert (info.value.move, info.value.kind) == (0, "wrist") and info.value.s_m > 0.0
+
+
+def test_ptp_jumps_only_the_span_the_tracking_cannot_follow() -> None:
+    """A near miss is tracked in full before ptp jumps: its jump spans two neighbouring tracked
+    samples around the closest point, so it keeps even a 0.01 mm tolerance, and still stops at rest
+    on both sides (the time a controller's PTP loses)."""
+    doc = yaml.safe_load(NEAR_MISS.read_text())
+    doc["limits"]["acceleration"] = 1000.0
+    (crossing,) = plan(parse_task(doc), method="ptp").metrics.crossings
+    assert crossing.method == "ptp" and crossing.figures.changes_branch
+    assert crossing.figures.max_position_error_mm < 0.01  # [mm], the tolerance
+    assert crossing.figures.time_lost_s > 0.1  # [s]: two stops
 
 
 def test_summary_tabulates_what_auto_compared() -> None:

@@ -159,6 +159,17 @@ def test_without_the_bridge_the_seam_is_refused_naming_the_sample(monkeypatch: p
         plan(load_task(DATA / "kuka_shoulder_circ_hit_nullspace.yaml"))
 
 
+@pytest.mark.parametrize("name", ["ur5_wrist_lin_trace_knot", "kuka_shoulder_circ_ptp_near_miss"])
+def test_the_baselines_plan_the_soaks_finds_where_exact_does(name: str, tmp_path: Path) -> None:
+    """Two tasks of the 120-task soak (50 mm / 45 deg): ``average`` refused a UR5 wrist LIN as "not
+    controllable" (a trace point a rounding from a map sample made a zero-width TOPP-RA stage) and
+    ``ptp`` jumped 90 mm off a KUKA shoulder CIRC's near miss (its jump spanned the coarse grid)."""
+    task = yaml.safe_load((DATA / f"{name}.yaml").read_text())
+    for method in LOOSE_METHODS:
+        got = _run({**task, "singularity": {**task["singularity"], "method": method}}, tmp_path / method)
+        assert got.code == 0 and not got.failures, (method, got)
+
+
 # -- isolated candidates ----------------------------------------------------------------------------
 
 

@@ -130,6 +130,7 @@ def plan_task(job: TaskJob) -> TaskRecord:
     except Exception as exc:  # a bug: recorded like the CLI's internal error, and the batch goes on
         return _failed(job, 1, f"internal error: {type(exc).__name__}: {exc}", robot, started)
     message = "planned" + "".join(f"; {name} not written: {why}" for name, why in done.skipped.items())
+    message += f"; from an earlier run: {', '.join(done.stale)}" if done.stale else ""
     return _planned(job, done.traj, message, time.perf_counter() - started)
 
 

@@ -324,6 +324,11 @@ def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             bar.close()
         for name, reason in done.skipped.items():
             err.write(f"singplan: warning: {name} not written (the plan succeeded): {reason}\n")
+        if done.stale:
+            err.write(f"singplan: warning: {', '.join(done.stale)} in {done.folder} "
+                      f"{'is' if len(done.stale) == 1 else 'are'} from an earlier run and "
+                      f"{'does' if len(done.stale) == 1 else 'do'} not show this plan "
+                      "(remove them, or write the pages or exports again)\n")
         if args.json:
             from singplan.outputs import documents
 

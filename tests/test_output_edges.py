@@ -171,6 +171,27 @@ def test_a_folder_another_run_holds_is_refused_by_every_writer(tmp_path: Path, p
     assert sorted(p.name for p in folder.iterdir()) == before  # nothing added, the holder's lock kept
 
 
+def test_pages_and_exports_of_an_earlier_run_are_named_as_not_showing_this_plan(tmp_path: Path) -> None:
+    """A rerun with --no-report into a folder with an earlier plan's pages and export warns, naming
+    them (the folder keeps them: -o only adds or replaces); a rerun that writes everything does not."""
+    folder, task = tmp_path / "out", _task(tmp_path)
+    assert main(["plan", str(task), "-o", str(folder), "--quiet"], out=io.StringIO(), err=io.StringIO()) == 0
+    (folder / "trajectory.ros2.yaml").write_text("earlier export")
+    (folder / "notes.txt").write_text("the user's own")
+    err = io.StringIO()
+    assert main(["plan", str(task), "-o", str(folder), "--quiet", "--no-report"], out=io.StringIO(), err=err) == 0
+    assert (f"singplan: warning: report.html, trajectory.ros2.yaml in {folder} are from an earlier run and do not "
+            "show this plan") in err.getvalue(), err.getvalue()
+    (folder / "trajectory.ros2.yaml").unlink()
+    err = io.StringIO()
+    assert main(["plan", str(task), "-o", str(folder), "--quiet", "--no-replay", "--no-report"],
+                out=io.StringIO(), err=err) == 0
+    assert "report.html, replay.html in" in err.getvalue() and "notes.txt" not in err.getvalue()
+    err = io.StringIO()
+    assert main(["plan", str(task), "-o", str(folder), "--quiet"], out=io.StringIO(), err=err) == 0
+    assert "earlier run" not in err.getvalue(), err.getvalue()
+
+
 def test_a_killed_run_leaves_nothing_the_next_run_does_not_remove(tmp_path: Path,
                                                                   holder: tuple[Path, subprocess.Popen[str]]) -> None:
     folder, proc = holder

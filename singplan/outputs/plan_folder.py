@@ -15,6 +15,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from singplan.outputs.choices import DEFAULT_FILE_NAMES
 from singplan.outputs.pages import PAGE_FILES, build_pages, page_names
 from singplan.planning.orchestration.planner import Progress, plan_moves
 from singplan.results.files import hold_output_folder
@@ -24,6 +25,8 @@ from singplan.task.schema import Task
 
 # every file singplan may write into a task's output folder
 OUTPUT_FILES = (*TRAJECTORY_FILES, *ROBOT_FILES, *PAGE_FILES)
+# ... and those `singplan export` writes there by default
+EXPORT_FILES = tuple(DEFAULT_FILE_NAMES.values())
 
 
 def output_names(report: bool, replay: bool) -> tuple[str, ...]:
@@ -35,12 +38,14 @@ def output_names(report: bool, replay: bool) -> tuple[str, ...]:
 @dataclass(frozen=True)
 class PlannedFolder:
     """A task planned and written: the trajectory, the folder (absolute), the files written in it
-    (in order) and the pages that could not be built ({file name: reason})."""
+    (in order), the pages that could not be built ({file name: reason}) and singplan's files of an
+    earlier run left in the folder, which do not show this plan (``-o`` only adds or replaces)."""
 
     traj: Trajectory
     folder: Path
     files: tuple[str, ...]
     skipped: Mapping[str, str]
+    stale: tuple[str, ...] = ()
 
 
 def plan_into(task: Task, out_dir: str | os.PathLike[str], *, method: str | None = None, report: bool = True,
@@ -62,4 +67,12 @@ def plan_into(task: Task, out_dir: str | os.PathLike[str], *, method: str | None
         traj = trajectory_of(planned)
         pages, skipped = build_pages(traj, planned.full, report=report, replay=replay)  # the robot the plan loaded
         written = save(traj, folder, extra_files=pages)
-    return PlannedFolder(traj, written, (*TRAJECTORY_FILES, *robot_files(traj), *pages), skipped)
+    files = (*TRAJECTORY_FILES, *robot_files(traj), *pages)
+    return PlannedFolder(traj, written, files, skipped, _stale(written, files))
+
+
+def _stale(folder: Path, written: tuple[str, ...]) -> tuple[str, ...]:
+    """singplan's own files in ``folder`` that this run did not write (a page it was told not to
+    build, an earlier export): they show an earlier plan."""
+    return tuple(name for name in (*OUTPUT_FILES, *EXPORT_FILES)
+                 if name not in written and (folder / name).is_file())

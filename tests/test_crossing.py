@@ -190,3 +190,12 @@ def test_summary_tabulates_what_auto_compared() -> None:
     assert re.search(r"axis +1\.032 s +0\.000 mm / 0\.122 deg +chosen", rows["axis"]), text
     assert re.search(r"exact +>= 1\.748 s +0\.000 mm / 0\.000 deg +not timed: cannot win", rows["exact"]), text
     assert re.search(r"null-space +- +- +infeasible: null-space acts only where", rows["null-space"]), text
+
+
+def test_a_method_comparing_its_own_variants_is_not_called_auto() -> None:
+    """Asked for wrist-joint, the table is wrist-joint's choice among its windows (auto chose nothing)."""
+    from singplan.outputs.summary import summary
+
+    task = load_task(EXAMPLES / "kuka_program.yaml")
+    text = summary(plan(task, method="wrist-joint"), task)
+    assert "wrist-joint (its variants) chose wrist-joint window x" in text and "auto chose" not in text, text

@@ -176,7 +176,9 @@ def _choice(alternatives: Sequence[Alternative], cost_percent: float) -> list[st
     untimed = sorted((a for a in alternatives if a.feasible is None), key=_seconds)
     rows = [*feasible, *untimed, *(a for a in alternatives if a.feasible is False)]
     width = max(len(_name(a)) for a in rows)
-    lines = [f"auto chose {_name(best)} ({rule}, singularity.deviation_cost_percent):",
+    methods = {a.method for a in alternatives}  # one: the task's own method comparing its variants
+    chooser = "auto" if len(methods) > 1 else f"{best.method} (its variants)"
+    lines = [f"{chooser} chose {_name(best)} ({rule}, singularity.deviation_cost_percent):",
              f"  {'method':{width}s}  {'move':>10s}  deviation"]
     for a in rows:
         row = f"  {_name(a):{width}s}  {_move_time(a):>10s}  {_alternative_deviation(a):22s}  {_note(a, best)}"

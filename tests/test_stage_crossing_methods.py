@@ -14,7 +14,7 @@ import pinocchio as pin
 import pytest
 
 from singplan.kinematics.ik.solve import solve_all
-from singplan.kinematics.robot import load_robot
+from singplan.kinematics.robot import Robot, load_robot
 from singplan.planning.crossing.base import Crossing, MoveContext
 from singplan.planning.crossing.methods import Axis, Exact, WristJoint, exit_candidates, path_slope
 from singplan.planning.orchestration.move_plan import MoveTracking
@@ -41,7 +41,7 @@ def stretch() -> tuple[MoveContext, Zone]:
     return stage.ctx, zone
 
 
-def _exact_slope_fd(robot, piece: CartesianPiece, u: np.ndarray, q: np.ndarray, at: float) -> np.ndarray:  # type: ignore[no-untyped-def]
+def _exact_slope_fd(robot: Robot, piece: CartesianPiece, u: np.ndarray, q: np.ndarray, at: float) -> np.ndarray:
     """dq/du of the exact IK branch through the tracked samples, by central differences (h = 1e-6)."""
     exact = JointMap(robot, piece.poses, [JointPart("track", u, q)])
     h = 1e-6

@@ -12,10 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from singplan.kinematics.robot import load_robot
+from singplan.kinematics.robot import Robot, load_robot
 from singplan.planning.orchestration.blending import RAMPS, Ramp, ramps
 from singplan.planning.orchestration.planner import ptp_duration_bound_s
-from singplan.planning.orchestration.redundancy import hold_joint
+from singplan.planning.orchestration.redundancy import HeldJoint, hold_joint
 from singplan.planning.path.jointmap import JointMap, JointPart
 from singplan.planning.timing.move import time_move
 from singplan.planning.timing.records import MoveLimits
@@ -53,14 +53,15 @@ def test_the_quartic_ramps_are_c2_at_the_seams_and_the_quadratic_has_constant_ac
 
 
 @pytest.fixture(scope="module")
-def panda_held():  # type: ignore[no-untyped-def]
+def panda_held() -> tuple[Robot, HeldJoint]:
     robot = load_robot("panda")
     return robot, hold_joint(robot, robot.joint_names[2], 0.4)
 
 
 @settings(max_examples=30, deadline=None, derandomize=True)
 @given(arrays(float, 6, elements=st.floats(-1.5, 1.5)))
-def test_a_held_joint_chain_is_the_full_arm_with_that_joint_put_back(panda_held, q6: np.ndarray) -> None:  # type: ignore[no-untyped-def]
+def test_a_held_joint_chain_is_the_full_arm_with_that_joint_put_back(panda_held: tuple[Robot, HeldJoint],
+                                                                     q6: np.ndarray) -> None:
     robot, held = panda_held
     q7 = held.expand(q6)
     assert q7[2] == 0.4 and held.joint == robot.joint_names[2]

@@ -1,10 +1,12 @@
 """Small stages of planning.orchestration on their own: the fly-by ramps against their defining
-properties by finite differences, a held joint of a 7-joint arm against Pinocchio's full model, and the
-PTP duration bound against the closed form per joint and against the timing it bounds."""
+properties by finite differences, a held joint of a 7-joint arm against Pinocchio's full model, the
+PTP duration bound against the closed form per joint and against the timing it bounds, and a move that
+stops on its path timed in pieces from rest to rest."""
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,12 +15,17 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from singplan.kinematics.robot import Robot, load_robot
+from singplan.planning.crossing.methods import Ptp
 from singplan.planning.orchestration.blending import RAMPS, Ramp, ramps
+from singplan.planning.orchestration.move_plan import plan_move
 from singplan.planning.orchestration.planner import ptp_duration_bound_s
 from singplan.planning.orchestration.redundancy import HeldJoint, hold_joint
+from singplan.planning.orchestration.stops import stops, time_in_pieces
+from singplan.planning.orchestration.targets import load_task_robot, start_joints
 from singplan.planning.path.jointmap import JointMap, JointPart
 from singplan.planning.timing.move import time_move
 from singplan.planning.timing.records import MoveLimits
+from singplan.task.load import load_task
 
 H = 1e-5
 
@@ -98,3 +105,28 @@ def test_no_timing_of_a_ptp_beats_its_bound_and_one_joint_alone_meets_it() -> No
         assert bound <= timed.duration_s
         if np.count_nonzero(step) == 1:  # one joint: the line is that joint's own rest-to-rest time
             assert timed.duration_s <= bound * 1.001 + 0.004
+
+
+def test_a_move_that_jumps_is_timed_in_pieces_at_rest_on_each_end_of_the_jump() -> None:
+    """The ptp baseline on the demo's wrist hit (SEEDS 004): the move stops where the joint line starts
+    and where it ends; from rest, one period within amax covers at most amax dt^2 / 2 on each side."""
+    task = load_task(Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml")
+    robot = load_task_robot(task)
+    q0 = start_joints(task, robot)
+    pm = plan_move(robot, task, 0, task.moves[0], robot.fk(q0), q0, Ptp())
+    (jump,) = pm.crossings
+    assert jump.stops and stops(pm.crossings)
+    period = 0.004
+    tm = time_in_pieces(pm.jmap, pm.crossings, pm.limits, period, 0, 1_000_000)
+    assert tm.speed_ratio <= 1.0 and tm.accel_ratio <= 1.0 and np.all(np.diff(tm.u) >= 0.0)
+    np.testing.assert_allclose(tm.q, pm.jmap.evaluate(tm.u), atol=1e-9)  # every sample on the joint map
+    at_rest = pm.limits.acceleration_rad_s2 * period**2 / 2.0 * (1 + 1e-9)
+    for u, q in ((jump.blend.u0, jump.blend.q[0]), (jump.blend.u1, jump.q_exit)):
+        (k,) = np.nonzero(tm.u == u)[0]  # one sample on each end of the jump
+        np.testing.assert_allclose(tm.q[k], q, atol=1e-12)
+        assert np.all(np.abs(tm.q[k] - tm.q[k - 1]) <= at_rest) and np.all(np.abs(tm.q[k + 1] - tm.q[k]) <= at_rest)
+    # the joint line between: straight in joint space
+    inside = (tm.u >= jump.blend.u0) & (tm.u <= jump.blend.u1)
+    line = jump.q_exit - jump.blend.q[0]
+    along = (tm.q[inside] - jump.blend.q[0]) @ line / (line @ line)
+    np.testing.assert_allclose(tm.q[inside], jump.blend.q[0] + np.outer(along, line), atol=1e-9)

@@ -7,6 +7,8 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from singplan.errors import TaskError
 from singplan.kinematics.geometry import (
@@ -173,3 +175,63 @@ def test_rotation_log_jacobians_match_finite_differences_and_pinocchio() -> None
         fd = np.array([(pin.log3(M[k] @ pin.exp3(h * e)) - pin.log3(M[k] @ pin.exp3(-h * e))) / (2 * h)
                        for e in np.eye(3)]).T
         np.testing.assert_allclose(J[k], fd, rtol=0.0, atol=1e-8)
+
+
+_point = st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(_point, _point, _point)
+def test_any_circ_is_the_circle_through_its_three_points_passing_via_between_them(a: list[float], via: list[float],
+                                                                                 b: list[float]) -> None:
+    """Geometric checks for every start, via and end: the centre equidistant from the three (in their
+    plane), the arc from start about the normal reaching via before the end, its length r * arc."""
+    pa, pv, pb = np.array(a), np.array(via), np.array(b)
+    try:
+        piece = make_circ(se3(a, [180, 0, 0]), pv, se3(b, [170, 0, 20]), "m")
+    except TaskError:
+        assume(False)  # collinear or coinciding: bad input (tested above)
+    assume(piece.radius < 50.0)  # nearly collinear: a huge circle whose round-off is not this test's subject
+    assert piece.center is not None and piece.normal is not None
+    for p in (pa, pv, pb):
+        assert np.linalg.norm(p - piece.center) == pytest.approx(piece.radius, rel=1e-9)
+        assert abs((p - piece.center) @ piece.normal) < 1e-9 * max(1.0, piece.radius)
+    r_a, r_v = pa - piece.center, pv - piece.center
+    via_angle = math.atan2(float(np.cross(r_a, r_v) @ piece.normal), float(r_a @ r_v)) % (2 * math.pi)
+    assert 0.0 < via_angle < piece.arc_rad
+    np.testing.assert_allclose(piece.positions(np.array([via_angle / piece.arc_rad]))[0], pv, atol=1e-9 * piece.radius)
+    assert piece.length_m == pytest.approx(piece.radius * piece.arc_rad, rel=1e-12)
+    chords = np.linalg.norm(np.diff(piece.positions(np.linspace(0.0, 1.0, 4001)), axis=0), axis=1)
+    assert float(np.sum(chords)) == pytest.approx(piece.length_m, rel=1e-6)  # a fine polyline's length
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(_point, st.floats(0.0, 170.0), st.floats(1e-4, 0.05), st.floats(1e-3, 0.2))
+def test_the_grid_steps_no_further_and_turns_no_more_than_asked(b: list[float], turn_deg: float, step_m: float,
+                                                                step_rad: float) -> None:
+    piece = make_lin(se3([0.0, 0.0, 0.0], [0, 0, 0]), se3(b, [turn_deg, 0, 0]), "m")
+    grid = piece.grid(step_m, step_rad)
+    assert grid[0] == 0.0 and grid[-1] == 1.0 and len(grid) >= 3
+    p = piece.positions(grid)
+    R = piece.rotations(grid)
+    assert np.max(np.linalg.norm(np.diff(p, axis=0), axis=1)) <= step_m * (1 + 1e-9)
+    assert max(rotation_angle(R[k], R[k + 1]) for k in range(len(grid) - 1)) <= step_rad * (1 + 1e-9)
+    # and no coarser a grid than needed: one interval fewer would break a step
+    assert len(grid) - 2 < max(2, piece.length_m / step_m, piece.rotation_rad / step_rad) + 1
+
+
+def test_sample_deviations_are_the_distances_from_each_samples_pose_to_the_path(rng) -> None:
+    from singplan.kinematics.robot import load_robot
+    from singplan.planning.path.cartesian import sample_deviations
+
+    robot = load_robot("abb_irb2400")
+    q = np.radians([10, 20, 15, 40, 50, -30]) + rng.normal(0.0, 0.05, size=(7, 6))
+    piece = make_lin(robot.fk(q[0]), robot.fk(q[-1]), "m")
+    u = np.linspace(0.0, 1.0, 7)
+    pos, ori = sample_deviations(robot, piece, u, q)
+    for k in range(7):
+        T, want = robot.fk(q[k]), piece.poses(u[k:k + 1])[0]
+        assert pos[k] == pytest.approx(np.linalg.norm(T.translation - want[:3, 3]), abs=1e-12)
+        assert ori[k] == pytest.approx(np.linalg.norm(pin.log3(want[:3, :3].T @ T.rotation)), abs=1e-9)
+    assert pos[0] < 1e-12 and pos[-1] < 1e-12 and pos[3] > 1e-4  # the ends on the path, the middle off it
+    assert np.all(sample_deviations(robot, None, u, q)[0] == 0.0)  # a PTP has no path to leave

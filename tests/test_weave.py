@@ -22,7 +22,7 @@ from singplan.errors import TaskError
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.planning.path.cartesian import CartesianPiece
 from singplan.planning.path.pieces import move_piece
-from singplan.planning.path.weave import WovenPiece, wave, whole_periods, woven_moves
+from singplan.planning.path.weave import WovenPiece, wave, wave_slope, whole_periods, woven_moves
 from singplan.results.plan import plan
 from singplan.results.trajectory import save
 from singplan.task.load import parse_task
@@ -172,6 +172,22 @@ def test_the_triangle_wave_is_the_unit_triangle_in_phase_with_the_sine() -> None
     np.testing.assert_allclose(wave("triangle", x), (2 / math.pi) * np.arcsin(np.sin(x)), atol=1e-7)
     np.testing.assert_allclose(wave("triangle", np.array([0.0, math.pi / 2, math.pi, 1.5 * math.pi])),
                                [0.0, 1.0, 0.0, -1.0], atol=1e-15)
+
+
+@pytest.mark.parametrize("pattern", ["sine", "triangle"])
+def test_the_wave_slope_is_the_finite_difference_of_the_wave(pattern: str) -> None:
+    """Central differences away from the triangle's corners (odd multiples of pi / 2), the left-hand one
+    at a corner itself (the slope there is the rising side's, as the docstring says)."""
+    x = np.linspace(-7.0, 19.0, 2001)
+    corner = np.abs(np.mod(x - math.pi / 2, math.pi)) < 1e-3
+    corner |= np.abs(np.mod(x - math.pi / 2, math.pi) - math.pi) < 1e-3
+    h = 1e-6
+    fd = (wave(pattern, x + h) - wave(pattern, x - h)) / (2 * h)
+    keep = ~corner if pattern == "triangle" else np.ones_like(x, dtype=bool)
+    np.testing.assert_allclose(wave_slope(pattern, x)[keep], fd[keep], atol=1e-6)
+    if pattern == "triangle":
+        rising = np.array([-math.pi / 2, 3 * math.pi / 2])  # troughs: the rising side starts there
+        np.testing.assert_allclose(wave_slope(pattern, rising), 2 / math.pi)
 
 
 def test_the_path_is_sampled_finely_enough_for_the_weave() -> None:

@@ -118,6 +118,15 @@ def test_sample_cap_counts_all_moves_together() -> None:
     assert "moves[2]" in str(info.value) and "output.period" in str(info.value)
 
 
+def test_a_slow_ptp_is_told_to_raise_its_velocity_scale() -> None:
+    """A PTP has no speed: the advice names its velocity_scale (the share of the joint limits)."""
+    there, back = ([120, -20, 40, 90, -60, 150], START_DEG)
+    ptps = [{"ptp": {"to": {"joints_deg": q}, "velocity_scale": 0.001}} for q in (there, back) * 8]  # 16 x 0.67 M
+    with pytest.raises(BudgetError) as info:
+        _estimate(_task(ptps, period=0.0005), budget_mb=math.inf)
+    assert "raise output.period or moves[0]'s velocity_scale" in str(info.value), str(info.value)
+
+
 @pytest.mark.slow  # singplan in a guarded subprocess
 def test_memory_budget_names_the_move_where_it_is_crossed(tmp_path: Path) -> None:
     doc = _three_slow_lins(4.1e6)

@@ -159,7 +159,8 @@ def _advice(m: MoveEstimate, timed: bool) -> str:
     geometry = "bring the move's targets (and a CIRC's via) closer or split the move"
     if not timed or m.output_samples == 0:
         return geometry
-    return f"raise output.period or moves[{m.index}]'s speed, split the task, or {geometry}"
+    speed = "velocity_scale" if m.kind == "ptp" else "speed"  # a PTP is timed by its share of the joint limits
+    return f"raise output.period or moves[{m.index}]'s {speed}, split the task, or {geometry}"
 
 
 def _whole(periods: float) -> int:

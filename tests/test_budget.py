@@ -124,7 +124,7 @@ def test_a_slow_ptp_is_told_to_raise_its_velocity_scale() -> None:
     ptps = [{"ptp": {"to": {"joints_deg": q}, "velocity_scale": 0.001}} for q in (there, back) * 8]  # 16 x 0.67 M
     with pytest.raises(BudgetError) as info:
         _estimate(_task(ptps, period=0.0005), budget_mb=math.inf)
-    assert "raise output.period or moves[0]'s velocity_scale" in str(info.value), str(info.value)
+    assert "raise output.period or moves[15]'s velocity_scale" in str(info.value), str(info.value)
 
 
 @pytest.mark.slow  # singplan in a guarded subprocess

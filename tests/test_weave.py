@@ -310,3 +310,21 @@ def test_report_and_replay_show_the_weave_and_the_stopping_distance() -> None:
     off = lin[: np.argmin(np.linalg.norm(lin - end, axis=1)) + 1] - start
     lateral = np.linalg.norm(off - np.outer(off @ axis, axis), axis=1)
     assert lateral.max() == pytest.approx(3e-3, rel=0.05)
+
+
+def test_a_triangle_weave_under_a_jerk_limit_is_refused_with_the_way_out() -> None:
+    """A triangle's corners need unbounded jerk: the refusal says so and names the ways out."""
+    from singplan.errors import PlanningError
+    from singplan.results.plan import plan
+    from singplan.task.load import parse_task
+
+    weave = {"pattern": "triangle", "amplitude_mm": 3, "wavelength_mm": 12}
+    task = parse_task({"robot": "abb_irb2400", "tool": {"xyz": [0, 0, 0.15]},
+                       "start": {"pose": {"xyz": [1.0, -0.2, 0.8], "rpy_deg": [180, 10, 0]}, "config": "F U N"},
+                       "moves": [{"circ": {"via": {"xyz": [1.15, -0.2, 0.8]}, "to": {"xyz": [1.2, 0.0, 0.8]},
+                                           "speed": 0.2, "weave": weave}}],
+                       "limits": {"jerk": 300, "acceleration": [8, 8, 8, 15, 15, 20]}})
+    with pytest.raises(PlanningError, match=r"move 0 \(circ\): could not keep the joint speed, acceleration and "
+                                            r"jerk limits .* \(a corner of the path, such as a triangle weave's, "
+                                            r"needs unbounded jerk: weave pattern sine"):
+        plan(task)

@@ -70,7 +70,9 @@ def smoothed(jmap: JointMap, path_q: np.ndarray, optimal: TimedMove, profile: Pr
                                                             else limits.acceleration_rad_s2)
         at = float(optimal.u[int(np.argmax(np.max(steps, axis=1))) + 1]) if len(steps) else 0.5
         raise TimingError(move_index, at, "could not keep the joint speed, acceleration and jerk limits on the "
-                                          f"output samples after {_STRETCH_PASSES} stretches of the time law")
+                                          f"output samples after {_STRETCH_PASSES} stretches of the time law (a corner "
+                                          "of the path, such as a triangle weave's, needs unbounded jerk: weave "
+                                          "pattern sine, a blend, or no limits.jerk there)")
     logger.info("move %d: %.3f s jerk-limited, %.3f s acceleration-limited", move_index, best.duration_s,
                 optimal.duration_s)
     return replace(best, optimal_duration_s=optimal.duration_s)

@@ -6,7 +6,12 @@ degrees only at the edges, in names that say so (``rpy_deg``, ``joints_deg``).
 The public names below are loaded on first use, through the module-level :func:`__getattr__`:
 ``import singplan`` itself imports no Pinocchio, numba, TOPP-RA, meshcat or matplotlib, so a
 script or ``singplan --help`` pays only for what it calls. ``from singplan import plan`` works as
-usual (it triggers the import of :mod:`singplan.results.plan`).
+usual (it triggers the import of the entry module, :mod:`singplan.outputs.entry`).
+
+Each name comes from its home in :data:`_HOMES`: the entry module (:mod:`singplan.outputs.entry`:
+``plan``, ``plan_into``, ``detect``) and the modules that define the records, the errors and the
+kinematics. ``tests/test_public_api.py`` resolves every name of ``__all__`` and checks that the
+TYPE_CHECKING imports below (what type checkers see) name the same homes.
 """
 
 from __future__ import annotations
@@ -25,9 +30,8 @@ if TYPE_CHECKING:
     )
     from singplan.kinematics.ik.solve import IkSolutions, opw_batch, solve_all
     from singplan.kinematics.robot import Robot, bundled_robots, load_robot
+    from singplan.outputs.entry import detect, plan, plan_into
     from singplan.outputs.viewer import replay
-    from singplan.planning.orchestration.detect import detect
-    from singplan.results.plan import plan
     from singplan.results.trajectory import Segment, Trajectory, save
     from singplan.task.load import load_task, parse_task
     from singplan.task.schema import Task
@@ -36,32 +40,21 @@ logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 __version__ = "0.1.0"
 
-_HOMES = {  # public name -> the module that defines it
-    "InputError": "singplan.errors",
-    "PlanningError": "singplan.errors",
-    "SingplanError": "singplan.errors",
-    "Configuration": "singplan.kinematics.configuration",
-    "SingularityDistances": "singplan.kinematics.configuration",
-    "classify": "singplan.kinematics.configuration",
-    "singularity_distances": "singplan.kinematics.configuration",
-    "IkSolutions": "singplan.kinematics.ik.solve",
-    "opw_batch": "singplan.kinematics.ik.solve",
-    "solve_all": "singplan.kinematics.ik.solve",
-    "Robot": "singplan.kinematics.robot",
-    "bundled_robots": "singplan.kinematics.robot",
-    "load_robot": "singplan.kinematics.robot",
-    "Task": "singplan.task.schema",
-    "load_task": "singplan.task.load",
-    "parse_task": "singplan.task.load",
-    "detect": "singplan.planning.orchestration.detect",
-    "plan": "singplan.results.plan",
-    "Segment": "singplan.results.trajectory",
-    "Trajectory": "singplan.results.trajectory",
-    "save": "singplan.results.trajectory",
-    "replay": "singplan.outputs.viewer",
+_HOMES = {  # module -> the public names it gives: the entry module, then the homes of records, errors, kinematics
+    "singplan.outputs.entry": ("plan", "plan_into", "detect"),
+    "singplan.outputs.viewer": ("replay",),
+    "singplan.results.trajectory": ("Segment", "Trajectory", "save"),
+    "singplan.task.schema": ("Task",),
+    "singplan.task.load": ("load_task", "parse_task"),
+    "singplan.kinematics.robot": ("Robot", "bundled_robots", "load_robot"),
+    "singplan.kinematics.ik.solve": ("IkSolutions", "opw_batch", "solve_all"),
+    "singplan.kinematics.configuration": ("Configuration", "SingularityDistances", "classify",
+                                          "singularity_distances"),
+    "singplan.errors": ("InputError", "PlanningError", "SingplanError"),
 }
+_HOME_OF = {name: home for home, names in _HOMES.items() for name in names}
 
-__all__ = [  # every name of _HOMES, and the version
+__all__ = [
     "Configuration",
     "IkSolutions",
     "InputError",
@@ -81,6 +74,7 @@ __all__ = [  # every name of _HOMES, and the version
     "opw_batch",
     "parse_task",
     "plan",
+    "plan_into",
     "replay",
     "save",
     "singularity_distances",
@@ -90,7 +84,7 @@ __all__ = [  # every name of _HOMES, and the version
 
 def __getattr__(name: str) -> Any:
     """A public name, imported from its module the first time it is asked for."""
-    home = _HOMES.get(name)
+    home = _HOME_OF.get(name)
     if home is None:
         raise AttributeError(f"module 'singplan' has no attribute {name!r}")
     value = getattr(importlib.import_module(home), name)
@@ -99,4 +93,4 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_HOMES})
+    return sorted({*globals(), *__all__})

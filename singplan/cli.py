@@ -45,9 +45,9 @@ from singplan.outputs.suggest import SuggestingParser, closest
 if TYPE_CHECKING:
     import pinocchio as pin
 
+    from singplan.kinematics.held import HeldJoint
     from singplan.kinematics.robot import Robot, RobotEntry
-    from singplan.planning.orchestration.detect import MoveZones
-    from singplan.planning.orchestration.redundancy import HeldJoint
+    from singplan.outputs.entry import MoveZones
 
 
 def _reach_m(robot: Robot) -> float:
@@ -190,7 +190,7 @@ def _pose(xyz: Sequence[float], rpy_deg: Sequence[float]) -> pin.SE3:
 
 def _hold(robot: Robot, text: str | None) -> HeldJoint | None:
     """``--hold JOINT=DEG`` on a 7-joint arm: the joint locked at the value."""
-    from singplan.planning.orchestration.redundancy import hold_joint
+    from singplan.kinematics.held import hold_joint
 
     if text is None:
         return None
@@ -295,8 +295,8 @@ def _imports_frozen() -> Iterator[None]:
 
 
 def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from singplan.kinematics.ik.opw import kernels_cached
-    from singplan.outputs.plan_folder import plan_into
+    from singplan.kinematics.closedform.opw import kernels_cached
+    from singplan.outputs.entry import plan_into
     from singplan.outputs.progress import plan_bar
     from singplan.outputs.summary import summary
     from singplan.task.load import load_task
@@ -340,7 +340,7 @@ def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from singplan.planning.orchestration.detect import detect
+    from singplan.outputs.entry import detect
     from singplan.task.load import load_task
 
     task = load_task(args.task)

@@ -2,7 +2,7 @@
 
 A 6R chain is ``opw`` (ortho-parallel with a spherical wrist, Brandstoetter, Angerer and
 Hofbaur 2014) or ``ur`` (axes 2-4 parallel, the ur_description layout of
-:mod:`singplan.kinematics.ik.ur`) when that closed form reproduces the URDF's forward kinematics,
+:mod:`singplan.kinematics.closedform.ur`) when that closed form reproduces the URDF's forward kinematics,
 else ``general6``; 7R chains are ``seven``, 5R chains ``five``.
 
 The OPW parameters are read from the joint axes and origins in the base frame at q = 0 and
@@ -28,8 +28,8 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.kinematics.angles import wrap_to_pi
-from singplan.kinematics.ik import opw
-from singplan.kinematics.ik.ur import UrParameters, ur_batch
+from singplan.kinematics.closedform import opw
+from singplan.kinematics.closedform.ur import UrParameters, ur_batch
 
 Family = Literal["opw", "ur", "general6", "five", "seven"]
 VERIFY_TOL_M = 1e-9  # FK of the closed form's branch against Pinocchio [m]
@@ -275,7 +275,7 @@ def _snap(x: float) -> float:
 
 
 def _derive_opw(model: pin.Model, tip_frame_id: int) -> tuple[OpwParameters, np.ndarray, np.ndarray]:
-    """OPW parameters of the chain at q = 0 (see the module docstring and :mod:`singplan.kinematics.ik.opw`).
+    """OPW parameters of the chain at q = 0 (see the module docstring and :mod:`singplan.kinematics.closedform.opw`).
 
     OPW frame: z along axis 1 through the base origin, y along axis 2 (oriented so that the
     shoulder offset a1 >= 0), the forearm frame ``c = Rz(t1) Ry(t2 + t3)`` with z along axis 4

@@ -8,8 +8,7 @@ from collections import Counter
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from singplan.planning.orchestration.alternatives import Alternative
-from singplan.results.metrics import BlendFigures, ClearanceFigures, CrossingFigures
+from singplan.results.metrics import Alternative, BlendFigures, ClearanceFigures, CrossingFigures
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.schema import Task
 

@@ -17,7 +17,6 @@ from typing import Any
 from singplan.errors import TaskError
 from singplan.kinematics.configuration import parse_configuration
 from singplan.kinematics.files import FileRefusedError, read_bounded_text
-from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
 from singplan.kinematics.robot import Robot
 from singplan.kinematics.shapes import MESH_SUFFIXES, SHAPE_KINDS, TOOL_BODY, CollisionSettings, Shape
 from singplan.kinematics.yamldoc import YamlLimits, load_yaml
@@ -27,6 +26,7 @@ from singplan.task.schema import (
     BLEND_MM,
     CLEARANCE_MM,
     COORDINATE_M,
+    DEFAULT_ACCELERATION_RAD_S2,
     DEFAULT_BLEND_MM,
     DEFAULT_CLEARANCE_MM,
     DEFAULT_CONFIG,

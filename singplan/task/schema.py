@@ -50,7 +50,6 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from singplan.errors import TaskError
-from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2  # limits.acceleration, all joints
 from singplan.kinematics.shapes import CollisionSettings, Shape
 from singplan.kinematics.yamldoc import join_field as _join
 from singplan.kinematics.yamldoc import key_text as _key_text
@@ -109,6 +108,9 @@ JOINT_DEG = Range(-3600.0, 3600.0, "deg")
 SPEED_M_S = Range(1e-4, 10.0, "m/s")
 VELOCITY_SCALE = Range(1e-3, 1.0, "")
 ACCELERATION_RAD_S2 = Range(1e-2, 1e4, "rad/s^2")
+# limits.acceleration's default, every joint: a URDF has no acceleration limits, so the task's
+# limits are their one home (each move's timing limits are made from them, a held joint's dropped)
+DEFAULT_ACCELERATION_RAD_S2 = 10.0
 TORQUE_SCALE = Range(1e-3, 1.0, "")
 JERK_RAD_S3 = Range(0.1, 1e6, "rad/s^3")
 PTP_TIME_LAWS = ("optimal", "quintic")  # limits.ptp_time_law
@@ -231,6 +233,12 @@ class Limits:
         if self.ptp_time_law not in PTP_TIME_LAWS:
             raise TaskError("limits.ptp_time_law", f"expected one of {', '.join(PTP_TIME_LAWS)}, "
                                                    f"got {self.ptp_time_law!r}")
+
+    def joint_accelerations(self, n_joints: int) -> np.ndarray:
+        """The joint acceleration limits [rad/s^2] (n,), one value given for all joints spread out.
+        These limits are their one home: a URDF has none, and each move's timing limits, the
+        checks and the stopping figures are made from here (a held joint's value dropped first)."""
+        return np.broadcast_to(np.asarray(self.acceleration_rad_s2, dtype=float), (n_joints,)).copy()
 
 
 @dataclass(frozen=True)

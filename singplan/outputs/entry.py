@@ -1,6 +1,10 @@
-"""One task planned into an output folder: the pipeline `singplan plan` and each batch task run.
+"""The one entry to planning: :func:`plan` (a task to a :class:`Trajectory`), :func:`plan_into` (a
+task planned into an output folder: the pipeline ``singplan plan`` and each batch task run) and
+:func:`detect` (what ``singplan check`` reports). The command line, the batch runner and the
+public names of ``singplan`` all come through here; nothing above the planning stages reaches
+into :mod:`singplan.planning` itself (an import-linter contract in pyproject.toml).
 
-The folder is checked and held before planning (nobody waits for a plan that cannot be written,
+In :func:`plan_into` the folder is checked and held before planning (nobody waits for a plan that cannot be written,
 and no second run writes there meanwhile: :func:`~singplan.results.files.hold_output_folder`), the
 task is planned once, the pages are built on the robot the plan loaded, and every file is
 written by the rules of :mod:`singplan.results.files` (DESIGN.md, "Outputs"). The names of
@@ -16,9 +20,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from singplan.outputs.pages import PAGE_FILES, build_pages, page_names
-from singplan.planning.orchestration.planner import Progress, plan_moves
+from singplan.results.detect import MoveZones as MoveZones  # what detect() returns
+from singplan.results.detect import detect as detect  # the public name singplan.detect
 from singplan.results.files import hold_output_folder
-from singplan.results.plan import trajectory_of
+from singplan.results.plan import Progress, planned_trajectory
+from singplan.results.plan import plan as plan  # the public name singplan.plan: a task to a Trajectory
 from singplan.results.trajectory import ROBOT_FILES, TRAJECTORY_FILES, Trajectory, robot_files, save
 from singplan.task.schema import Task
 
@@ -53,13 +59,12 @@ def plan_into(task: Task, out_dir: str | os.PathLike[str], *, method: str | None
     Raises:
         OutputPathError: ``out_dir`` cannot receive the files, or another run is writing there
             (checked before planning, and the folder held until the files are written; exit code 2).
-        InputError, PlanningError: as :func:`singplan.results.plan.plan`; the folder is left as it was.
+        InputError, PlanningError: as :func:`plan`; the folder is left as it was.
     """
     with hold_output_folder(out_dir, output_names(report, replay)) as folder:  # one run per folder, from here
         if before_planning is not None:
             before_planning()
-        planned = plan_moves(task, method=method, progress=progress)
-        traj = trajectory_of(planned)
-        pages, skipped = build_pages(traj, planned.full, report=report, replay=replay)  # the robot the plan loaded
+        traj, robot = planned_trajectory(task, method=method, progress=progress)
+        pages, skipped = build_pages(traj, robot, report=report, replay=replay)  # the robot the plan loaded
         written = save(traj, folder, extra_files=pages)
     return PlannedFolder(traj, written, (*TRAJECTORY_FILES, *robot_files(traj), *pages), skipped)

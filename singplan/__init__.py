@@ -6,9 +6,9 @@ degrees only at the edges, in names that say so (``rpy_deg``, ``joints_deg``).
 The public names below are loaded on first use, through the module-level :func:`__getattr__`:
 ``import singplan`` itself imports no Pinocchio, numba, TOPP-RA, meshcat or matplotlib, so a
 script or ``singplan --help`` pays only for what it calls. ``from singplan import plan`` works as
-usual (it triggers the import of the entry module, :mod:`singplan.outputs.entry`).
+usual (it triggers the import of the entry module, :mod:`singplan.entry`).
 
-Each name comes from its home in :data:`_HOMES`: the entry module (:mod:`singplan.outputs.entry`:
+Each name comes from its home in :data:`_HOMES`: the entry module (:mod:`singplan.entry`:
 ``plan``, ``plan_into``, ``detect``) and the modules that define the records, the errors and the
 kinematics. ``tests/test_public_api.py`` resolves every name of ``__all__`` and checks that the
 TYPE_CHECKING imports below (what type checkers see) name the same homes.
@@ -20,7 +20,10 @@ import importlib
 import logging
 from typing import TYPE_CHECKING, Any
 
+from singplan._version import __version__ as __version__
+
 if TYPE_CHECKING:
+    from singplan.entry import detect, load_task, parse_task, plan, plan_into
     from singplan.errors import InputError, PlanningError, SingplanError
     from singplan.kinematics.configuration import (
         Configuration,
@@ -30,22 +33,18 @@ if TYPE_CHECKING:
     )
     from singplan.kinematics.ik.solve import IkSolutions, opw_batch, solve_all
     from singplan.kinematics.robot import Robot, bundled_robots, load_robot
-    from singplan.outputs.entry import detect, plan, plan_into
     from singplan.outputs.viewer import replay
     from singplan.results.trajectory import Segment, Trajectory, save
-    from singplan.task.load import load_task, parse_task
     from singplan.task.schema import Task
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
-__version__ = "0.1.0"
 
 _HOMES = {  # module -> the public names it gives: the entry module, then the homes of records, errors, kinematics
-    "singplan.outputs.entry": ("plan", "plan_into", "detect"),
+    "singplan.entry": ("plan", "plan_into", "detect", "load_task", "parse_task"),
     "singplan.outputs.viewer": ("replay",),
     "singplan.results.trajectory": ("Segment", "Trajectory", "save"),
     "singplan.task.schema": ("Task",),
-    "singplan.task.load": ("load_task", "parse_task"),
     "singplan.kinematics.robot": ("Robot", "bundled_robots", "load_robot"),
     "singplan.kinematics.ik.solve": ("IkSolutions", "opw_batch", "solve_all"),
     "singplan.kinematics.configuration": ("Configuration", "SingularityDistances", "classify",

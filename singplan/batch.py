@@ -34,8 +34,8 @@ from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any, TextIO
 
+from singplan.entry import OUTPUT_FILES, plan_into
 from singplan.errors import InputError, SingplanError
-from singplan.outputs.entry import OUTPUT_FILES, plan_into
 from singplan.results.files import check_output_dir, hold_output_folder, remove_temporary_files, write_files
 from singplan.results.trajectory import Trajectory
 from singplan.task.load import load_task

@@ -1,5 +1,5 @@
 """Every public name of ``singplan`` resolves, from the module its table names (the entry module,
-:mod:`singplan.outputs.entry`, for plan, plan_into and detect)."""
+:mod:`singplan.entry`, for plan, plan_into and detect)."""
 
 from __future__ import annotations
 
@@ -44,7 +44,7 @@ def test_dir_lists_every_public_name() -> None:
 
 def test_the_entry_module_gives_plan_plan_into_and_detect() -> None:
     """The command line, the batch runner and ``singplan`` share one entry (issue 24)."""
-    from singplan.outputs import entry
+    from singplan import entry
 
     assert (singplan.plan, singplan.plan_into, singplan.detect) == (entry.plan, entry.plan_into, entry.detect)
 

@@ -20,7 +20,7 @@ from importlib import resources
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # only annotations: `singplan ik --json` need not import the planner
-    from singplan.outputs.entry import PlannedFolder
+    from singplan.outputs.pages import PlannedFolder
     from singplan.results.detect import MoveZones
 
 COMMANDS = ("plan", "check", "ik")

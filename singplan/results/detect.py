@@ -127,6 +127,7 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     """
     if not isinstance(task, Task):
         task = load_task(task)
+    registry.check_name("singularity.method", task.singularity.method)
     arm = task_arm(task)
     robot, task = arm.robot, arm.task
     check_task(task, robot, arm.q_start, STEP_M, STEP_RAD, timed=False)  # before any path is sampled

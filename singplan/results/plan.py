@@ -1,6 +1,6 @@
 """plan(task) -> Trajectory: the planning stages, then the trajectory record built and checked.
 
-The public name is :func:`singplan.plan` (:mod:`singplan.outputs.entry`). The moves are planned and
+The public name is :func:`singplan.plan` (:mod:`singplan.entry`). The moves are planned and
 timed in :mod:`singplan.planning.orchestration.planner`; here they become one
 :class:`Trajectory` (:mod:`singplan.results.build`), and its own samples pass the last gate:
 no plan is returned whose output breaks a limit, whatever the cause.

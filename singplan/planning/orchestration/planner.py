@@ -79,9 +79,10 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     started = time.perf_counter()
     if not isinstance(task, Task):
         task = load_task(task)
+    registry.check_name("singularity.method", task.singularity.method)
     chosen = None if method is None or isinstance(method, str) else method  # a method object: on every move
     if isinstance(method, str):
-        task = task.with_method(method, given_as="method")  # an unknown name is the caller's argument
+        task = task.with_method(registry.check_name("method", method))  # an unknown name is the caller's argument
     arm = task_arm(task)
     robot, arm_task, q = arm.robot, arm.task, arm.q_start
     allowance = check_task(arm_task, robot, q, STEP_M, STEP_RAD).output_allowance  # before anything large

@@ -50,18 +50,6 @@ if TYPE_CHECKING:
     from singplan.kinematics.robot import Robot, RobotEntry
 
 
-def _reach_m(robot: Robot) -> float:
-    """Largest distance of the flange from axis 1 [m] (OPW: exact; else a link-length bound)."""
-    import numpy as np
-
-    p = robot.opw
-    if p is not None:
-        return p.a1 + p.c2 + math.hypot(p.a2, p.c3) + p.c4
-    model = robot.model
-    lengths = [np.linalg.norm(model.jointPlacements[i].translation) for i in range(2, model.njoints)]
-    return float(sum(lengths) + np.linalg.norm(model.frames[robot.tip_frame_id].placement.translation))
-
-
 def _robot_rows() -> list[dict[str, object]]:
     from singplan.kinematics.robot import bundled_robots, load_robot
 
@@ -69,7 +57,7 @@ def _robot_rows() -> list[dict[str, object]]:
     for name, entry in bundled_robots().items():
         robot = load_robot(name)
         rows.append({"name": name, "display_name": entry.display_name, "dof": robot.n_joints,
-                     "family": robot.family, "reach_m": round(_reach_m(robot), 4), "tip": entry.tip,
+                     "family": robot.family, "reach_m": round(robot.reach_m(), 4), "tip": entry.tip,
                      "urdf": str(robot.urdf_path), "source": _source(entry)})
     return rows
 

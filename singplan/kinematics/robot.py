@@ -171,6 +171,15 @@ class Robot:
         """Verified UR parameters of the chain to the tip, or None when it is not a UR-type arm."""
         return self.recognition.ur
 
+    def reach_m(self) -> float:
+        """Largest distance of the flange from axis 1 [m] (OPW: exact; else a link-length bound)."""
+        p = self.opw
+        if p is not None:
+            return p.a1 + p.c2 + math.hypot(p.a2, p.c3) + p.c4
+        placements = self.model.jointPlacements
+        lengths = [np.linalg.norm(placements[i].translation) for i in range(2, self.model.njoints)]
+        return float(sum(lengths) + np.linalg.norm(self.model.frames[self.tip_frame_id].placement.translation))
+
     def with_tool(self, T_tip_tcp: pin.SE3) -> Robot:
         """The same robot with another tool (a new Data, the model is shared; the recognition carried
         over when already made: the family depends on the model and the tip only)."""

@@ -26,6 +26,7 @@ from singplan.kinematics.held import HeldJoint
 from singplan.kinematics.robot import Robot
 from singplan.kinematics.stopping import stopping_distances, worst_stopping
 from singplan.kinematics.vendor_config import vendor_configs
+from singplan.planning.crossing.methods import Exact, Stop
 from singplan.planning.orchestration.blending import Blend
 from singplan.planning.orchestration.checks import tcp_speed_ratios
 from singplan.planning.orchestration.records import PlannedMove
@@ -328,7 +329,7 @@ def _zone_method(pm: PlannedMove, zone: Zone) -> str:
     for c in pm.crossings:
         if c.zone.u_closest == zone.u_closest:
             return c.method
-    return "exact" if pm.method != "stop" else pm.method
+    return Exact.name if pm.method != Stop.name else pm.method
 
 
 def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone, pos_err: np.ndarray,

@@ -46,7 +46,7 @@ from singplan.kinematics.stopping import (
 )
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
-from singplan.planning.crossing.methods import Exact
+from singplan.planning.crossing.methods import Exact, Stop
 from singplan.planning.orchestration.budget import check_task
 from singplan.planning.orchestration.checks import screen
 from singplan.planning.orchestration.collide import line_samples
@@ -173,7 +173,7 @@ def _clearance(model: CollisionModel, q: np.ndarray, u: np.ndarray, i: int
 def _methods(move: Move) -> Iterator[CrossingMethod]:
     """Every method a plan of the move may use (``stop`` crosses nothing)."""
     for name in registry.names():
-        if name not in (AUTO_METHOD, "stop"):
+        if name not in (AUTO_METHOD, Stop.name):
             yield from registry.candidates(name, move)
 
 

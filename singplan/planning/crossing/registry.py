@@ -42,6 +42,9 @@ _METHODS: dict[str, _Factory] = {
 }
 BUILT_IN = (AUTO_METHOD, *_METHODS)  # the names every singplan knows, auto first
 AUTO_CANDIDATES = (Exact.name, WristJoint.name, Axis.name, NullSpace.name)  # what auto compares, in order
+# the methods whose crossing may wait on the singular point (CrossingFigures.pause_s): null-space,
+# only where exact's way on would leave a joint limit
+PAUSING = frozenset({NullSpace.name})
 # under auto, null-space serves only where exact's own crossing would leave a joint limit
 _AUTO_FORM: dict[str, _Factory] = {NullSpace.name: lambda target: [NullSpace(only_when_needed=True)]}
 

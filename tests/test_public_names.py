@@ -42,11 +42,13 @@ def test_dir_lists_every_public_name() -> None:
     assert set(singplan.__all__) <= set(dir(singplan))
 
 
-def test_the_entry_module_gives_plan_plan_into_and_detect() -> None:
+def test_the_entry_module_gives_plan_plan_into_detect_and_the_task_readers() -> None:
     """The command line, the batch runner and ``singplan`` share one entry (issue 24)."""
-    from singplan import entry
+    from singplan import batch, entry
 
-    assert (singplan.plan, singplan.plan_into, singplan.detect) == (entry.plan, entry.plan_into, entry.detect)
+    for name in ("plan", "plan_into", "detect", "load_task", "parse_task"):
+        assert getattr(singplan, name) is getattr(entry, name)
+    assert (batch.plan_into, batch.load_task) == (entry.plan_into, entry.load_task)
 
 
 def test_a_fresh_interpreter_resolves_them_all() -> None:

@@ -114,7 +114,7 @@ def measure(robot: Robot, task: Task, q: np.ndarray, period: float, seconds: flo
     qd = np.diff(q, axis=0) / period
     qdd = np.diff(qd, axis=0) / period
     speed = float(np.max(np.abs(qd) / vmax))
-    accel = float(np.max(np.abs(qdd) / robot.acceleration_rad_s2))
+    accel = float(np.max(np.abs(qdd) / task.limits.joint_accelerations(robot.n_joints)))
     end_err = float(np.linalg.norm(robot.fk(q[-1]).translation - p_b))
     inside = bool(np.all(q >= robot.lower_rad - 1e-9) and np.all(q <= robot.upper_rad + 1e-9))
     ok = inside and (pos * 1e3 <= task.singularity.position_tolerance_mm and
@@ -146,7 +146,7 @@ def newton_toppra(robot: Robot, task: Task) -> np.ndarray:
     u = np.linspace(0, 1, len(qs))
     path = ta.SplineInterpolator(u, np.hstack([qs, (u * length)[:, None]]))
     vmax = np.append(robot.velocity_rad_s * task.limits.velocity_scale, task.moves[0].speed_m_s)
-    amax = np.append(robot.acceleration_rad_s2, 1e9)
+    amax = np.append(task.limits.joint_accelerations(robot.n_joints), 1e9)
     inst = ta_algo.TOPPRA([ta_constraint.JointVelocityConstraint(np.stack([-vmax, vmax], 1)),
                            ta_constraint.JointAccelerationConstraint(np.stack([-amax, amax], 1))], path,
                           parametrizer="ParametrizeConstAccel")

@@ -6,7 +6,12 @@ degrees only at the edges, in names that say so (``rpy_deg``, ``joints_deg``).
 The public names below are loaded on first use, through the module-level :func:`__getattr__`:
 ``import singplan`` itself imports no Pinocchio, numba, TOPP-RA, meshcat or matplotlib, so a
 script or ``singplan --help`` pays only for what it calls. ``from singplan import plan`` works as
-usual (it triggers the import of :mod:`singplan.results.plan`).
+usual (it triggers the import of the entry module, :mod:`singplan.entry`).
+
+Each name comes from its home in :data:`_HOMES`: the entry module (:mod:`singplan.entry`:
+``plan``, ``plan_into``, ``detect``) and the modules that define the records, the errors and the
+kinematics. ``tests/test_public_api.py`` resolves every name of ``__all__`` and checks that the
+TYPE_CHECKING imports below (what type checkers see) name the same homes.
 """
 
 from __future__ import annotations
@@ -15,7 +20,10 @@ import importlib
 import logging
 from typing import TYPE_CHECKING, Any
 
+from singplan._version import __version__ as __version__
+
 if TYPE_CHECKING:
+    from singplan.entry import detect, load_task, parse_task, plan, plan_into
     from singplan.errors import InputError, PlanningError, SingplanError
     from singplan.kinematics.configuration import (
         Configuration,
@@ -26,42 +34,26 @@ if TYPE_CHECKING:
     from singplan.kinematics.ik.solve import IkSolutions, opw_batch, solve_all
     from singplan.kinematics.robot import Robot, bundled_robots, load_robot
     from singplan.outputs.viewer import replay
-    from singplan.planning.orchestration.detect import detect
-    from singplan.results.plan import plan
     from singplan.results.trajectory import Segment, Trajectory, save
-    from singplan.task.load import load_task, parse_task
     from singplan.task.schema import Task
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
-__version__ = "0.1.0"
 
-_HOMES = {  # public name -> the module that defines it
-    "InputError": "singplan.errors",
-    "PlanningError": "singplan.errors",
-    "SingplanError": "singplan.errors",
-    "Configuration": "singplan.kinematics.configuration",
-    "SingularityDistances": "singplan.kinematics.configuration",
-    "classify": "singplan.kinematics.configuration",
-    "singularity_distances": "singplan.kinematics.configuration",
-    "IkSolutions": "singplan.kinematics.ik.solve",
-    "opw_batch": "singplan.kinematics.ik.solve",
-    "solve_all": "singplan.kinematics.ik.solve",
-    "Robot": "singplan.kinematics.robot",
-    "bundled_robots": "singplan.kinematics.robot",
-    "load_robot": "singplan.kinematics.robot",
-    "Task": "singplan.task.schema",
-    "load_task": "singplan.task.load",
-    "parse_task": "singplan.task.load",
-    "detect": "singplan.planning.orchestration.detect",
-    "plan": "singplan.results.plan",
-    "Segment": "singplan.results.trajectory",
-    "Trajectory": "singplan.results.trajectory",
-    "save": "singplan.results.trajectory",
-    "replay": "singplan.outputs.viewer",
+_HOMES = {  # module -> the public names it gives: the entry module, then the homes of records, errors, kinematics
+    "singplan.entry": ("plan", "plan_into", "detect", "load_task", "parse_task"),
+    "singplan.outputs.viewer": ("replay",),
+    "singplan.results.trajectory": ("Segment", "Trajectory", "save"),
+    "singplan.task.schema": ("Task",),
+    "singplan.kinematics.robot": ("Robot", "bundled_robots", "load_robot"),
+    "singplan.kinematics.ik.solve": ("IkSolutions", "opw_batch", "solve_all"),
+    "singplan.kinematics.configuration": ("Configuration", "SingularityDistances", "classify",
+                                          "singularity_distances"),
+    "singplan.errors": ("InputError", "PlanningError", "SingplanError"),
 }
+_HOME_OF = {name: home for home, names in _HOMES.items() for name in names}
 
-__all__ = [  # every name of _HOMES, and the version
+__all__ = [
     "Configuration",
     "IkSolutions",
     "InputError",
@@ -81,6 +73,7 @@ __all__ = [  # every name of _HOMES, and the version
     "opw_batch",
     "parse_task",
     "plan",
+    "plan_into",
     "replay",
     "save",
     "singularity_distances",
@@ -90,7 +83,7 @@ __all__ = [  # every name of _HOMES, and the version
 
 def __getattr__(name: str) -> Any:
     """A public name, imported from its module the first time it is asked for."""
-    home = _HOMES.get(name)
+    home = _HOME_OF.get(name)
     if home is None:
         raise AttributeError(f"module 'singplan' has no attribute {name!r}")
     value = getattr(importlib.import_module(home), name)
@@ -99,4 +92,4 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_HOMES})
+    return sorted({*globals(), *__all__})

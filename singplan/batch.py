@@ -34,11 +34,10 @@ from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any, TextIO
 
+from singplan.entry import OUTPUT_FILES, load_task, plan_into
 from singplan.errors import InputError, SingplanError
-from singplan.outputs.plan_folder import OUTPUT_FILES, plan_into
 from singplan.results.files import check_output_dir, hold_output_folder, remove_temporary_files, write_files
 from singplan.results.trajectory import Trajectory
-from singplan.task.load import load_task
 from singplan.task.schema import TASK_MEMORY_MB
 
 FORMAT = "singplan.batch/1"

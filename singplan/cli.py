@@ -28,7 +28,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO, TypedDict
 
-from singplan import __version__
+from singplan._version import __version__
 from singplan.errors import InputError, SingplanError, UnreachableError
 from singplan.outputs.choices import (
     DEFAULT_FILE_NAMES,
@@ -45,21 +45,9 @@ from singplan.outputs.suggest import SuggestingParser, closest
 if TYPE_CHECKING:
     import pinocchio as pin
 
+    from singplan.entry import MoveZones
+    from singplan.kinematics.held import HeldJoint
     from singplan.kinematics.robot import Robot, RobotEntry
-    from singplan.planning.orchestration.detect import MoveZones
-    from singplan.planning.orchestration.redundancy import HeldJoint
-
-
-def _reach_m(robot: Robot) -> float:
-    """Largest distance of the flange from axis 1 [m] (OPW: exact; else a link-length bound)."""
-    import numpy as np
-
-    p = robot.opw
-    if p is not None:
-        return p.a1 + p.c2 + math.hypot(p.a2, p.c3) + p.c4
-    model = robot.model
-    lengths = [np.linalg.norm(model.jointPlacements[i].translation) for i in range(2, model.njoints)]
-    return float(sum(lengths) + np.linalg.norm(model.frames[robot.tip_frame_id].placement.translation))
 
 
 def _robot_rows() -> list[dict[str, object]]:
@@ -69,7 +57,7 @@ def _robot_rows() -> list[dict[str, object]]:
     for name, entry in bundled_robots().items():
         robot = load_robot(name)
         rows.append({"name": name, "display_name": entry.display_name, "dof": robot.n_joints,
-                     "family": robot.family, "reach_m": round(_reach_m(robot), 4), "tip": entry.tip,
+                     "family": robot.family, "reach_m": round(robot.reach_m(), 4), "tip": entry.tip,
                      "urdf": str(robot.urdf_path), "source": _source(entry)})
     return rows
 
@@ -127,8 +115,8 @@ class _RobotInfo(TypedDict):
 
 def _info(robot: Robot) -> _RobotInfo:
     """What `singplan info` shows: family and its verified parameters, tip, joints, crossing methods."""
+    from singplan.entry import method_uses
     from singplan.kinematics.families import VERIFY_SAMPLES
-    from singplan.task.schema import method_names
 
     rec = robot.recognition
     params: dict[str, object] | None = None
@@ -144,9 +132,8 @@ def _info(robot: Robot) -> _RobotInfo:
          "upper_deg": math.degrees(hi) if math.isfinite(hi) else None, "velocity_deg_s": math.degrees(v)}
         for name, lo, hi, v in zip(robot.joint_names, robot.lower_rad, robot.upper_rad, robot.velocity_rad_s,
                                    strict=True)]
-    how, refused = rec.how(), rec.crossing_methods()
-    methods: list[_MethodInfo] = [{"method": m, "applies": m not in refused, "note": refused.get(m, how.get(m, ""))}
-                                  for m in method_names()]
+    methods: list[_MethodInfo] = [{"method": u.method, "applies": u.applies, "note": u.note}
+                                  for u in method_uses(robot)]
     return {"robot": robot.name, "urdf": str(robot.urdf_path), "family": rec.family, "parameters": params,
             "verification": {"samples": VERIFY_SAMPLES, "residual_m": rec.residual_m,
                              "residual_rad": rec.residual_rad} if params is not None else None,
@@ -190,7 +177,7 @@ def _pose(xyz: Sequence[float], rpy_deg: Sequence[float]) -> pin.SE3:
 
 def _hold(robot: Robot, text: str | None) -> HeldJoint | None:
     """``--hold JOINT=DEG`` on a 7-joint arm: the joint locked at the value."""
-    from singplan.planning.orchestration.redundancy import hold_joint
+    from singplan.kinematics.held import hold_joint
 
     if text is None:
         return None
@@ -295,12 +282,10 @@ def _imports_frozen() -> Iterator[None]:
 
 
 def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from singplan.kinematics.ik.opw import kernels_cached
-    from singplan.outputs.plan_folder import plan_into
+    from singplan.entry import check_method_name, load_task, plan_into
+    from singplan.kinematics.closedform.opw import kernels_cached
     from singplan.outputs.progress import plan_bar
     from singplan.outputs.summary import summary
-    from singplan.task.load import load_task
-    from singplan.task.schema import check_method_name
 
     def note_compiling() -> None:
         if not args.quiet and not kernels_cached():
@@ -345,8 +330,7 @@ def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from singplan.planning.orchestration.detect import detect
-    from singplan.task.load import load_task
+    from singplan.entry import detect, load_task
 
     task = load_task(args.task)
     found = detect(task)
@@ -440,7 +424,7 @@ def _serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 def cmd_batch(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     """Plan many tasks (singplan.batch): a line per finished task on stderr, the totals on stdout."""
     from singplan import batch
-    from singplan.task.schema import check_method_name
+    from singplan.entry import check_method_name
 
     if args.method is not None:  # refused once, up front, rather than by every task
         check_method_name("--method", args.method)

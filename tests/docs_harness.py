@@ -321,7 +321,6 @@ def _check_script_options(argv: list[str], where: str) -> None:
 def setup(namespace: dict[str, Any]) -> None:
     """A fresh folder for the page: links to the project's entries, the placeholder files."""
     from singplan.planning.crossing import registry
-    from singplan.task import schema
 
     folder = Path(tempfile.mkdtemp(prefix="singplan-docs-"))
     for name in LINKED:
@@ -329,8 +328,7 @@ def setup(namespace: dict[str, Any]) -> None:
     for name, source in PLACEHOLDERS.items():
         (folder / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(ROOT / source, folder / name)
-    namespace["_docs"] = {"cwd": os.getcwd(), "folder": folder, "registered": dict(registry._registered),
-                          "added": list(schema._ADDED_METHODS)}
+    namespace["_docs"] = {"cwd": os.getcwd(), "folder": folder, "registered": dict(registry._METHODS)}
     namespace["__name__"] = "__docs__"
     os.chdir(folder)
 
@@ -347,14 +345,12 @@ def _plan_placeholders(source: str) -> None:
 def teardown(namespace: dict[str, Any]) -> None:
     """Back to where the tests run; the folder removed; methods a page registered forgotten."""
     from singplan.planning.crossing import registry
-    from singplan.task import schema
 
     state = namespace["_docs"]
     os.chdir(state["cwd"])
     shutil.rmtree(state["folder"], ignore_errors=True)
-    registry._registered.clear()
-    registry._registered.update(state["registered"])
-    schema._ADDED_METHODS[:] = state["added"]
+    registry._METHODS.clear()
+    registry._METHODS.update(state["registered"])
 
 
 DOCS = Sybil(parsers=[parse_blocks], path=str(ROOT), patterns=["README.md", "docs/*.md"], setup=setup,

@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 
 from singplan import bundled_robots, load_robot
 from singplan.kinematics.robot import Robot
-from singplan.task.schema import METHODS
+from singplan.planning.crossing.registry import BUILT_IN as METHODS
 
 T = TypeVar("T")
 

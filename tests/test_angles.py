@@ -21,7 +21,7 @@ from singplan.kinematics.angles import (
     wrap_deg,
     wrap_to_pi,
 )
-from singplan.kinematics.ik import opw
+from singplan.kinematics.closedform import opw
 from singplan.planning.path import tracking
 
 

@@ -18,7 +18,7 @@ import yaml
 
 from singplan.cli import main
 from singplan.errors import SingplanError
-from singplan.planning.orchestration.detect import MoveZones, detect
+from singplan.results.detect import MoveZones, detect
 from singplan.results.plan import plan
 from singplan.results.trajectory import Trajectory
 from singplan.task.load import parse_task

@@ -44,7 +44,7 @@ def test_version_names_singplan_python_and_the_planning_libraries() -> None:
     assert code == 0 and err == ""
     first, second = out.splitlines()
     assert first == f"singplan {singplan.__version__}"
-    assert singplan.__version__ == version("singplan")  # pyproject reads the version from __init__.py
+    assert singplan.__version__ == version("singplan")  # pyproject reads the version from _version.py
     for name in ("pin", "toppra", "numba", "numpy", "meshcat"):
         assert f"{name} {version(name)}" in second
 

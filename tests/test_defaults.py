@@ -48,6 +48,7 @@ def test_the_user_guide_shows_the_schema_s_defaults() -> None:
     assert f"`speed` defaults to {schema.DEFAULT_SPEED_M_S:g} m/s" in " ".join(text.split())
 
 
-def test_a_robot_loaded_without_a_task_has_the_task_default_acceleration() -> None:
+def test_a_task_without_limits_has_the_default_acceleration_on_every_joint() -> None:
     robot = load_robot("abb_irb2400")
-    assert robot.acceleration_rad_s2.tolist() == list(parse_task(MINIMAL).limits.acceleration_rad_s2) * 6
+    assert parse_task(MINIMAL).limits.joint_accelerations(robot.n_joints).tolist() == [
+        schema.DEFAULT_ACCELERATION_RAD_S2] * 6

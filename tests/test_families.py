@@ -19,6 +19,7 @@ from singplan.kinematics.families import VERIFY_TOL_M, VERIFY_TOL_RAD, recognise
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import bundled_robots, default_tip, load_robot
 from singplan.outputs.summary import summary
+from singplan.planning.crossing import registry
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
 
@@ -583,7 +584,7 @@ def test_methods_a_general6_arm_cannot_use_are_refused_or_listed_never_run_in_di
     urdf = _write(tree, tmp_path / "parallel_56.urdf")
     robot = load_robot(urdf)
     assert robot.family == "general6"
-    notes = robot.recognition.crossing_methods()
+    notes = registry.refusals(robot.recognition)
     assert "axis 6 is parallel to axis 5" in notes["wrist-joint"] and "axis" not in notes and "auto" not in notes
     out = io.StringIO()
     assert main(["info", str(urdf)], out=out) == 0

@@ -18,11 +18,11 @@ import pytest
 from singplan.cli import main
 from singplan.errors import RobotModelError
 from singplan.kinematics.configuration import classify
-from singplan.kinematics.families import crossing_methods
 from singplan.kinematics.ik.numeric import solve_lm
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.reduced import free_joints, z_angles
 from singplan.kinematics.robot import load_robot, robots_dir
+from singplan.planning.crossing.registry import refusals
 
 from .conftest import erd_urdf
 from .shared import run_checker
@@ -36,7 +36,8 @@ def test_scorbot_loads_as_five_with_the_roll_free() -> None:
     robot = load_robot(str(SCORBOT))
     assert robot.family == "five" and robot.n_joints == 5 and robot.tip == "tcp"
     assert free_joints(robot) == (4,)  # the roll turns about the tool axis through the TCP
-    assert crossing_methods("five")["wrist-joint"] and "exact" not in crossing_methods("five")
+    assert robot.recognition.capabilities == frozenset()  # no closed form, no spherical wrist, tool axis only
+    assert refusals(robot.recognition)["wrist-joint"] and "exact" not in refusals(robot.recognition)
 
 
 @pytest.mark.parametrize("name", ["so100", "so101"])

@@ -26,6 +26,7 @@ import yaml
 from singplan.cli import main
 from singplan.kinematics.ik import numeric as ik_numeric
 from singplan.kinematics.robot import Robot, load_robot
+from singplan.planning.crossing import registry
 
 from .conftest import erd_urdf
 from .shared import run_checker
@@ -135,7 +136,7 @@ def _plan_all(task: dict[str, Any], tmp_path: Path, planned: tuple[str, ...]) ->
 @pytest.mark.slow
 def test_offset_wrist_near_miss_is_crossed_faster_than_exact(offset_wrist: Path, tmp_path: Path) -> None:
     robot = load_robot(offset_wrist)
-    assert robot.family == "general6" and not robot.recognition.crossing_methods()
+    assert robot.family == "general6" and not registry.refusals(robot.recognition)
     task = _near_miss(offset_wrist, [10, 20, 10, 0, 0, 20], [0, 5, 5, 0, 10, 0], 0.5, speed=0.25)
     plans = _plan_all(task, tmp_path, ("exact", "auto", "wrist-joint", "axis"))
     for method in ("wrist-joint", "axis"):

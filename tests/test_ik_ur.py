@@ -10,10 +10,10 @@ import pinocchio as pin
 import pytest
 from scipy.optimize import brentq
 
+from singplan.kinematics.closedform.ur import UrParameters, ur_solutions
 from singplan.kinematics.configuration import classify
-from singplan.kinematics.ik.solve import solve_all
+from singplan.kinematics.ik.solve import solve_all, ur_arm_for_point
 from singplan.kinematics.ik.turns import _distinct
-from singplan.kinematics.ik.ur import UrParameters, ur_arm_for_point, ur_solutions
 from singplan.kinematics.robot import load_robot
 
 from .conftest import random_q
@@ -37,7 +37,7 @@ def test_ur5_ik_recovers_q_and_reproduces_the_pose(robots, rng) -> None:
 
 def test_ur5_generic_pose_has_eight_distinct_labels(robots, rng) -> None:
     robot = robots["ur5"]
-    params = UrParameters.from_robot(robot)
+    params = UrParameters.from_model(robot.model, robot.tip_frame_id)
     eight = 0
     for q in random_q(robot, rng, 100):
         sols = ur_solutions(params, robot.fk(q).homogeneous)

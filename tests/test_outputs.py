@@ -17,8 +17,8 @@ import pytest
 import yaml
 
 from singplan.cli import main
+from singplan.entry import OUTPUT_FILES, output_names
 from singplan.errors import OutputPathError
-from singplan.outputs.plan_folder import OUTPUT_FILES, output_names
 from singplan.results import files as outputs
 from singplan.results import trajectory as trajectory_module
 from singplan.results.metrics import Metrics
@@ -106,7 +106,7 @@ def test_unusable_output_paths_exit_2_naming_the_path_before_planning(tmp_path: 
     def no_planning(*args: object, **kwargs: object) -> None:
         raise AssertionError("planned although the output path is unusable")
 
-    monkeypatch.setattr("singplan.outputs.plan_folder.plan_moves", no_planning)  # the stage `singplan plan` runs
+    monkeypatch.setattr("singplan.entry.planned_trajectory", no_planning)  # the stage `singplan plan` runs
     for out in (tmp_path / "a_file", tmp_path / "a_file" / "sub", "/proc/singplan-x", "", task):
         code, _, err = _plan(task, out)
         assert code == 2, (out, err)
@@ -279,7 +279,7 @@ def test_an_interrupt_is_one_line_and_exit_130(tmp_path: Path, monkeypatch) -> N
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("singplan.outputs.plan_folder.plan_moves", interrupted)  # the stage `singplan plan` runs
+    monkeypatch.setattr("singplan.entry.planned_trajectory", interrupted)  # the stage `singplan plan` runs
     stderr = io.StringIO()
     assert main(["plan", str(_task(tmp_path)), "-o", str(tmp_path / "o")], out=io.StringIO(), err=stderr) == 130
     assert stderr.getvalue() == "singplan: interrupted\n"

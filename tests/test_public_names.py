@@ -1,4 +1,5 @@
-"""Every public name of ``singplan`` resolves, from the module its table names."""
+"""Every public name of ``singplan`` resolves, from the module its table names (the entry module,
+:mod:`singplan.entry`, for plan, plan_into and detect)."""
 
 from __future__ import annotations
 
@@ -19,12 +20,12 @@ def test_every_name_in_all_resolves(name: str) -> None:
     if name == "__version__":
         assert isinstance(value, str)
         return
-    home = singplan._HOMES[name]
+    home = singplan._HOME_OF[name]
     assert getattr(importlib.import_module(home), name) is value
 
 
 def test_all_and_the_table_list_the_same_names() -> None:
-    assert sorted(singplan.__all__) == sorted([*singplan._HOMES, "__version__"])
+    assert sorted(singplan.__all__) == sorted([*singplan._HOME_OF, "__version__"])
 
 
 def test_the_type_checking_imports_match_the_table() -> None:
@@ -34,7 +35,20 @@ def test_the_type_checking_imports_match_the_table() -> None:
                  and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING")
     seen = {alias.name: node.module for node in block.body if isinstance(node, ast.ImportFrom)
             for alias in node.names}
-    assert seen == singplan._HOMES
+    assert seen == singplan._HOME_OF
+
+
+def test_dir_lists_every_public_name() -> None:
+    assert set(singplan.__all__) <= set(dir(singplan))
+
+
+def test_the_entry_module_gives_plan_plan_into_detect_and_the_task_readers() -> None:
+    """The command line, the batch runner and ``singplan`` share one entry (issue 24)."""
+    from singplan import batch, entry
+
+    for name in ("plan", "plan_into", "detect", "load_task", "parse_task"):
+        assert getattr(singplan, name) is getattr(entry, name)
+    assert (batch.plan_into, batch.load_task) == (entry.plan_into, entry.load_task)
 
 
 def test_a_fresh_interpreter_resolves_them_all() -> None:

@@ -1,4 +1,4 @@
-"""The crossing-method registry: one list of names, user methods by object or by registered name."""
+"""The crossing-method registry: the one home of the names, user methods by object or by registered name."""
 
 from __future__ import annotations
 
@@ -53,18 +53,18 @@ class GiveUp:
 @pytest.fixture
 def clean_registry(monkeypatch: pytest.MonkeyPatch) -> None:
     """Registrations made by a test are undone after it."""
-    monkeypatch.setattr(registry, "_registered", {})
-    monkeypatch.setattr(schema, "_ADDED_METHODS", [])
+    monkeypatch.setattr(registry, "_METHODS", dict(registry._METHODS))
 
 
-def test_the_task_schema_and_the_registry_name_the_same_methods(clean_registry: None) -> None:
-    assert registry.names() == schema.method_names() == schema.METHODS
+def test_the_registry_names_every_method_and_gives_its_objects(clean_registry: None) -> None:
+    assert registry.names() == registry.BUILT_IN == (
+        "auto", "wrist-joint", "axis", "null-space", "exact", "dls", "average", "ptp", "stop")
     assert set(registry.AUTO_CANDIDATES) < set(registry.names())
     move = load_task(NEAR_MISS).moves[0]
-    for name in schema.METHODS[1:]:  # every method a task may name has its objects, under that name
+    for name in registry.names()[1:]:  # every method a task may name has its objects, under that name
         methods = registry.candidates(name, move)
         assert methods and all(m.name == name for m in methods)
-    assert schema.METHODS[0] == schema.AUTO_METHOD
+    assert registry.names()[0] == schema.AUTO_METHOD
     assert [m.name for m in registry.candidates(schema.AUTO_METHOD, move)] == [
         "exact", "wrist-joint", "wrist-joint", "wrist-joint", "axis", "null-space"]
 
@@ -74,7 +74,7 @@ def test_singplan_info_lists_every_method_a_task_may_name(clean_registry: None) 
     out = io.StringIO()
     assert main(["info", "so100", "--json"], out=out) == 0
     methods = {m["method"]: m for m in json.loads(out.getvalue())["crossing_methods"]}
-    assert tuple(methods) == schema.method_names() and methods["give-up"]["applies"]
+    assert tuple(methods) == registry.names() and methods["give-up"]["applies"]
     assert not methods["wrist-joint"]["applies"] and "two-axis wrist" in methods["wrist-joint"]["note"]
     assert methods["exact"] == {"method": "exact", "applies": True, "note": ""}
 
@@ -90,10 +90,12 @@ def test_a_method_object_passed_to_plan_crosses_every_zone(clean_registry: None)
 
 
 def test_a_registered_name_is_accepted_by_tasks_and_the_command_line(clean_registry: None, tmp_path: Path) -> None:
+    with pytest.raises(TaskError, match=r"^method: unknown value 'give-up'"):
+        plan(NEAR_MISS, method="give-up")
     with pytest.raises(TaskError, match=r"singularity\.method: unknown value 'give-up'"):
-        load_task(NEAR_MISS).with_method("give-up")
+        plan(load_task(NEAR_MISS).with_method("give-up"))  # a task's own method name, checked before planning
     registry.register(GiveUp())
-    assert registry.names()[-1] == "give-up" and "give-up" in schema.method_names()
+    assert registry.names()[-1] == "give-up"
     with pytest.raises(SingularityError, match="give-up refuses the wrist zone"):
         plan(load_task(NEAR_MISS).with_method("give-up"))
     err = io.StringIO()
@@ -104,6 +106,25 @@ def test_a_registered_name_is_accepted_by_tasks_and_the_command_line(clean_regis
         registry.register(GiveUp())
     with pytest.raises(InputError, match="'exact' is already registered"):
         registry.register(GiveUp("exact"))
+
+
+def test_the_names_are_not_changed_from_outside_by_accident(clean_registry: None) -> None:
+    names = registry.names()
+    assert isinstance(names, tuple)  # a copy: nothing done to it reaches the registry
+    assert names == registry.BUILT_IN and isinstance(registry.BUILT_IN, tuple)
+
+
+def test_capabilities_decide_which_methods_cannot_serve() -> None:
+    """families.py reports what an arm offers; only the registry turns that into method names."""
+    from singplan.kinematics.robot import load_robot
+
+    for robot, capabilities, refused in (
+            ("abb_irb2400", {"closed form", "wrist singularity", "square jacobian", "full pose"}, set()),
+            ("so100", set(), {"wrist-joint", "axis", "null-space", "auto"}),
+            ("panda", {"full pose"}, {"wrist-joint", "axis", "null-space", "auto"})):
+        recognition = load_robot(robot).recognition
+        assert recognition.capabilities == capabilities
+        assert set(registry.refusals(recognition)) == refused
 
 
 def test_auto_compares_the_pose_keeping_candidates_in_order(clean_registry: None) -> None:

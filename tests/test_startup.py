@@ -19,7 +19,7 @@ import yaml
 
 from singplan import cli
 from singplan.kinematics import families, robot, vendor_config
-from singplan.kinematics.ik import opw
+from singplan.kinematics.closedform import opw
 from singplan.planning.orchestration import targets
 
 DEMO = Path(cli.__file__).with_name("demo_task.yaml")

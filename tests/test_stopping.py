@@ -24,7 +24,7 @@ from singplan.kinematics.stopping import (
     travel,
 )
 from singplan.outputs.viewer import robot_of
-from singplan.planning.orchestration.detect import detect
+from singplan.results.detect import detect
 from singplan.results.plan import plan
 from singplan.results.trajectory import load, save
 from singplan.task.load import parse_task

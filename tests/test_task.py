@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 
 from singplan.cli import main
+from singplan.entry import load_task, parse_task
 from singplan.errors import TaskError
 from singplan.kinematics.robot import VELOCITY_LIMIT_RAD_S
-from singplan.task.load import load_task, parse_task
 from singplan.task.schema import (
     ACCELERATION_RAD_S2,
     JOINT_DEG,

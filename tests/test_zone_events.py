@@ -20,7 +20,7 @@ from singplan.kinematics.robot import Robot, load_robot
 from singplan.outputs.report import report_html
 from singplan.outputs.summary import summary
 from singplan.planning.crossing.methods import WristJoint
-from singplan.planning.orchestration.detect import detect
+from singplan.results.detect import detect
 from singplan.results.plan import plan
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.load import parse_task

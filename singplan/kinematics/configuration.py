@@ -34,7 +34,7 @@ the IK's list, the planner's configuration checks, trajectory.json) comes from i
 A 7-joint arm (family ``seven``) has none of these: its self-motion joins what would be
 branches of a 6R arm, and its singularities are not the 6R wrist, shoulder and elbow. Its
 distances are NaN and its label is ``-`` (:data:`NO_LABEL`). Holding one joint
-(:mod:`singplan.planning.orchestration.redundancy`) makes it a 6R chain, labelled by the definitions above.
+(:mod:`singplan.kinematics.held`) makes it a 6R chain, labelled by the definitions above.
 
 Five-joint arms have their own shoulder and elbow definitions and no wrist flip
 (:mod:`singplan.kinematics.reduced`).
@@ -312,7 +312,7 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
     distance is the wrist centre's forward coordinate in the arm plane,
     ``a1 + c2 sin q2 + k sin(q2 + q3 + psi)`` with ``k = hypot(a2, c3)``, ``psi = atan2(a2, c3)``,
     and the elbow distance is ``q3 + psi``, the angle from the upper arm to the forearm.
-    For UR arms (the ur_description layout of :mod:`singplan.kinematics.ik.ur`) they are ``-q5``, the
+    For UR arms (the ur_description layout of :mod:`singplan.kinematics.closedform.ur`) they are ``-q5``, the
     wrist point's forward coordinate in frame 1, ``l2 cos q2 + l3 cos(q2 + q3) - d5 sin(q2 + q3 + q4)``,
     and ``q3``. These equal the frame-based definitions above (tested); other arms use those,
     per sample.

@@ -2,7 +2,7 @@
 
 A 6R chain is ``opw`` (ortho-parallel with a spherical wrist, Brandstoetter, Angerer and
 Hofbaur 2014) or ``ur`` (axes 2-4 parallel, the ur_description layout of
-:mod:`singplan.kinematics.ik.ur`) when that closed form reproduces the URDF's forward kinematics,
+:mod:`singplan.kinematics.closedform.ur`) when that closed form reproduces the URDF's forward kinematics,
 else ``general6``; 7R chains are ``seven``, 5R chains ``five``.
 
 The OPW parameters are read from the joint axes and origins in the base frame at q = 0 and
@@ -28,10 +28,21 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.kinematics.angles import wrap_to_pi
-from singplan.kinematics.ik import opw
-from singplan.kinematics.ik.ur import UrParameters, ur_batch
+from singplan.kinematics.closedform import opw
+from singplan.kinematics.closedform.ur import UrParameters, ur_batch
 
 Family = Literal["opw", "ur", "general6", "five", "seven"]
+# What an arm's kinematics offer the planner (the crossing methods' needs are the registry's,
+# singplan.planning.crossing.registry; this module names no method):
+#   "closed form": every branch of a pose in closed form (OPW, UR);
+#   "wrist singularity": a wrist singularity to cross (axes 4, 5, 6 can become coplanar);
+#   "square jacobian": six joints for the six pose components, a 6 x 6 Jacobian;
+#   "full pose": position and orientation are both kept (a five-axis arm keeps the tool axis only).
+Capability = Literal["closed form", "wrist singularity", "square jacobian", "full pose"]
+_SIX_AXES: frozenset[Capability] = frozenset({"wrist singularity", "square jacobian", "full pose"})
+_CAPABILITIES: dict[str, frozenset[Capability]] = {
+    "opw": _SIX_AXES | {"closed form"}, "ur": _SIX_AXES | {"closed form"}, "general6": _SIX_AXES,
+    "five": frozenset(), "seven": frozenset({"full pose"})}
 VERIFY_TOL_M = 1e-9  # FK of the closed form's branch against Pinocchio [m]
 VERIFY_TOL_RAD = 1e-9  # the same for the orientation [rad]
 VERIFY_SAMPLES = 50
@@ -82,7 +93,8 @@ class Recognition:
             form was verified).
         rejected: why each closed form tried was not taken, e.g. ``{"opw": "axes 4 and 5 do
             not meet ..."}``; empty for an accepted first try.
-        no_wrist: why a general 6R arm has no wrist singularity ("" when it has one).
+        no_wrist: why a general 6R arm has no wrist singularity, e.g. "axis 4 is parallel to axis 5"
+            ("" when it has one).
         T_base_closed: the closed form's base frame in the URDF's base frame (4, 4): z along
             axis 1, wherever the file's base link sits (identity for a base on axis 1).
         T_flange_tip: the tip in the closed form's flange frame (4, 4): a tip turned about
@@ -122,16 +134,12 @@ class Recognition:
         F = self.T_flange_tip
         return np.asarray(point_tip_m, dtype=float) if _is_identity(F) else F[:3, :3] @ point_tip_m + F[:3, 3]
 
-    def crossing_methods(self) -> dict[str, str]:
-        """:func:`crossing_methods` of this arm (its family and wrist geometry)."""
-        return crossing_methods(self.family, self.no_wrist)
-
-    def how(self) -> dict[str, str]:
-        """How the crossing methods that differ by family serve this arm (for ``singplan info``)."""
-        if self.family != "general6":
-            return {}
-        return {"wrist-joint": "joints 1-3 by Newton on the TCP position (no closed form); exit from the numeric IK",
-                "axis": "Gauss-Newton as on every arm; exit from the numeric IK"}
+    @property
+    def capabilities(self) -> frozenset[Capability]:
+        """What this arm's kinematics offer (:data:`Capability`): its family's, without a wrist
+        singularity where the wrist has none (``no_wrist``)."""
+        found = _CAPABILITIES[self.family]
+        return found - {"wrist singularity"} if self.no_wrist else found
 
     @property
     def reason(self) -> str:
@@ -206,7 +214,7 @@ def _no_wrist(model: pin.Model, tip_frame_id: int) -> str:
     a = _axes_and_origins(model, tip_frame_id)[0]
     for k in (3, 5):
         if np.linalg.norm(np.cross(a[k], a[4])) <= _AXIS_TOL:
-            return f"needs a wrist singularity to cross, and axis {k + 1} is parallel to axis 5 (none)"
+            return f"axis {k + 1} is parallel to axis 5"
     return ""
 
 
@@ -275,7 +283,7 @@ def _snap(x: float) -> float:
 
 
 def _derive_opw(model: pin.Model, tip_frame_id: int) -> tuple[OpwParameters, np.ndarray, np.ndarray]:
-    """OPW parameters of the chain at q = 0 (see the module docstring and :mod:`singplan.kinematics.ik.opw`).
+    """OPW parameters of the chain at q = 0 (see the module docstring and :mod:`singplan.kinematics.closedform.opw`).
 
     OPW frame: z along axis 1 through the base origin, y along axis 2 (oriented so that the
     shoulder offset a1 >= 0), the forearm frame ``c = Rz(t1) Ry(t2 + t3)`` with z along axis 4
@@ -521,33 +529,3 @@ def _verify(model: pin.Model, tip_frame_id: int, params: OpwParameters | UrParam
     if not (worst_m <= VERIFY_TOL_M and worst_rad <= VERIFY_TOL_RAD):
         raise _NotFamilyError(f"the closed form misses the URDF's FK by {worst_m:.3g} m / {worst_rad:.3g} rad")
     return worst_m, worst_rad
-
-
-def crossing_methods(family: Family, no_wrist: str = "") -> dict[str, str]:
-    """The crossing methods that cannot serve an arm of ``family``, each with why (a method not
-    named serves; the names are the task's, singplan.task.schema.METHODS).
-
-    General 6R arms get wrist-joint with a numeric position solve (joints 1-3 by Newton on
-    Pinocchio's Jacobian) and axis (Gauss-Newton, as on every arm), both with exits from the
-    all-branch numeric IK; wrist-joint needs a wrist singularity to cross (``no_wrist`` says
-    why an arm has none, :class:`Recognition`).
-    """
-    if family in ("opw", "ur"):
-        return {}
-    if family == "general6":
-        return {"wrist-joint": no_wrist} if no_wrist else {}
-    if family == "five":
-        return _FIVE_METHODS
-    no_closed = "needs a closed form (opw or ur), which this arm does not have"
-    seven = f"{_NO_SQUARE_JACOBIAN} (6 x 7); with `redundancy` holding one joint, the six-axis chain left can use it"
-    return {"wrist-joint": no_closed, "axis": no_closed, "null-space": seven,
-            "auto": "compares exact only: wrist-joint and axis need a closed form"}
-
-
-_NO_WRIST = "needs a spherical wrist (three wrist axes meeting in a point); a five-axis arm has a two-axis wrist"
-_NO_SQUARE_JACOBIAN = ("moves the joints in the null space of a square (6 x 6) Jacobian at a singular "
-                       "configuration; this arm's Jacobian is not square")
-_FIVE_METHODS = {"wrist-joint": _NO_WRIST, "null-space": _NO_SQUARE_JACOBIAN,
-                 "axis": "interpolates one axis while three others keep a full pose component; a five-axis arm "
-                         "keeps position and tool axis only, with no closed form to re-solve them",
-                 "auto": "compares exact only: wrist-joint and axis need a six-axis arm's closed form"}

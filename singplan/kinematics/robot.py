@@ -21,10 +21,9 @@ import pinocchio as pin
 import yaml
 
 from singplan.errors import RobotModelError, UnknownNameError
+from singplan.kinematics.closedform.ur import UrParameters
 from singplan.kinematics.continuous import UNLIMITED_RAD, as_revolute
 from singplan.kinematics.families import Family, OpwParameters, Recognition, recognise
-from singplan.kinematics.ik.ur import UrParameters
-from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
 from singplan.kinematics.urdf_scan import MAX_URDF_BYTES as MAX_URDF_BYTES  # the cap, named where robots load
 from singplan.kinematics.urdf_scan import UrdfScan, check_no_mimic, read_urdf
 
@@ -124,18 +123,16 @@ class Robot:
             joint (a URDF continuous joint, :mod:`singplan.kinematics.continuous`).
         unlimited: which joints have no position limit, shape (n,).
         velocity_rad_s: joint speed limits, shape (n,).
-        acceleration_rad_s2: joint acceleration limits, shape (n,): the task's, given when the
-            robot is made (:meth:`with_acceleration`), else DEFAULT_ACCELERATION_RAD_S2.
         entry: registry entry for a bundled robot, else None.
 
     A robot is not changed after it is made (its limit arrays are read-only): functions cache
-    their work per robot (``lru_cache`` keyed on the object), so another tool or other limits
-    make another robot.
+    their work per robot (``lru_cache`` keyed on the object), so another tool makes another robot.
+    The joint acceleration limits are not the URDF's but the task's: they live in the task's
+    ``limits`` (:class:`singplan.task.schema.Limits`) and each move's timing limits are made from there.
     """
 
     def __init__(self, name: str, urdf_path: Path, model: pin.Model, tip: str, T_tip_tcp: pin.SE3,
-                 entry: RobotEntry | None,
-                 acceleration_rad_s2: np.ndarray | float = DEFAULT_ACCELERATION_RAD_S2) -> None:
+                 entry: RobotEntry | None) -> None:
         self.name = name
         self.urdf_path = urdf_path
         self.model = model
@@ -150,8 +147,6 @@ class Robot:
         self.lower_rad = _read_only(np.where(self.unlimited, -np.inf, np.array(model.lowerPositionLimit, dtype=float)))
         self.upper_rad = _read_only(np.where(self.unlimited, np.inf, np.array(model.upperPositionLimit, dtype=float)))
         self.velocity_rad_s = _read_only(np.array(model.velocityLimit, dtype=float))
-        self.acceleration_rad_s2 = _read_only(np.broadcast_to(np.asarray(acceleration_rad_s2, dtype=float),
-                                                              (model.nq,)).copy())
 
     @property
     def n_joints(self) -> int:
@@ -176,17 +171,19 @@ class Robot:
         """Verified UR parameters of the chain to the tip, or None when it is not a UR-type arm."""
         return self.recognition.ur
 
+    def reach_m(self) -> float:
+        """Largest distance of the flange from axis 1 [m] (OPW: exact; else a link-length bound)."""
+        p = self.opw
+        if p is not None:
+            return p.a1 + p.c2 + math.hypot(p.a2, p.c3) + p.c4
+        placements = self.model.jointPlacements
+        lengths = [np.linalg.norm(placements[i].translation) for i in range(2, self.model.njoints)]
+        return float(sum(lengths) + np.linalg.norm(self.model.frames[self.tip_frame_id].placement.translation))
+
     def with_tool(self, T_tip_tcp: pin.SE3) -> Robot:
-        """The same robot with another tool (a new Data, the model is shared)."""
-        return self._variant(T_tip_tcp, self.acceleration_rad_s2)
-
-    def with_acceleration(self, acceleration_rad_s2: np.ndarray | float) -> Robot:
-        """The same robot with other joint acceleration limits [rad/s^2]: one value or one per joint."""
-        return self._variant(self.T_tip_tcp, acceleration_rad_s2)
-
-    def _variant(self, T_tip_tcp: pin.SE3, acceleration_rad_s2: np.ndarray | float) -> Robot:
-        """A robot on the same model and tip (its recognition carried over when already made)."""
-        robot = Robot(self.name, self.urdf_path, self.model, self.tip, T_tip_tcp, self.entry, acceleration_rad_s2)
+        """The same robot with another tool (a new Data, the model is shared; the recognition carried
+        over when already made: the family depends on the model and the tip only)."""
+        robot = Robot(self.name, self.urdf_path, self.model, self.tip, T_tip_tcp, self.entry)
         if "recognition" in self.__dict__:  # the family depends on the model and the tip only
             robot.__dict__["recognition"] = self.__dict__["recognition"]
         return robot

@@ -20,8 +20,8 @@ from importlib import resources
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # only annotations: `singplan ik --json` need not import the planner
-    from singplan.outputs.plan_folder import PlannedFolder
-    from singplan.planning.orchestration.detect import MoveZones
+    from singplan.outputs.pages import PlannedFolder
+    from singplan.results.detect import MoveZones
 
 COMMANDS = ("plan", "check", "ik")
 VERSION = 1

@@ -11,7 +11,9 @@ import cycle.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
 
 from singplan.errors import SingplanError
 from singplan.kinematics.robot import Robot
@@ -21,6 +23,19 @@ from singplan.results.trajectory import Trajectory
 REPORT_FILE = "report.html"
 REPLAY_FILE = "replay.html"
 PAGE_FILES = (REPORT_FILE, REPLAY_FILE)
+
+
+@dataclass(frozen=True)
+class PlannedFolder:
+    """A task planned and written: the trajectory, the folder (absolute), the files written in it
+    (in order), the pages that could not be built ({file name: reason}) and singplan's files of an
+    earlier run left in the folder, which do not show this plan (``-o`` only adds or replaces)."""
+
+    traj: Trajectory
+    folder: Path
+    files: tuple[str, ...]
+    skipped: Mapping[str, str]
+    stale: tuple[str, ...] = ()
 
 
 def page_names(report: bool, replay: bool) -> tuple[str, ...]:

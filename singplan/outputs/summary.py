@@ -8,8 +8,8 @@ from collections import Counter
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from singplan.planning.orchestration.alternatives import Alternative
-from singplan.results.metrics import BlendFigures, ClearanceFigures, CrossingFigures
+from singplan.results.methods import PAUSING
+from singplan.results.metrics import Alternative, BlendFigures, ClearanceFigures, CrossingFigures
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.schema import Task
 
@@ -146,7 +146,7 @@ def _segment_lines(s: Segment, zone: tuple[float, float] | None, cost_percent: f
     how = "changing branch" if d.changes_branch else "keeping the branch (joints swing, path slowed)"
     if d.pause_s is not None:  # null-space
         how = f"pausing {d.pause_s:.3f} s on the singular point while the aligned joints turn"
-    elif s.method == "null-space":  # it pauses only where exact's way on leaves a joint limit
+    elif s.method in PAUSING:  # null-space pauses only where exact's way on leaves a joint limit
         how = f"{how} as exact does (no pause needed)"
     lines = [f"      {s.singularity} {_span(s, zone)}: closest {unit_value}, "
              f"method {s.method} {how}, {s.config_before} -> {s.config_after}, "

@@ -22,13 +22,14 @@ from singplan.kinematics.clearance import Approach, Clearance
 from singplan.kinematics.collision import CollisionModel
 from singplan.kinematics.configuration import distances_batch, labels_from_distances, positive_sides
 from singplan.kinematics.dynamics import central_differences, effort_limits_nm, no_dynamics_reason, trajectory_torques
+from singplan.kinematics.held import HeldJoint
 from singplan.kinematics.robot import Robot
 from singplan.kinematics.stopping import stopping_distances, worst_stopping
 from singplan.kinematics.vendor_config import vendor_configs
+from singplan.planning.crossing.methods import Exact, Stop
 from singplan.planning.orchestration.blending import Blend
 from singplan.planning.orchestration.checks import tcp_speed_ratios
 from singplan.planning.orchestration.records import PlannedMove
-from singplan.planning.orchestration.redundancy import HeldJoint
 from singplan.planning.path.cartesian import sample_deviations
 from singplan.planning.path.zones import Zone
 from singplan.planning.timing.ratios import sample_ratios, third_difference_ratio
@@ -109,10 +110,10 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
                                         s.details) for s in segs if isinstance(s.details, CrossingFigures))
         k0 = k1
     arm, q = (held.full, held.expand(q_planned)) if held is not None else (robot, q_planned)
-    speed, accel = _chunked_ratios(q, period, arm.velocity_rad_s * task.joint_speed_scale(),
-                                   arm.acceleration_rad_s2)
+    acceleration_rad_s2 = task.limits.joint_accelerations(arm.n_joints)  # (n,) the task's, every joint of the arm
+    speed, accel = _chunked_ratios(q, period, arm.velocity_rad_s * task.joint_speed_scale(), acceleration_rad_s2)
     qd, qdd = central_differences(q, period)
-    stopping_m = stopping_distances(arm, q, qd, arm.acceleration_rad_s2)
+    stopping_m = stopping_distances(arm, q, qd, acceleration_rad_s2)
     stop_mm, stop_at_s = worst_stopping(stopping_m, t)
     tcp_ratio = np.concatenate(tcp_all)  # (K,) the TCP speed over the programmed one, of the step arriving at k
     metrics = Metrics(worst_pos * 1e3, math.degrees(worst_ori), speed, accel, float(t[-1]), planning_time_s, len(t),
@@ -328,7 +329,7 @@ def _zone_method(pm: PlannedMove, zone: Zone) -> str:
     for c in pm.crossings:
         if c.zone.u_closest == zone.u_closest:
             return c.method
-    return "exact" if pm.method != "stop" else pm.method
+    return Exact.name if pm.method != Stop.name else pm.method
 
 
 def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone, pos_err: np.ndarray,

@@ -1,6 +1,7 @@
 """plan(task) -> Trajectory: the planning stages, then the trajectory record built and checked.
 
-The moves are planned and timed in :mod:`singplan.planning.orchestration.planner`; here they become one
+The public name is :func:`singplan.plan` (:mod:`singplan.entry`). The moves are planned and
+timed in :mod:`singplan.planning.orchestration.planner`; here they become one
 :class:`Trajectory` (:mod:`singplan.results.build`), and its own samples pass the last gate:
 no plan is returned whose output breaks a limit, whatever the cause.
 """
@@ -10,6 +11,7 @@ from __future__ import annotations
 import itertools
 import math
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -42,7 +44,21 @@ def plan(task: Task | str | Path, method: str | CrossingMethod | None = None,
         InputError: the task is malformed or contradicts the robot (exit code 2).
         PlanningError: the task cannot be executed within the limits and tolerances (exit code 3).
     """
-    return trajectory_of(plan_moves(task, method, progress))
+    return planned_trajectory(task, method, progress).traj
+
+
+class PlannedTrajectory(NamedTuple):
+    """A task's trajectory and the robot it was planned on."""
+
+    traj: Trajectory
+    robot: Robot  # the task's robot with its tool (all joints of a 7-joint arm): what the pages draw
+
+
+def planned_trajectory(task: Task | str | Path, method: str | CrossingMethod | None = None,
+                       progress: Progress | None = None) -> PlannedTrajectory:
+    """As :func:`plan`, with the robot the plan loaded (the pages are built on it, not loaded again)."""
+    planned = plan_moves(task, method, progress)
+    return PlannedTrajectory(trajectory_of(planned), planned.full)
 
 
 def trajectory_of(planned: PlannedTask) -> Trajectory:
@@ -76,7 +92,7 @@ def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: 
     _check_positions(robot, planned, timed, traj)
     _check_path(task, planned, timed, traj)
     _check_tcp_speed(planned, timed, traj)
-    _check_rest(robot, planned, timed, traj)
+    _check_rest(robot, task, planned, timed, traj)
     _check_outside_crossings(planned, timed, traj)
     _check_crossings_near(robot, traj)
     unlimited: tuple[str, ...] = ("max_tcp_speed_ratio",)  # checked above, on its own round-off
@@ -85,7 +101,7 @@ def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: 
             if not v <= 1.0 + ROUND_OFF and k not in unlimited}
     if not over:
         return
-    vmax, amax = robot.velocity_rad_s * task.joint_speed_scale(), robot.acceleration_rad_s2
+    vmax, amax = robot.velocity_rad_s * task.joint_speed_scale(), task.limits.joint_accelerations(robot.n_joints)
     torques = traj.metrics.torques
     if list(over) == ["max_torque_ratio"] and not isinstance(torques, str):
         k = round(torques.max_torque_at_s / traj.period)
@@ -143,12 +159,13 @@ def _check_tcp_speed(planned: list[PlannedMove], timed: list[TimedMove], traj: T
                         f"(t = {k * traj.period:.4f} s) at {pm.describe(float(timed[m].u[k_move]))}")
 
 
-def _check_rest(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], traj: Trajectory) -> None:
+def _check_rest(robot: Robot, task: Task, planned: list[PlannedMove], timed: list[TimedMove],
+                traj: Trajectory) -> None:
     """Each move starts and ends at rest where it is not flown: the steps next to its end samples no
     longer than one period's travel from rest at the acceleration limit (amax * period^2)."""
     flown = {b.move for b in traj.metrics.blends if b.flown}
     ends = np.cumsum([0] + [len(tm.q) - 1 for tm in timed])  # each move's first sample; the last sample
-    rest_step = robot.acceleration_rad_s2 * traj.period ** 2 * (1.0 + ROUND_OFF) + 1e-12
+    rest_step = task.limits.joint_accelerations(robot.n_joints) * traj.period ** 2 * (1.0 + ROUND_OFF) + 1e-12
     for m, k in enumerate(ends.tolist()):
         if m > 0 and (m - 1) in flown:
             continue  # a corner flown into move m: its first sample is under way

@@ -17,7 +17,6 @@ from typing import Any
 from singplan.errors import TaskError
 from singplan.kinematics.configuration import parse_configuration
 from singplan.kinematics.files import FileRefusedError, read_bounded_text
-from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2
 from singplan.kinematics.robot import Robot
 from singplan.kinematics.shapes import MESH_SUFFIXES, SHAPE_KINDS, TOOL_BODY, CollisionSettings, Shape
 from singplan.kinematics.yamldoc import YamlLimits, load_yaml
@@ -27,6 +26,7 @@ from singplan.task.schema import (
     BLEND_MM,
     CLEARANCE_MM,
     COORDINATE_M,
+    DEFAULT_ACCELERATION_RAD_S2,
     DEFAULT_BLEND_MM,
     DEFAULT_CLEARANCE_MM,
     DEFAULT_CONFIG,
@@ -83,7 +83,6 @@ from singplan.task.schema import (
     Weave,
     ZoneThresholds,
     _as_number,
-    _check_choice,
     _check_keys,
     _check_mapping,
     _describe,
@@ -93,8 +92,8 @@ from singplan.task.schema import (
     _path_text,
     _short,
     _string,
+    check_choice,
     check_triple,
-    method_names,
 )
 
 _TASK_YAML = YamlLimits("a task", MAX_DEPTH, MAX_YAML_NODES, MAX_KEY_CHARS, MAX_SCALAR_CHARS)
@@ -380,7 +379,7 @@ def _move(where: str, value: Any) -> Move:
         keys = ", ".join(_key_text(k) for k in list(value)[:5]) + (", ..." if len(value) > 5 else "")
         raise TaskError(where, f"expected one of lin, circ, ptp as the only key, got {len(value)} keys: {keys}")
     kind = str(next(iter(value)))
-    _check_choice(f"{where} kind", kind, ("lin", "circ", "ptp"))
+    check_choice(f"{where} kind", kind, ("lin", "circ", "ptp"))
     where = f"{where}.{kind}"
     spec = value[kind]
     _check_mapping(where, spec)
@@ -415,7 +414,7 @@ def _move(where: str, value: Any) -> Move:
 def _weave(where: str, value: Any) -> Weave:
     _check_mapping(where, value)
     _check_keys(where, value, required=("amplitude_mm", "wavelength_mm"), optional=("pattern",))
-    return Weave(_check_choice(f"{where}.pattern", value.get("pattern", DEFAULT_WEAVE_PATTERN), WEAVE_PATTERNS),
+    return Weave(check_choice(f"{where}.pattern", value.get("pattern", DEFAULT_WEAVE_PATTERN), WEAVE_PATTERNS),
                  _number(f"{where}.amplitude_mm", value["amplitude_mm"], WEAVE_AMPLITUDE_MM),
                  _number(f"{where}.wavelength_mm", value["wavelength_mm"], WEAVE_WAVELENGTH_MM))
 
@@ -435,7 +434,7 @@ def _singularity(value: Any) -> SingularitySettings:
     zone = _optional_mapping(value, "zone", "singularity")
     _check_keys("singularity.zone", zone, optional=("wrist_deg", "shoulder_mm", "elbow_deg"))
     return SingularitySettings(
-        method=_check_choice("singularity.method", value.get("method", DEFAULT_METHOD), method_names()),
+        method=_string("singularity.method", value.get("method", DEFAULT_METHOD)),  # a name: the registry's to check
         orientation_tolerance_deg=_number(
             "singularity.orientation_tolerance_deg",
             value.get("orientation_tolerance_deg", DEFAULT_ORIENTATION_TOLERANCE_DEG), ORIENTATION_TOLERANCE_DEG),
@@ -460,7 +459,7 @@ def _limits(value: Any) -> Limits:
                        ACCELERATION_RAD_S2)
     jerk = _per_joint("limits.jerk", value["jerk"], JERK_RAD_S3) if "jerk" in value else None
     torque = _number("limits.torque_scale", value["torque_scale"], TORQUE_SCALE) if "torque_scale" in value else None
-    law = _check_choice("limits.ptp_time_law", value.get("ptp_time_law", DEFAULT_PTP_TIME_LAW), PTP_TIME_LAWS)
+    law = check_choice("limits.ptp_time_law", value.get("ptp_time_law", DEFAULT_PTP_TIME_LAW), PTP_TIME_LAWS)
     return Limits(velocity_scale=_scale("limits.velocity_scale", value.get("velocity_scale", DEFAULT_VELOCITY_SCALE)),
                   acceleration_rad_s2=accel, torque_scale=torque, jerk_rad_s3=jerk, ptp_time_law=law)
 

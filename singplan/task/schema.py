@@ -50,7 +50,6 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from singplan.errors import TaskError
-from singplan.kinematics.limits import DEFAULT_ACCELERATION_RAD_S2  # limits.acceleration, all joints
 from singplan.kinematics.shapes import CollisionSettings, Shape
 from singplan.kinematics.yamldoc import join_field as _join
 from singplan.kinematics.yamldoc import key_text as _key_text
@@ -66,11 +65,9 @@ MAX_SCALAR_CHARS = 10_000
 MAX_NAME_CHARS = 256
 MAX_PATH_CHARS = 4096
 MAX_JOINTS = 64
-AUTO_METHOD = "auto"  # not a method: auto compares the pose-keeping ones (singplan.planning.orchestration.select)
-# The one list of the built-in crossing method names. It is here, below planning, so a task is
-# checked without importing the planner; singplan.planning.crossing.registry gives each its objects.
-METHODS = (AUTO_METHOD, "wrist-joint", "axis", "null-space", "exact", "dls", "average", "ptp", "stop")
-_ADDED_METHODS: list[str] = []  # names registered by users (singplan.planning.crossing.registry.register)
+# not a method: auto compares the pose-keeping ones (singplan.planning.orchestration.select); the
+# crossing methods' names live in singplan.planning.crossing.registry, which checks a task's
+AUTO_METHOD = "auto"
 # the defaults of optional task fields, written once: the records below, the YAML reader and
 # the docs' tables take them from here
 DEFAULT_SPEED_M_S = 0.25  # LIN / CIRC speed
@@ -109,6 +106,9 @@ JOINT_DEG = Range(-3600.0, 3600.0, "deg")
 SPEED_M_S = Range(1e-4, 10.0, "m/s")
 VELOCITY_SCALE = Range(1e-3, 1.0, "")
 ACCELERATION_RAD_S2 = Range(1e-2, 1e4, "rad/s^2")
+# limits.acceleration's default, every joint: a URDF has no acceleration limits, so the task's
+# limits are their one home (each move's timing limits are made from them, a held joint's dropped)
+DEFAULT_ACCELERATION_RAD_S2 = 10.0
 TORQUE_SCALE = Range(1e-3, 1.0, "")
 JERK_RAD_S3 = Range(0.1, 1e6, "rad/s^3")
 PTP_TIME_LAWS = ("optimal", "quintic")  # limits.ptp_time_law
@@ -232,6 +232,12 @@ class Limits:
             raise TaskError("limits.ptp_time_law", f"expected one of {', '.join(PTP_TIME_LAWS)}, "
                                                    f"got {self.ptp_time_law!r}")
 
+    def joint_accelerations(self, n_joints: int) -> np.ndarray:
+        """The joint acceleration limits [rad/s^2] (n,), one value given for all joints spread out.
+        These limits are their one home: a URDF has none, and each move's timing limits, the
+        checks and the stopping figures are made from here (a held joint's value dropped first)."""
+        return np.broadcast_to(np.asarray(self.acceleration_rad_s2, dtype=float), (n_joints,)).copy()
+
 
 @dataclass(frozen=True)
 class Redundancy:
@@ -267,10 +273,9 @@ class Task:
         own = move.velocity_scale if move is not None and move.kind == "ptp" else 1.0
         return self.limits.velocity_scale * own
 
-    def with_method(self, method: str, given_as: str = "singularity.method") -> Task:
-        """The same task planned with another crossing method; ``given_as`` names where the name came
-        from in the message of an unknown one (e.g. ``--method``: the user did not write this field)."""
-        check_method_name(given_as, method)
+    def with_method(self, method: str) -> Task:
+        """The same task planned with another crossing method (a name the planner checks:
+        :func:`singplan.planning.crossing.registry.check_name`)."""
         settings = replace(self.singularity, method=method)
         return Task(**{**self.__dict__, "singularity": settings})
 
@@ -463,24 +468,8 @@ def _string(where: str, value: Any, max_chars: int = MAX_NAME_CHARS) -> str:
     return value.strip()
 
 
-def method_names() -> tuple[str, ...]:
-    """The crossing method names a task may ask for: the built-in ones, then those users registered."""
-    return (*METHODS, *_ADDED_METHODS)
-
-
-def accept_method_name(name: str) -> None:
-    """Let tasks name a crossing method registered by a user (the planning registry calls this)."""
-    if name not in method_names():
-        _ADDED_METHODS.append(name)
-
-
-def check_method_name(where: str, value: Any) -> str:
-    """A crossing method name (:func:`method_names`); else bad input naming ``where`` (the task's
-    field, a command-line option or an argument), with the valid names and the closest one."""
-    return _check_choice(where, value, method_names())
-
-
-def _check_choice(where: str, value: Any, choices: Sequence[str]) -> str:
+def check_choice(where: str, value: Any, choices: Sequence[str]) -> str:
+    """``value``, one of ``choices``; else bad input naming ``where``, with the valid choices and the closest one."""
     text = _string(where, value)
     if text not in choices:
         close = difflib.get_close_matches(text, choices, n=1)

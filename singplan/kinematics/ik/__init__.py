@@ -1,1 +1,2 @@
-"""Inverse kinematics: closed forms (opw, ur), all-branch numeric IK (numeric), the dispatcher (solve)."""
+"""Inverse kinematics of a robot: all-branch numeric IK (numeric), whole-turn variants (turns), the
+dispatcher over the closed forms of :mod:`singplan.kinematics.closedform` and the numeric IK (solve)."""

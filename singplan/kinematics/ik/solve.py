@@ -9,8 +9,8 @@ Three solvers share one API (:func:`solve_all`, :func:`closed_form_branches`):
   ``c = p - c4 * z_flange``; for each, the wrist rotation ``R_ce = R_0c^T R`` is a ZYZ
   rotation ``Rz(q4) Ry(q5) Rz(q6)`` whose two decompositions (q5 and -q5) give eight
   branches. :func:`opw_batch` evaluates all eight for N poses at once (a compiled loop,
-  :mod:`singplan.kinematics.ik.opw`).
-* **UR closed form** (:mod:`singplan.kinematics.ik.ur`) for the ur_description layout, eight branches.
+  :mod:`singplan.kinematics.closedform.opw`).
+* **UR closed form** (:mod:`singplan.kinematics.closedform.ur`) for the ur_description layout, eight branches.
 * **Numeric** (:mod:`singplan.kinematics.ik.numeric`: Levenberg-Marquardt on the SE(3) log error from
   quasi-random and branch-flipped seeds, inside the joint limits) for any other chain.
 
@@ -30,10 +30,12 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.kinematics.angles import nearest_shifted, wrap_to_pi
+from singplan.kinematics.closedform import opw
+from singplan.kinematics.closedform.ur import arm_for_point as ur_arm_kernel
+from singplan.kinematics.closedform.ur import ur_batch
 from singplan.kinematics.configuration import LABEL_ZERO, classify, labels_batch
 from singplan.kinematics.ik import numeric as ik_numeric
-from singplan.kinematics.ik import opw, turns
-from singplan.kinematics.ik.ur import ur_batch
+from singplan.kinematics.ik import turns
 from singplan.kinematics.robot import OpwParameters, Robot
 
 
@@ -80,6 +82,28 @@ def opw_batch(params: OpwParameters, T_base_flange: np.ndarray, q4_seed_opw: np.
     q1s = np.zeros(n) if q1_seed_opw is None else np.ascontiguousarray(q1_seed_opw, dtype=float)
     p = params
     return opw.branches(T, p.a1, p.a2, p.b, p.c1, p.c2, p.c3, p.c4, p.offsets, p.signs, q4s, q1s)
+
+
+def ur_arm_for_point(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.ndarray:
+    """Joints 1-3 that put the TCP at ``targets_m`` (N, 3) [m], joints 4-6 of ``q`` (N, 6) held, on a
+    UR-type arm (:func:`singplan.kinematics.closedform.ur.arm_for_point`: with q4..q6 fixed the TCP is a
+    fixed point of the elbow link, found with Pinocchio at ``q``). Of the four solutions the one
+    nearest ``q``'s joints 1-3 is kept; NaN rows are out of reach.
+    """
+    p = robot.ur
+    if p is None:
+        raise ValueError(f"{robot.name} is not a UR-type arm (family {robot.family})")
+    point = np.array([_tcp_in_joint3(robot, qk) for qk in q]).reshape(-1, 3)
+    arms = ur_arm_kernel(p, point, targets_m)
+    out = np.array(q, dtype=float)
+    out[:, :3] = nearest_shifted(arms, out[:, :3])[0]
+    return out
+
+
+def _tcp_in_joint3(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """The TCP in the closed form's joint-3 frame (the URDF's, or its layout's: T_joint3_closed)."""
+    T_tcp, joint3 = robot.fk_and_joint(q, 3)
+    return np.asarray((joint3 * pin.SE3(robot.recognition.T_joint3_closed)).actInv(T_tcp.translation))
 
 
 def opw_arm_for_point(params: OpwParameters, q_robot: np.ndarray, point_flange_m: np.ndarray,

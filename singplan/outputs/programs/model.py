@@ -24,7 +24,7 @@ from typing import TextIO
 
 import numpy as np
 
-import singplan
+from singplan._version import __version__
 from singplan.errors import InputError
 from singplan.kinematics.robot import Robot
 from singplan.kinematics.vendor_config import (
@@ -237,7 +237,7 @@ def _header(traj: Trajectory, conv: ControllerConvention, points: ProgramPoints,
     kinds = [next(iter(m)) if isinstance(m, dict) and m else "?" for m in traj.task.get("moves", [])]
     xyz, rpy = _short_list(traj.tool.get("xyz", [0, 0, 0])), _short_list(traj.tool.get("rpy_deg", [0, 0, 0]))
     reached_mm, reached_deg = points.max_position_error_m * 1e3, math.degrees(points.max_orientation_error_rad)
-    lines = [f"singplan {singplan.__version__}: {dialect.title} joint-space replay of a planned trajectory",
+    lines = [f"singplan {__version__}: {dialect.title} joint-space replay of a planned trajectory",
              f"task: {len(kinds)} move(s) ({', '.join(kinds[:12])}{', ...' if len(kinds) > 12 else ''})"
              + (f" from {source}" if source else ""),
              f"robot: {traj.robot} ({os.path.basename(traj.urdf)}), tip {traj.tip}",

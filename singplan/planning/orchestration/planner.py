@@ -24,6 +24,7 @@ from singplan.errors import BudgetError, CollisionError, PlanningError
 from singplan.kinematics.clearance import check_clearance
 from singplan.kinematics.collision import CollisionModel, describe_distance
 from singplan.kinematics.configuration import classify
+from singplan.kinematics.held import HeldJoint
 from singplan.kinematics.robot import Robot
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
@@ -34,7 +35,6 @@ from singplan.planning.orchestration.chain import chain_limits, chain_map, chain
 from singplan.planning.orchestration.checks import check_config, check_samples, screen
 from singplan.planning.orchestration.move_plan import MoveTracking, plan_move
 from singplan.planning.orchestration.records import PlannedMove
-from singplan.planning.orchestration.redundancy import HeldJoint
 from singplan.planning.orchestration.select import Candidate, Rank, Refused, best_of
 from singplan.planning.orchestration.stops import stops, time_in_pieces
 from singplan.planning.orchestration.targets import move_limits, ptp_targets, task_arm
@@ -79,9 +79,10 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     started = time.perf_counter()
     if not isinstance(task, Task):
         task = load_task(task)
+    registry.check_name("singularity.method", task.singularity.method)
     chosen = None if method is None or isinstance(method, str) else method  # a method object: on every move
     if isinstance(method, str):
-        task = task.with_method(method, given_as="method")  # an unknown name is the caller's argument
+        task = task.with_method(registry.check_name("method", method))  # an unknown name is the caller's argument
     arm = task_arm(task)
     robot, arm_task, q = arm.robot, arm.task, arm.q_start
     allowance = check_task(arm_task, robot, q, STEP_M, STEP_RAD).output_allowance  # before anything large

@@ -22,6 +22,7 @@ from typing import NamedTuple, TypeVar
 
 from singplan.errors import BudgetError, MethodError, PlanningError, SingplanError, SingularityError, UnreachableError
 from singplan.kinematics.robot import Robot
+from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Exact
 from singplan.planning.orchestration.alternatives import NO_DEVIATION, Alternative, Deviation
@@ -230,7 +231,7 @@ def _no_plan(i: int, kind: str, failures: list[_Failure]) -> PlanningError | Bud
 
 def _serving(robot: Robot, methods: list[CrossingMethod]) -> tuple[list[CrossingMethod], dict[str, str]]:
     """The methods that can serve this arm's family, and why each other one cannot (by name)."""
-    notes = robot.recognition.crossing_methods()
+    notes = registry.refusals(robot.recognition)
     return ([m for m in methods if not notes.get(m.name)],
             {m.name: notes[m.name] for m in methods if notes.get(m.name)})
 

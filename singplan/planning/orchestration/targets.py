@@ -14,10 +14,11 @@ from singplan.kinematics.collision import CollisionModel, collision_model
 from singplan.kinematics.configuration import classify
 from singplan.kinematics.dynamics import TorqueLimit, effort_limits_nm, require_dynamics
 from singplan.kinematics.geometry import rpy_deg_to_rotation
+from singplan.kinematics.held import HeldJoint
 from singplan.kinematics.ik.solve import solve_all
 from singplan.kinematics.robot import Robot, load_robot
 from singplan.kinematics.vendor_config import convention_for
-from singplan.planning.orchestration.redundancy import HeldJoint, hold_for_task
+from singplan.planning.orchestration.redundancy import hold_for_task, reduce_task
 from singplan.planning.path.cartesian import move_target
 from singplan.planning.timing.records import MoveLimits
 from singplan.task.load import check_against_robot
@@ -25,15 +26,15 @@ from singplan.task.schema import Move, Task
 
 
 def load_task_robot(task: Task) -> Robot:
-    """The task's robot: its URDF with the task's tip and tool, checked against the task, with the
-    task's joint accelerations (and dynamics, when the task limits torques)."""
+    """The task's robot: its URDF with the task's tip and tool, checked against the task (with
+    dynamics, when the task limits torques)."""
     tool = pin.SE3(rpy_deg_to_rotation(task.tool_rpy_deg), np.asarray(task.tool_xyz, dtype=float))
     robot = load_robot(task.robot, tip=task.tip, tool=tool)
     check_against_robot(task, robot)
     convention_for(robot)  # a URDF's controller sidecar is read (or refused) before planning, not after it
     if task.limits.torque_scale is not None:
         require_dynamics(robot)
-    return robot.with_acceleration(np.asarray(task.limits.acceleration_rad_s2, dtype=float))
+    return robot
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,7 @@ def task_arm(task: Task) -> TaskArm:
     """The robot, the chain planned and the start joints of a task (the setup planning and detection share)."""
     full = load_task_robot(task)
     held = hold_for_task(task, full)  # with `redundancy`, the 6R chain is planned like any 6-joint arm
-    robot, arm_task = (held.reduced, held.reduce_task(task)) if held is not None else (full, task)
+    robot, arm_task = (held.reduced, reduce_task(held, task)) if held is not None else (full, task)
     q_start = start_joints(arm_task, robot)
     collision = collision_model(robot, task.tool_geometry, task.cell, task.collision, q_start)
     return TaskArm(full, held, robot, arm_task, q_start, collision)
@@ -117,6 +118,6 @@ def move_limits(robot: Robot, task: Task, move: Move, length_m: float) -> MoveLi
               if task.limits.torque_scale is not None else None)
     jerk = (np.broadcast_to(np.asarray(task.limits.jerk_rad_s3, dtype=float), (robot.n_joints,)).copy()
             if task.limits.jerk_rad_s3 is not None else None)
-    return MoveLimits(robot.velocity_rad_s * scale, robot.acceleration_rad_s2, length_m,
+    return MoveLimits(robot.velocity_rad_s * scale, task.limits.joint_accelerations(robot.n_joints), length_m,
                       move.speed_m_s if move.kind != "ptp" else None, torque, jerk,
                       quintic=move.kind == "ptp" and task.limits.ptp_time_law == "quintic")

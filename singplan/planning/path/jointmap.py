@@ -28,8 +28,7 @@ from singplan.kinematics.angles import nearest_shifted
 from singplan.kinematics.compiled import jit
 from singplan.kinematics.geometry import relative_rotations, rotation_log_jacobians, rotation_logs
 from singplan.kinematics.ik.numeric import damped_solve_rows
-from singplan.kinematics.ik.solve import closed_form_branches, opw_arm_for_point, solve_newton
-from singplan.kinematics.ik.ur import ur_arm_for_point
+from singplan.kinematics.ik.solve import closed_form_branches, opw_arm_for_point, solve_newton, ur_arm_for_point
 from singplan.kinematics.robot import Robot
 from singplan.planning.path.tracking import PoseFunction
 
@@ -216,7 +215,7 @@ def exact_position(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.nda
     """Joints (N, n): q with joints 1-3 re-solved so the TCP reaches targets_m (N, 3) [m].
 
     OPW and UR arms: the closed forms of :func:`singplan.kinematics.ik.solve.opw_arm_for_point` and
-    :func:`singplan.kinematics.ik.ur.ur_arm_for_point` (the solution nearest ``q``); other chains, or
+    :func:`singplan.kinematics.ik.solve.ur_arm_for_point` (the solution nearest ``q``); other chains, or
     where the point is out of the arm's reach: damped Newton from ``q``.
     """
     rec = robot.recognition  # the closed forms work in their own base and flange frames

@@ -22,16 +22,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
-from singplan.kinematics.angles import nearest_shifted, wrap
+from singplan.kinematics.angles import wrap
 from singplan.kinematics.compiled import jit
-
-if TYPE_CHECKING:  # robot.py recognises families with this module's solver
-    from singplan.kinematics.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -50,10 +46,6 @@ class UrParameters:
     shoulder_turn: float = 0.0  # the shoulder lift joint's placement: a turn about its axis y [rad]
 
     @classmethod
-    def from_robot(cls, robot: Robot) -> UrParameters:
-        return cls.from_model(robot.model, robot.tip_frame_id)
-
-    @classmethod
     def from_model(cls, model: pin.Model, tip_frame_id: int) -> UrParameters:
         """Read from the joint placements of a chain in the ur_description layout (not checked here:
         :mod:`singplan.kinematics.families` verifies the closed form against the chain's FK)."""
@@ -63,13 +55,6 @@ class UrParameters:
         return cls(d1=float(jp[0][2]), shoulder_y=float(jp[1][1]), lateral=float(jp[1][1] + jp[2][1] + jp[4][1]),
                    l2=float(jp[2][2]), l3=float(jp[3][2]), wrist_y=float(jp[4][1]), d5=float(jp[5][2]),
                    d6=float(tip[1]), elbow_y=float(jp[2][1]), shoulder_turn=math.atan2(R2[0, 2], R2[0, 0]))
-
-
-def ur_parameters(robot: Robot) -> UrParameters:
-    """The UR parameters :mod:`singplan.kinematics.families` recognised and verified for ``robot``."""
-    if robot.ur is None:
-        raise ValueError(f"{robot.name} is not a UR-type arm (family {robot.family})")
-    return robot.ur
 
 
 # |sin q5| under which a (= q2 + q3 + q4 + pi) keeps the seed's value [rad]: the pose then
@@ -202,30 +187,18 @@ def _free_wrist_angle(a_seed: float, x: float, z: float, d5: float, l2: float, l
     return theta + math.copysign(math.acos(min(1.0, max(-1.0, bound))), delta)
 
 
-def ur_arm_for_point(robot: Robot, q: np.ndarray, targets_m: np.ndarray) -> np.ndarray:
-    """Joints 1-3 that put the TCP at ``targets_m`` (N, 3) [m], joints 4-6 of ``q`` (N, 6) held.
+def arm_for_point(p: UrParameters, point: np.ndarray, targets_m: np.ndarray) -> np.ndarray:
+    """(q1, q2, q3) (N, 4, 3) of the four arm solutions placing ``point`` (N, 3) [m], fixed in the
+    closed form's joint-3 frame, at ``targets_m`` (N, 3) [m]; NaN where out of reach.
 
-    With q4..q6 fixed, the TCP is a fixed point ``x`` of the elbow link (joint 3's frame,
-    found with Pinocchio at ``q``). Axes 2 and 3 are parallel to y of frame 1, so ``x``'s
-    lateral coordinate in frame 1 is fixed: as for the wrist point of :func:`ur_batch`, it gives
-    two q1. In frame 1's x-z plane the upper arm (0, l2) and the elbow link's (x_x, x_z) form
-    a two-link arm: ``|A + Ry(t3) X| = |P|`` gives two ``t3``, then ``t2`` turns the sum onto P.
-    Of the four solutions the one nearest ``q``'s joints 1-3 is kept; NaN rows are out of reach.
+    With q4..q6 fixed, the TCP is a fixed point ``x`` of the elbow link. Axes 2 and 3 are parallel
+    to y of frame 1, so ``x``'s lateral coordinate in frame 1 is fixed: as for the wrist point of
+    :func:`ur_batch`, it gives two q1. In frame 1's x-z plane the upper arm (0, l2) and the elbow
+    link's (x_x, x_z) form a two-link arm: ``|A + Ry(t3) X| = |P|`` gives two ``t3``, then ``t2``
+    turns the sum onto P.
     """
-
-    p = ur_parameters(robot)
-    point = np.array([_tcp_in_joint3(robot, qk) for qk in q]).reshape(-1, 3)
-    arms = _arm_for_point(point, np.ascontiguousarray(targets_m, dtype=float), p.d1, p.shoulder_y + p.elbow_y,
-                          p.l2, p.shoulder_turn, _tolerance_m(p))
-    out = np.array(q, dtype=float)
-    out[:, :3] = nearest_shifted(arms, out[:, :3])[0]
-    return out
-
-
-def _tcp_in_joint3(robot: Robot, q: np.ndarray) -> np.ndarray:
-    """The TCP in the closed form's joint-3 frame (the URDF's, or its layout's: T_joint3_closed)."""
-    T_tcp, joint3 = robot.fk_and_joint(q, 3)
-    return np.asarray((joint3 * pin.SE3(robot.recognition.T_joint3_closed)).actInv(T_tcp.translation))
+    return _arm_for_point(np.ascontiguousarray(point, dtype=float), np.ascontiguousarray(targets_m, dtype=float),
+                          p.d1, p.shoulder_y + p.elbow_y, p.l2, p.shoulder_turn, _tolerance_m(p))
 
 
 @jit

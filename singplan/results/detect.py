@@ -46,7 +46,7 @@ from singplan.kinematics.stopping import (
 )
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
-from singplan.planning.crossing.methods import Exact
+from singplan.planning.crossing.methods import Exact, Stop
 from singplan.planning.orchestration.budget import check_task
 from singplan.planning.orchestration.checks import screen
 from singplan.planning.orchestration.collide import line_samples
@@ -66,7 +66,7 @@ _BATCH = 256  # states whose figure is computed at once, the largest joint-by-jo
 
 
 class StoppingFigure(NamedTuple):
-    """``singplan check``'s stopping distance of one move (see :mod:`singplan.planning.orchestration.detect`)."""
+    """``singplan check``'s stopping distance of one move (see :mod:`singplan.results.detect`)."""
 
     bound_m: float  # no output sample of any plan of the move stops farther [m]
     at: float  # where the bound is reached: path parameter u (LIN / CIRC) or fraction of the joint motion (PTP)
@@ -127,6 +127,7 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     """
     if not isinstance(task, Task):
         task = load_task(task)
+    registry.check_name("singularity.method", task.singularity.method)
     arm = task_arm(task)
     robot, task = arm.robot, arm.task
     check_task(task, robot, arm.q_start, STEP_M, STEP_RAD, timed=False)  # before any path is sampled
@@ -172,7 +173,7 @@ def _clearance(model: CollisionModel, q: np.ndarray, u: np.ndarray, i: int
 def _methods(move: Move) -> Iterator[CrossingMethod]:
     """Every method a plan of the move may use (``stop`` crosses nothing)."""
     for name in registry.names():
-        if name not in (AUTO_METHOD, "stop"):
+        if name not in (AUTO_METHOD, Stop.name):
             yield from registry.candidates(name, move)
 
 
@@ -244,7 +245,7 @@ def _velocities(robot: Robot, task: Task, states: list[list[_States]]) -> list[l
         before.append(turned[i - 1] + before[-1] if flown[i - 1] else np.zeros(robot.n_joints))
     for i in range(len(states) - 2, -1, -1):
         after.insert(0, turned[i + 1] + after[0] if flown[i] else np.zeros(robot.n_joints))
-    acc = robot.acceleration_rad_s2
+    acc = task.limits.joint_accelerations(robot.n_joints)
     out = []
     for i, move in enumerate(states):
         qd = []
@@ -262,7 +263,7 @@ def _figure(robot: Robot, task: Task, states: list[list[_States]], qd: list[list
     figure = StoppingFigure(0.0, 0.0)
     if states[i]:
         q = np.concatenate([s.q for s in states[i]])
-        bound, k = _largest_bound(robot, q, np.concatenate(qd[i]))
+        bound, k = _largest_bound(robot, task.limits.joint_accelerations(robot.n_joints), q, np.concatenate(qd[i]))
         figure = StoppingFigure(bound, float(np.concatenate([s.at for s in states[i]])[k]))
     for a in (i - 1, i):
         if 0 <= a < len(states) - 1 and task.moves[a].blend_mm > 0 and states[a] and states[a + 1]:
@@ -272,12 +273,11 @@ def _figure(robot: Robot, task: Task, states: list[list[_States]], qd: list[list
     return figure
 
 
-def _largest_bound(robot: Robot, q: np.ndarray, qd: np.ndarray) -> tuple[float, int]:
+def _largest_bound(robot: Robot, acc: np.ndarray, q: np.ndarray, qd: np.ndarray) -> tuple[float, int]:
     """The largest over states (q, c qd) (N, n), 0 <= c <= 1, of the smaller of the two bounds
     (:func:`~singplan.kinematics.stopping.stopping_bound`, cheap, then
     :func:`~singplan.kinematics.stopping.scaled_stopping_bound` on the states it leaves in the running,
-    largest first), and the state where."""
-    acc = robot.acceleration_rad_s2
+    largest first), and the state where (``acc``: the joint acceleration limits [rad/s^2] (n,))."""
     joint_by_joint = stopping_bound(robot, q, np.abs(qd), acc)
     order = np.argsort(-joint_by_joint)
     best, where = 0.0, int(order[0])
@@ -308,7 +308,8 @@ def _corner_bound(robot: Robot, task: Task, a: int, states: list[list[_States]],
     joint_speed = np.minimum(v_in.max(axis=0) + v_out.max(axis=0), robot.velocity_rad_s * scale)
     q = np.concatenate([q_in, q_out])
     moved = np.maximum(np.ptp(q_in, axis=0), np.ptp(q_out, axis=0))
-    return float(np.max(stopping_bound(robot, q, np.broadcast_to(joint_speed, q.shape), robot.acceleration_rad_s2,
+    return float(np.max(stopping_bound(robot, q, np.broadcast_to(joint_speed, q.shape),
+                                       task.limits.joint_accelerations(robot.n_joints),
                                        moved)))
 
 

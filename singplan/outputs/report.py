@@ -24,7 +24,7 @@ from singplan.kinematics.dynamics import trajectory_torques
 from singplan.kinematics.robot import Robot
 from singplan.outputs.svgplot import Panel, envelope, figure_svg
 from singplan.outputs.timeline import SHADED_OPACITY, PageBasis, Stretch, page_basis
-from singplan.results.metrics import CrossingFigures, Metrics, TorqueFigures
+from singplan.results.metrics import Metrics, TorqueFigures, crossing_costs
 from singplan.results.trajectory import Segment, Trajectory
 
 _PLOT_BUCKETS = 1000  # a curve longer than two points a bucket is drawn as its min/max envelope (> 1 a pixel)
@@ -209,9 +209,7 @@ def _timeline(traj: Trajectory, stretches: list[Stretch]) -> str:
 
 def _deviation_cells(seg: Segment) -> list[str]:
     """A crossing's largest position [mm] and orientation [deg] deviation and its time lost [s], as table cells."""
-    d = seg.details
-    pos, ori, lost = ((d.max_position_error_mm, d.max_orientation_error_deg, d.time_lost_s)
-                      if isinstance(d, CrossingFigures) else (0.0, 0.0, 0.0))
+    pos, ori, lost = crossing_costs(seg.details)
     return [f"{pos:.4f}", f"{ori:.4f}", f"{lost:.3f}"]
 
 

@@ -62,7 +62,7 @@ from singplan.outputs.timeline import (
     timeline,
 )
 from singplan.results.files import check_output_file, hold_output_folder, text_writer, write_file
-from singplan.results.metrics import CrossingFigures
+from singplan.results.metrics import crossing_costs
 from singplan.results.path import programmed_path, woven_moves
 from singplan.results.trajectory import Segment, Trajectory, load
 
@@ -350,7 +350,7 @@ def _page_data(traj: Trajectory, tcp: TcpPath, basis: PageBasis) -> dict[str, An
         segments.append({"kind": seg.kind, "move": seg.move, "t0": seg.t0, "t1": seg.t1, "t_jump": float(t_jump),
                          "colour": _colour(seg, woven), "title": title, "detail": detail})
         if crossing:
-            pos_mm, ori_deg, _ = _deviations(seg)
+            pos_mm, ori_deg, _ = crossing_costs(seg.details)
             text = f"{title.split(': ', 1)[1]}; {pos_mm:.3f} mm / {ori_deg:.2f} deg"
             labels.append({"text": text, "xyz": tcp.at(_midpoint(traj, seg)).tolist()})
     clearance = traj.metrics.clearance
@@ -398,7 +398,7 @@ def _describe(seg: Segment, pause: Stretch | None = None) -> tuple[str, str]:
         what = "fly-by blend" if seg.kind == "blend" else seg.kind
         return f"move {seg.move}: {what}", span + ("" if seg.config_after == seg.config_before
                                                    else f" -> {seg.config_after}")
-    pos_mm, ori_deg, lost_s = _deviations(seg)
+    pos_mm, ori_deg, lost_s = crossing_costs(seg.details)
     title = f"move {seg.move}: {seg.singularity} crossing, {seg.method}, {seg.config_before} -> {seg.config_after}"
     detail = (f"t {seg.t0:.3f}-{seg.t1:.3f} s; deviation {pos_mm:.4f} mm / {ori_deg:.3f} deg; "
               f"time lost {lost_s:.3f} s")
@@ -407,12 +407,6 @@ def _describe(seg: Segment, pause: Stretch | None = None) -> tuple[str, str]:
         detail += f"; TCP paused {seg.pause_s:.3f} s{at} while the aligned joints turn"
     return title, detail
 
-
-def _deviations(seg: Segment) -> tuple[float, float, float]:
-    """A crossing's largest position [mm] and orientation [deg] deviation and its time lost [s] (0 without figures)."""
-    d = seg.details
-    return ((d.max_position_error_mm, d.max_orientation_error_deg, d.time_lost_s) if isinstance(d, CrossingFigures)
-            else (0.0, 0.0, 0.0))
 
 
 @dataclass

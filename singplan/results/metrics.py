@@ -103,6 +103,14 @@ SegmentFigures = CrossingFigures | BlendFigures | NoFigures
 NO_FIGURES = NoFigures()
 
 
+def crossing_costs(figures: SegmentFigures) -> tuple[float, float, float]:
+    """A segment's largest position [mm] and orientation [deg] deviation and its time lost [s]: a
+    crossing's figures, 0 for a segment without them."""
+    if isinstance(figures, CrossingFigures):
+        return figures.max_position_error_mm, figures.max_orientation_error_deg, figures.time_lost_s
+    return 0.0, 0.0, 0.0
+
+
 def figures_from_json(kind: str, doc: Mapping[str, Any]) -> SegmentFigures:
     """A segment's figures as written in trajectory.json (its keys beyond the segment's own)."""
     if kind == "crossing":

@@ -41,6 +41,7 @@ from singplan.outputs.timeline import (
 )
 from singplan.outputs.viewer import joint_travel, programmed_points, replay_html, robot_of, tcp_path, viewer_dir
 from singplan.planning.path.pieces import move_piece
+from singplan.results.metrics import CrossingFigures
 from singplan.results.plan import plan
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.load import parse_task
@@ -80,7 +81,8 @@ def _with_pause_and_blend(traj: Trajectory) -> tuple[Trajectory, int]:
     for s in traj.segments:
         s = replace(s, t0=later(s.t0), t1=later(s.t1))
         if s.kind == "crossing":
-            s = replace(s, details={**s.details, "pause_s": hold_s})
+            assert isinstance(s.details, CrossingFigures)
+            s = replace(s, details=replace(s.details, pause_s=hold_s))
         if s.kind == "post":
             corner = s.t1 - 0.25 * (s.t1 - s.t0)
             corner = round(corner / traj.period) * traj.period
@@ -272,7 +274,8 @@ def test_a_task_comes_back_from_its_recorded_mapping(seed: int) -> None:
     task = parse_task(seeded_task(seed))
     weave = Move("lin", to=PoseSpec((0.5, 0.1, 0.4)), speed_m_s=0.1, weave=Weave("triangle", 2.0, 15.0),
                  blend_mm=5.0)
-    task = replace(task, moves=(*task.moves, weave))
+    last = Move("lin", to=PoseSpec((0.5, 0.1, 0.45)))  # a blend needs a move after it
+    task = replace(task, moves=(*task.moves, weave, last))
     recorded = json.loads(json.dumps(task.to_mapping()))  # as trajectory.json keeps it
     assert parse_task(recorded) == task  # what singplan.results.reading does with trajectory.json's task
 

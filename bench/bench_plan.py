@@ -60,7 +60,7 @@ def measure(scenarios: Path, method: str | None) -> list[dict[str, object]]:
         try:
             traj = plan(task)
             duration: float | None = traj.duration_s
-            samples = int(traj.metrics["samples"])
+            samples = int(traj.metrics.samples)
             note = ""
         except SingplanError as exc:
             duration, samples, note = None, 0, f"exit {exc.exit_code}"

@@ -23,6 +23,7 @@ import numpy as np
 
 from singplan.results.metrics import Metrics
 from singplan.results.trajectory import Trajectory, save
+from singplan.task.schema import Move, PoseSpec, Task
 
 
 def synthetic(samples: int, joints: int = 6, seed: int = 7) -> Trajectory:
@@ -34,7 +35,7 @@ def synthetic(samples: int, joints: int = 6, seed: int = 7) -> Trajectory:
     qdd = np.gradient(qd, period_s, axis=0)
     series = {"position_error_m": rng.uniform(0, 1e-5, samples), "orientation_error_rad": rng.uniform(0, 1e-4, samples),
               "distances": rng.uniform(0, 1, (samples, 3))}
-    task = {"robot": "kuka_kr6_r900_2", "moves": [{"lin": {"to": {"xyz": [0.5, 0, 0.5]}}}]}
+    task = Task("kuka_kr6_r900_2", (Move("lin", to=PoseSpec((0.5, 0.0, 0.5))),), start_joints_deg=(0.0,) * joints)
     return Trajectory("kuka_kr6_r900_2", "/robots/kuka.urdf", "tool0", {"xyz": [0, 0, 0], "rpy_deg": [0, 0, 0]}, task,
                       tuple(f"joint_{i + 1}" for i in range(joints)), period_s, t, q, qd, qdd, (), (),
                       Metrics.of_samples(float(t[-1]), samples), series)

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import singplan
+from singplan.results.metrics import CrossingFigures
 
 
 def main() -> int:
@@ -21,14 +22,14 @@ def main() -> int:
     print(f"{task.name}: {traj.duration_s:.3f} s, {len(traj.t)} samples")
     for seg in traj.segments:
         line = f"  move {seg.move} {seg.kind:9s} {seg.t0:7.3f} .. {seg.t1:7.3f} s"
-        if seg.kind == "crossing":
-            d = seg.details
+        d = seg.details
+        if isinstance(d, CrossingFigures):  # a crossing segment's figures
             line += (f"  {seg.singularity} via {seg.method}: {seg.config_before} -> {seg.config_after}, "
-                     f"orientation dev {d['max_orientation_error_deg']:.3f} deg, time lost {d['time_lost_s']:.3f} s")
-            for alt in d["alternatives"]:
-                variant = f" ({alt['variant']})" if alt.get("variant") else ""
-                line += f"\n      compared: {alt['method']}{variant} " + (
-                    f"{alt['duration_s']:.3f} s" if alt["feasible"] else f"infeasible: {alt['reason']}")
+                     f"orientation dev {d.max_orientation_error_deg:.3f} deg, time lost {d.time_lost_s:.3f} s")
+            for alt in d.alternatives:
+                variant = f" ({alt.variant})" if alt.variant else ""
+                line += f"\n      compared: {alt.method}{variant} " + (
+                    f"{alt.duration_s:.3f} s" if alt.feasible else f"infeasible: {alt.reason}")
         print(line)
     return 0
 

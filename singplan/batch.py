@@ -136,8 +136,8 @@ def plan_task(job: TaskJob) -> TaskRecord:
 def _planned(job: TaskJob, traj: Trajectory, message: str, wall_s: float) -> TaskRecord:
     m = traj.metrics
     return TaskRecord(job.shown, Path(job.folder).name, 0, message, traj.robot, traj.duration_s, len(traj.t),
-                      len(m.get("crossings", ())), float(m["max_position_error_mm"]),
-                      float(m["max_orientation_error_deg"]), float(m["planning_time_s"]), wall_s)
+                      len(m.crossings), float(m.max_position_error_mm),
+                      float(m.max_orientation_error_deg), float(m.planning_time_s), wall_s)
 
 
 def _failed(job: TaskJob, code: int, message: str, robot: str, started: float) -> TaskRecord:

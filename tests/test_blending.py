@@ -22,6 +22,7 @@ from singplan.planning.orchestration import planner as planner_module
 from singplan.planning.orchestration.blending import RAMPS, Ramp, ramps
 from singplan.planning.orchestration.chain import chain_map
 from singplan.planning.orchestration.planner import plan_moves
+from singplan.results.metrics import BlendFigures
 from singplan.results.plan import plan, trajectory_of
 from singplan.results.trajectory import Trajectory, save
 from singplan.task.load import parse_task
@@ -49,7 +50,9 @@ def _polyline(points: list[list[float]], blend_mm: float | list[float], speed: f
 
 def _corner(traj: Trajectory, move: int) -> np.ndarray:
     """The programmed end point of a LIN move [m]."""
-    return np.asarray(traj.task["moves"][move]["lin"]["to"]["xyz"], dtype=float)
+    target = traj.task.moves[move].to
+    assert target is not None
+    return np.asarray(target.xyz, dtype=float)
 
 
 def _tcp(traj: Trajectory, ks: range) -> np.ndarray:
@@ -130,7 +133,7 @@ def test_a_blended_corner_stays_in_its_sphere_keeps_moving_and_saves_time(turn_d
     doc["start"] = {"pose": {"xyz": a.tolist(), "rpy_deg": DOWN}}
     traj = plan(parse_task(doc))
     blend = [s for s in traj.segments if s.kind == "blend"]
-    assert len(blend) == 1 and blend[0].move == 0 and blend[0].details["radius_mm"] == 20.0
+    assert len(blend) == 1 and blend[0].move == 0 and blend[0].details.radius_mm == 20.0
     k0, k1 = round(blend[0].t0 / traj.period), round(blend[0].t1 / traj.period)
     assert k1 - k0 >= 2
     far = np.linalg.norm(_tcp(traj, range(k0 + 1, k1)) - corner, axis=1)
@@ -146,20 +149,20 @@ def test_a_radius_too_large_for_its_moves_is_reduced_and_reported() -> None:
     doc = _polyline([[0.45, -0.19, 0.20], [0.40, -0.19, 0.20], [0.40, -0.09, 0.20]], 500)
     doc["start"] = {"pose": {"xyz": [0.45, -0.25, 0.20], "rpy_deg": DOWN}}
     traj = plan(parse_task(doc))
-    first, second = traj.metrics["blends"]
-    assert first["radius_mm"] == pytest.approx(25.0, abs=1e-6)  # half of move 1's 50 mm
-    assert "half of move 1" in first["reduced"] and first["flown"]
+    first, second = traj.metrics.blends
+    assert first.radius_mm == pytest.approx(25.0, abs=1e-6)  # half of move 1's 50 mm
+    assert "half of move 1" in first.reduced and first.flown
     # move 1 keeps 5 % of itself between its two corners: 0.45 x 50 mm is left for the second
-    assert second["radius_mm"] == pytest.approx(22.5 * 0.999, abs=1e-6) and "no more room" in second["reduced"]
+    assert second.radius_mm == pytest.approx(22.5 * 0.999, abs=1e-6) and "no more room" in second.reduced
     seg = next(s for s in traj.segments if s.kind == "blend" and s.move == 0)
-    assert seg.details["requested_mm"] == 500 and "reduced" in seg.details
+    assert isinstance(seg.details, BlendFigures) and seg.details.requested_mm == 500 and seg.details.reduced
 
 
 def test_fly_by_with_a_jerk_limit_keeps_every_jerk_and_passes_the_checker(tmp_path: Path) -> None:
     doc = _polyline([[0.45, -0.19, 0.25], [0.45, -0.09, 0.28], [0.44, 0.01, 0.28]], 10, jerk=500.0)
     doc["start"] = {"joints_deg": UR5_START}
     traj = plan(parse_task(doc))
-    assert traj.metrics["max_joint_jerk_ratio"] <= 1.0
+    assert traj.metrics.jerk.max_joint_jerk_ratio <= 1.0
     assert [s.kind for s in traj.segments].count("blend") == 2
     _check(tmp_path, doc, traj)
 
@@ -209,10 +212,10 @@ def test_a_corner_next_to_a_null_space_pause_is_stopped_at_with_the_reason() -> 
     next(iter(last.values()))["blend_mm"] = 10
     doc["moves"].append(back)
     traj = plan(parse_task(doc))
-    note = traj.metrics["blends"][0]
-    assert not note["flown"] and "pauses on its path" in note["reduced"]
+    note = traj.metrics.blends[0]
+    assert not note.flown and "pauses on its path" in note.reduced
     assert not any(s.kind == "blend" for s in traj.segments)
-    assert any("pause_s" in s.details for s in traj.segments)
+    assert any(s.pause_s is not None for s in traj.segments)
 
 
 def test_the_example_pick_and_place_flies_by_and_saves_a_fifth(tmp_path: Path) -> None:
@@ -264,7 +267,7 @@ def test_five_and_seven_axis_arms_fly_by(tmp_path: Path, example: str, hold: boo
     for move in doc["moves"][:-1]:
         next(iter(move.values()))["blend_mm"] = 10
     traj = plan(parse_task(doc))
-    assert all(b["flown"] for b in traj.metrics["blends"])
+    assert all(b.flown for b in traj.metrics.blends)
     assert traj.duration_s < plan(parse_task(_stop_to_stop(doc))).duration_s
     _check(tmp_path, doc, traj)
 
@@ -351,5 +354,5 @@ def test_both_ramps_are_tried_and_the_faster_program_kept(monkeypatch: pytest.Mo
     monkeypatch.undo()
     traj = plan(task)
     assert traj.duration_s == min(alone.values())
-    kept = {s.details["ramp"] for s in traj.segments if s.kind == "blend"}
+    kept = {s.details.ramp for s in traj.segments if s.kind == "blend"}
     assert kept == {min(alone, key=lambda r: alone[r])}

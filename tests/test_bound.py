@@ -243,6 +243,6 @@ def test_auto_chooses_as_if_every_candidate_were_timed(monkeypatch: pytest.Monke
         assert reference is not None and traj.duration_s == reference[3]
         crossings = [s for s in traj.segments if s.kind == "crossing"]
         assert {s.method for s in crossings} <= {reference[2]}
-        compared += len(crossings[0].details["alternatives"]) > 1 if crossings else 0
+        compared += len(crossings[0].details.alternatives) > 1 if crossings else 0
     assert len(tasks) >= 15 and compared >= 3, (len(tasks), compared)
     assert pairs and all(bound <= duration for bound, duration in pairs)

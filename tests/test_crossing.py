@@ -48,8 +48,8 @@ def test_wrist_crossings_keep_the_position_exact_and_report_the_true_deviation(m
     crossing = next(s for s in traj.segments if s.kind == "crossing")
     assert crossing.method == method and crossing.config_before != crossing.config_after
     assert 0.01 < math.degrees(ori.max()) < 2.0  # it did deviate, within the task's tolerance
-    assert crossing.details["max_orientation_error_deg"] == pytest.approx(math.degrees(ori.max()), abs=1e-6)
-    assert traj.metrics["max_orientation_error_deg"] == pytest.approx(math.degrees(ori.max()), abs=1e-6)
+    assert crossing.details.max_orientation_error_deg == pytest.approx(math.degrees(ori.max()), abs=1e-6)
+    assert traj.metrics.max_orientation_error_deg == pytest.approx(math.degrees(ori.max()), abs=1e-6)
 
 
 @pytest.mark.parametrize("method", ["wrist-joint", "axis"])
@@ -77,14 +77,14 @@ def _assert_c1(jmap, part) -> None:  # type: ignore[no-untyped-def]
 def test_auto_prefers_a_crossing_and_reports_the_runner_up() -> None:
     traj = plan(NEAR_MISS)
     crossing = next(s for s in traj.segments if s.kind == "crossing")
-    alternatives = crossing.details["alternatives"]
+    alternatives = crossing.details.alternatives
     assert crossing.method in ("wrist-joint", "axis")
-    feasible = [a for a in alternatives if a["feasible"]]
-    assert feasible[0]["method"] == crossing.method
-    assert feasible[0]["duration_s"] == pytest.approx(traj.duration_s)
-    exact = next(a for a in alternatives if a["method"] == "exact")
+    feasible = [a for a in alternatives if a.feasible]
+    assert feasible[0].method == crossing.method
+    assert feasible[0].duration_s == pytest.approx(traj.duration_s)
+    exact = next(a for a in alternatives if a.method == "exact")
     # the swing costs exact tracking time: its duration, or the bound that spared timing it, is longer
-    assert (exact["duration_s"] if exact["feasible"] else exact["at_least_s"]) > traj.duration_s
+    assert (exact.duration_s if exact.feasible else exact.at_least_s) > traj.duration_s
 
 
 def _shoulder_near_miss(miss_m: float) -> dict:
@@ -120,9 +120,9 @@ def test_axis_at_the_shoulder_keeps_the_orientation_and_leaves_the_path_by_about
     pos, ori = _independent_deviation(traj, doc)
     assert math.degrees(ori.max()) < 1e-6  # the kept component
     assert pos.max() * 1e3 == pytest.approx(miss_m * 1e3, rel=0.1)  # the minimised one: about the miss
-    assert crossing[0].details["max_position_error_mm"] == pytest.approx(pos.max() * 1e3, abs=1e-6)
-    assert traj.metrics["max_position_error_mm"] == pytest.approx(pos.max() * 1e3, abs=1e-6)
-    assert traj.metrics["max_joint_speed_ratio"] <= 1.0 + 1e-9
+    assert crossing[0].details.max_position_error_mm == pytest.approx(pos.max() * 1e3, abs=1e-6)
+    assert traj.metrics.max_position_error_mm == pytest.approx(pos.max() * 1e3, abs=1e-6)
+    assert traj.metrics.max_joint_speed_ratio <= 1.0 + 1e-9
 
 
 def test_axis_seams_at_the_shoulder_are_c1() -> None:

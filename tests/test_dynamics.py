@@ -175,12 +175,12 @@ def test_torque_scale_binds_slows_the_plan_and_passes_the_checker(tmp_path: Path
     free = plan(parse_task(UR5_TASK))
     bound = plan(parse_task(_with_scale(0.45)))
     # unconstrained, the shoulder would need more than 0.45 of its effort
-    assert free.metrics["max_torque_ratio"] > 0.45 * 1.5
-    assert bound.metrics["max_torque_ratio"] <= 1.0
+    assert free.metrics.torques.max_torque_ratio > 0.45 * 1.5
+    assert bound.metrics.torques.max_torque_ratio <= 1.0
     assert bound.duration_s > free.duration_s + 0.05
-    limit = bound.metrics["torque_limit_Nm"]["shoulder_lift_joint"]
+    limit = bound.metrics.torques.torque_limit_Nm["shoulder_lift_joint"]
     assert limit == pytest.approx(0.45 * 150.0)
-    assert bound.metrics["peak_torque_Nm"]["shoulder_lift_joint"] <= limit
+    assert bound.metrics.torques.peak_torque_Nm["shoulder_lift_joint"] <= limit
     code, err = _plan_cli(_with_scale(0.45), tmp_path / "bound")
     assert code == 0, err
     result = _checker(tmp_path / "bound")
@@ -212,7 +212,7 @@ def test_torque_scale_on_an_arm_without_published_dynamics_is_bad_input(tmp_path
     del task["limits"]
     code, err = _plan_cli(task, tmp_path / "kuka_free")
     assert code == 0, err
-    assert "torque" not in " ".join(k for k in plan(parse_task(task)).metrics if k.startswith("max_"))
+    assert "torque" not in " ".join(k for k in plan(parse_task(task)).metrics.to_json() if k.startswith("max_"))
 
 
 @pytest.mark.parametrize("value", [0, -0.5, 1.5, "half", None, float("nan"), True])

@@ -49,7 +49,7 @@ def test_a_seam_between_two_moves_stays_within_the_acceleration_limit() -> None:
     traj = plan(parse_task(task))
     qdd = np.diff(traj.q, n=2, axis=0) / traj.period**2
     assert np.abs(qdd).max() <= accel * (1 + 1e-9)
-    assert traj.metrics["max_joint_accel_ratio"] <= 1 + 1e-9
+    assert traj.metrics.max_joint_accel_ratio <= 1 + 1e-9
     _at_rest_everywhere_it_should(traj, accel)
 
 
@@ -61,7 +61,7 @@ def test_a_ur5_lin_ending_at_full_reach_stops_there() -> None:
                       {"ptp": {"to": {"joints_deg": np.degrees(q_start).tolist()}}}]}
     traj = plan(parse_task(task))
     _at_rest_everywhere_it_should(traj, 10.0)
-    assert traj.metrics["max_joint_accel_ratio"] <= 1 + 1e-9
+    assert traj.metrics.max_joint_accel_ratio <= 1 + 1e-9
 
 
 @pytest.mark.parametrize("move", [
@@ -77,7 +77,7 @@ def test_tiny_moves_plan(move) -> None:
         move = {"lin": {"to": {"xyz": (load_robot("abb_irb2400").fk(q0).translation + shift).tolist()}, "speed": 0.25}}
     traj = plan(parse_task({"robot": "abb_irb2400", "start": {"joints_deg": [0, 10, 20, 0, 30, 0]},
                             "moves": [move]}))
-    assert traj.metrics["max_joint_accel_ratio"] <= 1 + 1e-9
+    assert traj.metrics.max_joint_accel_ratio <= 1 + 1e-9
     _at_rest_everywhere_it_should(traj, 10.0)
 
 

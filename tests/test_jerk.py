@@ -57,7 +57,7 @@ def test_public_jerk_program_passes_the_checker_and_reports_the_time_lost(name: 
     # without the jerk limit: the acceleration-limited plan, which the jerk-limited one cannot beat
     unlimited = plan(_with_limits(load_task(task_path), jerk_rad_s3=None))
     duration_s = traj["metrics"]["duration_s"]
-    assert duration_s >= unlimited.metrics["duration_s"] - traj["period"] / 2
+    assert duration_s >= unlimited.metrics.duration_s - traj["period"] / 2
     assert duration_s <= expect["witness_duration_s"]  # a legal plan this long exists: never slower than it
     lost_s = traj["metrics"]["jerk_time_lost_s"]
     assert duration_s == pytest.approx(traj["metrics"]["acceleration_limited_duration_s"] + lost_s, abs=1e-9)
@@ -68,17 +68,17 @@ def test_jerk_limit_holds_on_every_sample_and_across_the_seams() -> None:
     traj = plan(task)
     measured = _third_difference_ratio(traj.q, traj.period, 150.0)
     assert measured <= 1.0 + 1e-9
-    assert traj.metrics["max_joint_jerk_ratio"] == pytest.approx(measured, rel=1e-9)
-    assert traj.metrics["max_joint_speed_ratio"] <= 1.0 and traj.metrics["max_joint_accel_ratio"] <= 1.0
+    assert traj.metrics.jerk.max_joint_jerk_ratio == pytest.approx(measured, rel=1e-9)
+    assert traj.metrics.max_joint_speed_ratio <= 1.0 and traj.metrics.max_joint_accel_ratio <= 1.0
     # the seam between the LIN and the PTP is a rest on a sample; the third differences above span it
     seam = round(traj.moves[0].t1 / traj.period)
     assert 3 <= seam <= len(traj.q) - 4
     np.testing.assert_allclose(traj.q[seam - 1], traj.q[seam], atol=150.0 * traj.period**3)
     # slower than the acceleration-limited plan, by the time the metrics report
     unlimited = plan(load_task(DEMO))
-    assert traj.metrics["acceleration_limited_duration_s"] == pytest.approx(unlimited.metrics["duration_s"],
+    assert traj.metrics.jerk.acceleration_limited_duration_s == pytest.approx(unlimited.metrics.duration_s,
                                                                             abs=1e-9)
-    assert traj.metrics["jerk_time_lost_s"] > 0.0
+    assert traj.metrics.jerk.jerk_time_lost_s > 0.0
 
 
 def test_summary_names_the_jerk_and_the_time_lost(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -136,12 +136,12 @@ def test_quintic_ptp_follows_the_seeds_003_law(jerk: tuple[float, ...] | None) -
     r = np.arange(k1 + 1) / k1
     expected = q[0] + np.outer(r**3 * (10 - 15 * r + 6 * r**2), q[-1] - q[0])
     np.testing.assert_allclose(q, expected, atol=1e-12)
-    assert traj.metrics["max_joint_speed_ratio"] <= 1.0 and traj.metrics["max_joint_accel_ratio"] <= 1.0
+    assert traj.metrics.max_joint_speed_ratio <= 1.0 and traj.metrics.max_joint_accel_ratio <= 1.0
     if jerk is not None:
         assert _third_difference_ratio(traj.q, traj.period, jerk[0]) <= 1.0 + 1e-9
     optimal = plan(_ptp_task("optimal", None))
-    assert traj.metrics["acceleration_limited_duration_s"] == pytest.approx(optimal.metrics["duration_s"], abs=1e-9)
-    assert traj.metrics["duration_s"] > optimal.metrics["duration_s"]
+    assert traj.metrics.jerk.acceleration_limited_duration_s == pytest.approx(optimal.metrics.duration_s, abs=1e-9)
+    assert traj.metrics.duration_s > optimal.metrics.duration_s
 
 
 def test_the_yaml_key_sets_the_quintic_law_and_round_trips(tmp_path: Path) -> None:
@@ -250,7 +250,7 @@ def test_jerk_and_torque_limits_hold_together() -> None:
                "moves": [{"ptp": {"to": {"joints_deg": [60, -40, 40, 30, 60, 20]}}}],
                "limits": {"acceleration": 40.0, "torque_scale": 0.45, "jerk": 400.0}}
     traj = plan(parse_task(mapping))
-    assert traj.metrics["max_torque_ratio"] <= 1.0
+    assert traj.metrics.torques.max_torque_ratio <= 1.0
     assert _third_difference_ratio(traj.q, traj.period, 400.0) <= 1.0 + 1e-9
 
 
@@ -340,7 +340,7 @@ def test_random_ptp_programs_keep_every_limit_on_the_samples(rng: np.random.Gene
         qd = np.diff(traj.q, axis=0) / traj.period
         assert np.max(np.abs(np.diff(traj.q, n=3, axis=0)) / traj.period**3 / np.array(jerk)) <= 1.0 + 1e-9
         assert np.max(np.abs(np.diff(qd, axis=0)) / traj.period / np.array(accel)) <= 1.0 + 1e-9
-        assert traj.metrics["max_joint_speed_ratio"] <= 1.0
+        assert traj.metrics.max_joint_speed_ratio <= 1.0
 
 
 def test_random_lins_keep_every_limit_on_the_samples(rng: np.random.Generator) -> None:
@@ -364,8 +364,8 @@ def test_random_lins_keep_every_limit_on_the_samples(rng: np.random.Generator) -
             continue
         planned += 1
         assert _third_difference_ratio(traj.q, traj.period, jerk) <= 1.0 + 1e-9
-        assert traj.metrics["max_joint_accel_ratio"] <= 1.0 and traj.metrics["max_joint_speed_ratio"] <= 1.0
-        assert traj.metrics["max_position_error_mm"] <= 0.01
+        assert traj.metrics.max_joint_accel_ratio <= 1.0 and traj.metrics.max_joint_speed_ratio <= 1.0
+        assert traj.metrics.max_position_error_mm <= 0.01
     assert planned >= 3
 
 

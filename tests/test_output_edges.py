@@ -38,6 +38,7 @@ from singplan.outputs.viewer import is_loopback
 from singplan.results import files
 from singplan.results.metrics import Metrics
 from singplan.results.trajectory import Trajectory, load, save, write_csv
+from singplan.task.schema import Move, Task
 
 from .conftest import listening_ports
 
@@ -49,8 +50,8 @@ TARGET = {"xyz": [0.55, -0.08, 0.66], "rpy_deg": [-157.09, 31.93, -172.02]}  # ~
 def _synthetic(names: tuple[str, ...], samples: int = 5, period: float = 0.004) -> Trajectory:
     t = np.arange(samples) * period
     q = np.linspace(0.0, 1.0, samples * len(names)).reshape(samples, len(names))
-    task = {"robot": "r", "start": {"joints_deg": [0] * len(names)},
-            "moves": [{"ptp": {"to": {"joints_deg": [0] * len(names)}}}]}
+    zeros = (0.0,) * len(names)
+    task = Task("r", (Move("ptp", to_joints_deg=zeros),), start_joints_deg=zeros)
     return Trajectory("r", "/r.urdf", "tool0", {"xyz": [0, 0, 0], "rpy_deg": [0, 0, 0]}, task, names, period,
                       t, q, q * 0.5, q * 0.25, (), (), Metrics.of_samples(float(t[-1]), samples))
 

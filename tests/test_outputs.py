@@ -23,6 +23,7 @@ from singplan.results import files as outputs
 from singplan.results import trajectory as trajectory_module
 from singplan.results.metrics import Metrics
 from singplan.results.trajectory import Trajectory, load, save, write_csv, write_json
+from singplan.task.schema import Move, Task
 
 from .conftest import ReplayServer
 
@@ -249,7 +250,7 @@ def _synthetic(samples: int) -> Trajectory:
     q = rng.uniform(-3, 3, (samples, 6))
     series = {"position_error_m": rng.uniform(0, 1e-5, samples), "orientation_error_rad": rng.uniform(0, 1e-4, samples),
               "distances": rng.uniform(0, 1, (samples, 3))}
-    task = {"robot": "r", "start": {"joints_deg": [0] * 6}, "moves": [{"ptp": {"to": {"joints_deg": [0] * 6}}}]}
+    task = Task("r", (Move("ptp", to_joints_deg=(0.0,) * 6),), start_joints_deg=(0.0,) * 6)
     return Trajectory("r", "/r.urdf", "tool0", {"xyz": [0, 0, 0], "rpy_deg": [0, 0, 0]}, task,
                       tuple(f"j{i}" for i in range(6)), 0.004, t, q, q * 2, q * 3, (), (),
                       replace(Metrics.of_samples(float(t[-1]), samples), max_position_error_mm=float("nan")), series)

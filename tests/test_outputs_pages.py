@@ -39,8 +39,9 @@ from singplan.outputs.timeline import (
     tcp_track,
     timeline,
 )
-from singplan.outputs.viewer import joint_travel, programmed_path, replay_html, robot_of, tcp_path, viewer_dir
+from singplan.outputs.viewer import joint_travel, programmed_points, replay_html, robot_of, tcp_path, viewer_dir
 from singplan.planning.path.pieces import move_piece
+from singplan.results.metrics import CrossingFigures
 from singplan.results.plan import plan
 from singplan.results.trajectory import Segment, Trajectory
 from singplan.task.load import parse_task
@@ -80,7 +81,8 @@ def _with_pause_and_blend(traj: Trajectory) -> tuple[Trajectory, int]:
     for s in traj.segments:
         s = replace(s, t0=later(s.t0), t1=later(s.t1))
         if s.kind == "crossing":
-            s = replace(s, details={**s.details, "pause_s": hold_s})
+            assert isinstance(s.details, CrossingFigures)
+            s = replace(s, details=replace(s.details, pause_s=hold_s))
         if s.kind == "post":
             corner = s.t1 - 0.25 * (s.t1 - s.t0)
             corner = round(corner / traj.period) * traj.period
@@ -256,29 +258,31 @@ def test_programmed_path_comes_from_the_record_not_the_task_parser(monkeypatch: 
     traj = plan(ROOT / "examples" / "kuka_program.yaml")  # LIN, CIRC, PTP
     robot = robot_of(traj)
     monkeypatch.setattr("singplan.task.load.parse_task", lambda *a, **k: pytest.fail("the task was re-parsed"))
-    path = programmed_path(traj, robot, tcp_path(traj, tcp_track(traj, robot), joint_travel(traj.q)))
-    lin, circ = traj.task["moves"][0]["lin"], traj.task["moves"][1]["circ"]
+    path = programmed_points(traj, robot, tcp_path(traj, tcp_track(traj, robot), joint_travel(traj.q)))
+    lin, circ = traj.task.moves[0], traj.task.moves[1]
+    assert lin.to is not None and circ.to is not None and circ.via_xyz is not None
     assert np.allclose(path[0], robot.fk(traj.q[0]).translation, atol=1e-12)
-    assert np.allclose(path[63], lin["to"]["xyz"], atol=1e-12)  # the LIN's 64 points end on its target
-    assert np.allclose(path[127], circ["to"]["xyz"], atol=1e-12)
+    assert np.allclose(path[63], lin.to.xyz, atol=1e-12)  # the LIN's 64 points end on its target
+    assert np.allclose(path[127], circ.to.xyz, atol=1e-12)
     arc = path[64:128]
-    centre_distance = np.linalg.norm(arc - np.asarray(circ["via"]["xyz"]), axis=1).min()
+    centre_distance = np.linalg.norm(arc - np.asarray(circ.via_xyz), axis=1).min()
     assert centre_distance < 0.01  # the arc passes by its via point (64 points on ~0.5 m)
 
 
 @pytest.mark.parametrize("seed", range(20))
-def test_a_move_comes_back_from_the_recorded_task_mapping(seed: int) -> None:
+def test_a_task_comes_back_from_its_recorded_mapping(seed: int) -> None:
     task = parse_task(seeded_task(seed))
     weave = Move("lin", to=PoseSpec((0.5, 0.1, 0.4)), speed_m_s=0.1, weave=Weave("triangle", 2.0, 15.0),
                  blend_mm=5.0)
-    task = replace(task, moves=(*task.moves, weave))
+    last = Move("lin", to=PoseSpec((0.5, 0.1, 0.45)))  # a blend needs a move after it
+    task = replace(task, moves=(*task.moves, weave, last))
     recorded = json.loads(json.dumps(task.to_mapping()))  # as trajectory.json keeps it
-    assert [Move.from_mapping(m) for m in recorded["moves"]] == list(task.moves)
+    assert parse_task(recorded) == task  # what singplan.results.reading does with trajectory.json's task
 
 
 def test_the_programmed_path_is_the_planners_piece(demo: Trajectory, robot: Robot) -> None:
-    path = programmed_path(demo, robot, tcp_path(demo, tcp_track(demo, robot), joint_travel(demo.q)))
-    piece = move_piece(0, Move.from_mapping(demo.task["moves"][0]), robot.fk(demo.q[0]))
+    path = programmed_points(demo, robot, tcp_path(demo, tcp_track(demo, robot), joint_travel(demo.q)))
+    piece = move_piece(0, demo.task.moves[0], robot.fk(demo.q[0]))
     count = piece.drawing_count()
     assert np.array_equal(path[:count], piece.positions(np.linspace(0.0, 1.0, count)))
 

@@ -102,10 +102,10 @@ def test_the_through_crossing_is_reported(demo) -> None:
     assert kinds == [("pre", None), ("crossing", "wrist"), ("post", None), ("ptp", None)]
     crossing = traj.segments[1]
     assert (crossing.config_before, crossing.config_after) == ("F U F", "F U N")
-    assert crossing.details["changes_branch"] and crossing.details["min_distance"] < math.radians(0.01)
+    assert crossing.details.changes_branch and crossing.details.min_distance < math.radians(0.01)
     changes = [e for e in traj.events if e.type == "config_change"]
     assert len(changes) == 1 and crossing.t0 <= changes[0].t <= crossing.t1
-    assert traj.metrics["crossings"][0]["method"] == "exact"
+    assert traj.metrics.crossings[0].method == "exact"
 
 
 def test_outputs_follow_the_contract(demo_cli: tuple[Path, str]) -> None:

@@ -60,7 +60,7 @@ def test_pure_reorientation_lin_turns_on_the_spot() -> None:
                             "moves": [{"lin": {"to": {"xyz": list(T.translation), "rpy_deg": list(rpy)}}}]}))
     p = np.array([robot.fk(q).translation for q in traj.q])
     assert np.max(np.linalg.norm(p - T.translation, axis=1)) < 1e-9
-    assert traj.metrics["max_orientation_error_deg"] < 1e-6
+    assert traj.metrics.max_orientation_error_deg < 1e-6
 
 
 def test_a_urdf_given_by_path_plans(tmp_path: Path) -> None:

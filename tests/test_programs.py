@@ -49,7 +49,6 @@ FORMAT_OF_VENDOR = {"kuka": "krl", "abb": "rapid", "fanuc": "fanuc-ls"}
 EXTENSION = {"krl": ".src", "rapid": ".mod", "fanuc-ls": ".ls"}
 TOLERANCE_MM = 0.1
 PRINTED_DEG = {"krl": 5e-5, "rapid": 5e-5, "fanuc-ls": 5e-4}  # half the last printed digit
-DEFAULT_ACCEL = 10.0  # rad/s^2, the task default the checker also assumes
 FLOAT32_DEG = 2.0**-15  # a single-precision float's spacing at 256..512 deg, the largest axis values here
 
 
@@ -147,7 +146,7 @@ def segment_deviation_mm(traj: Trajectory, t: np.ndarray, q_deg: np.ndarray, fk:
 
 def plan_rests_at(traj: Trajectory, k: int) -> bool:
     """The checker's rest rule: the steps on both sides of sample k no longer than a dt^2."""
-    accel = float(np.max((traj.task.get("limits") or {}).get("acceleration", DEFAULT_ACCEL)))
+    accel = float(np.max(traj.task.limits.acceleration_rad_s2))
     bound = accel * traj.period**2 * 1.02
     q = np.asarray(traj.q)
     steps = [np.abs(q[k + 1] - q[k]) if k + 1 < len(q) else 0.0, np.abs(q[k] - q[k - 1]) if k > 0 else 0.0]
@@ -160,13 +159,11 @@ def required_stops(traj: Trajectory) -> set[int]:
     stops = {0, len(traj.t) - 1}
     fk = Fk(traj)
     p = None
-    moves = traj.task["moves"]
+    moves = traj.task.moves
     for seg in traj.segments:
-        spec = next(iter(moves[seg.move].values()))
-        if seg is [s for s in traj.segments if s.move == seg.move][-1] and not (isinstance(spec, dict)
-                                                                               and spec.get("blend_mm")):
+        if seg is [s for s in traj.segments if s.move == seg.move][-1] and not moves[seg.move].blend_mm:
             stops.add(round(seg.t1 / traj.period))
-        if "pause_s" in seg.details:
+        if seg.pause_s is not None:
             p = fk.positions(np.asarray(traj.q)) if p is None else p
             k0, k1 = round(seg.t0 / traj.period), round(seg.t1 / traj.period)
             still = np.flatnonzero(np.linalg.norm(np.diff(p[k0:k1 + 1], axis=0), axis=1) < 1e-7) + k0
@@ -580,11 +577,11 @@ def test_a_woven_move_takes_the_slope_share_of_the_tolerance() -> None:
     traj = planned("scenarios_programs/kuka_kr6_r900_2__weave_lin_sine")
     robot = robot_of(traj)  # with the task's tool
     scale = weave_scale(traj, robot)
-    (spec,) = [next(iter(m.values())) for m in traj.task["moves"] if "weave" in next(iter(m.values()))]
+    (weave,) = [m.weave for m in traj.task.moves if m.weave is not None]
     p = robot.tcp_positions(np.asarray(traj.q)[[0, -1]])
     length = float(np.linalg.norm(p[1] - p[0]))  # the LIN's base length (the weave starts and ends on it)
-    periods = max(1, round(length / (spec["weave"]["wavelength_mm"] / 1e3)))
-    slope = spec["weave"]["amplitude_mm"] / 1e3 * 2 * math.pi * periods / length
+    periods = max(1, round(length / (weave.wavelength_mm / 1e3)))
+    slope = weave.amplitude_mm / 1e3 * 2 * math.pi * periods / length
     assert scale.max() == pytest.approx(1 / math.sqrt(1 + slope**2), rel=1e-6)
     assert scale.min() == scale.max()  # the task is the one woven move
     flyby = planned("scenarios_programs/abb_irb2400__flyby_pick_place")

@@ -83,9 +83,9 @@ def test_a_method_object_passed_to_plan_crosses_every_zone(clean_registry: None)
     traj = plan(NEAR_MISS, method=WideWrist())
     crossing = next(s for s in traj.segments if s.kind == "crossing")
     assert crossing.method == "wide-wrist" and crossing.config_before != crossing.config_after
-    assert traj.metrics["method"] == "wide-wrist"
-    assert traj.metrics["max_position_error_mm"] < 1e-6  # the wrapped wrist-joint keeps the TCP position
-    assert 0.0 < traj.metrics["max_orientation_error_deg"] <= 2.0  # within the task's tolerance
+    assert traj.metrics.method == "wide-wrist"
+    assert traj.metrics.max_position_error_mm < 1e-6  # the wrapped wrist-joint keeps the TCP position
+    assert 0.0 < traj.metrics.max_orientation_error_deg <= 2.0  # within the task's tolerance
     assert "wide-wrist" not in registry.names()  # passing an object registers nothing
 
 

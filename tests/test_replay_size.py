@@ -156,7 +156,7 @@ def test_long_trajectory_page_is_bounded_and_keeps_peaks(program: Trajectory) ->
     assert _path_points(commands) <= 2 * _PATH_POINTS + 2 + 4 * len(long.segments)  # not one a sample
     # the strip keeps the highest joint-speed ratio of all steps (forward differences, as the
     # checker measures), at the time the step ends
-    vmax = robot.velocity_rad_s * float(long.task.get("limits", {}).get("velocity_scale", 1.0))
+    vmax = robot.velocity_rad_s * long.task.limits.velocity_scale
     ratio = np.max(np.abs(np.diff(long.q, axis=0)) / long.period / vmax, axis=1)
     assert len(data["speed"]["t"]) <= _STRIP_POINTS
     assert max(data["speed"]["ratio"]) == pytest.approx(ratio.max(), abs=1e-4)

@@ -30,7 +30,7 @@ def planned(tmp_path_factory: pytest.TempPathFactory) -> tuple[Trajectory, Traje
 
 def test_load_gives_back_every_field_that_save_wrote(planned: tuple[Trajectory, Trajectory]) -> None:
     traj, back = planned
-    assert traj.samples and traj.segments and traj.moves and traj.metrics["crossings"]
+    assert traj.samples and traj.segments and traj.moves and traj.metrics.crossings
     for f in dataclasses.fields(Trajectory):
         before, after = getattr(traj, f.name), getattr(back, f.name)
         if f.name == "samples":

@@ -71,7 +71,7 @@ def test_auto_picks_and_reports_what_each_candidate_gives_alone() -> None:
     task = load_task(NEAR_MISS)
     traj = plan(task)
     crossing = next(s for s in traj.segments if s.kind == "crossing")
-    listed = {(a["method"], a["variant"]): a for a in crossing.details["alternatives"]}
+    listed = {(a.method, a.variant): a for a in crossing.details.alternatives}
     methods = candidates("auto", task.moves[0])
     assert set(listed) == {(m.name, m.variant) for m in methods}
     kinds = {"timed": 0, "untimed": 0, "infeasible": 0}
@@ -81,17 +81,17 @@ def test_auto_picks_and_reports_what_each_candidate_gives_alone() -> None:
             alone: float | None = plan(task, method=method).duration_s
         except PlanningError:
             alone = None
-        if entry["feasible"]:
+        if entry.feasible:
             kinds["timed"] += 1
-            assert alone == entry["duration_s"], (method.name, method.variant)
-        elif entry["feasible"] is None:
+            assert alone == entry.duration_s, (method.name, method.variant)
+        elif entry.feasible is None:
             kinds["untimed"] += 1
-            assert entry["at_least_s"] >= traj.duration_s
-            assert alone is None or alone >= entry["at_least_s"], (method.name, method.variant)
+            assert entry.at_least_s >= traj.duration_s
+            assert alone is None or alone >= entry.at_least_s, (method.name, method.variant)
         else:
             kinds["infeasible"] += 1
-            assert alone is None, (method.name, method.variant, entry["reason"])
-    assert crossing.method == crossing.details["alternatives"][0]["method"]
+            assert alone is None, (method.name, method.variant, entry.reason)
+    assert crossing.method == crossing.details.alternatives[0].method
     assert kinds["timed"] >= 1 and kinds["untimed"] >= 1, kinds  # the bound spared some timing here
 
 
@@ -107,7 +107,7 @@ def test_a_candidate_with_an_earlier_ones_joint_map_is_not_timed_again(monkeypat
     task = parse_task(_shoulder_near_miss())
     crossing = next(s for s in plan(task).segments if s.kind == "crossing")
     assert crossing.singularity == "shoulder"
-    durations = {(a["method"], a.get("variant")): a.get("duration_s") for a in crossing.details["alternatives"]}
+    durations = {(a.method, a.variant): a.duration_s for a in crossing.details.alternatives}
     windows = [key for key in durations if key[0] == "wrist-joint"]
     assert len(windows) == 3 and all(durations[key] == durations[("exact", "")] for key in windows)
     # at a shoulder zone wrist-joint hands the zone to exact: its three windows take exact's timing
@@ -135,8 +135,8 @@ def test_the_trajectory_reuses_the_deviations_measured_when_the_move_was_checked
     assert all(np.array_equal(u, crossing_u) for u in calls if not np.array_equal(u, tm.u))
     assert pm.deviations is not None
     pos, ori = real(planned.robot, pm.piece, tm.u, tm.q)
-    assert traj.metrics["max_position_error_mm"] == pytest.approx(pos.max() * 1e3, rel=1e-12, abs=1e-15)
-    assert traj.metrics["max_orientation_error_deg"] == pytest.approx(np.degrees(ori.max()), rel=1e-12)
+    assert traj.metrics.max_position_error_mm == pytest.approx(pos.max() * 1e3, rel=1e-12, abs=1e-15)
+    assert traj.metrics.max_orientation_error_deg == pytest.approx(np.degrees(ori.max()), rel=1e-12)
     other = tm.q.copy()
     other[len(other) // 2] += 1e-3
     assert pm.deviations.of(tm.u, tm.q) is not None and pm.deviations.of(tm.u, other) is None

@@ -149,7 +149,7 @@ def test_lin_without_redundancy_follows_the_minimum_norm_joint_velocity() -> Non
     robot = load_robot("panda")
     piece = move_piece(0, task.moves[0], robot.fk(np.radians(start)))
     ref = _min_norm_reference(robot, piece.poses(np.linspace(0.0, 1.0, 20_001)), np.radians(start))
-    assert traj.metrics["max_position_error_mm"] <= 0.01 and traj.metrics["max_orientation_error_deg"] <= 0.01
+    assert traj.metrics.max_position_error_mm <= 0.01 and traj.metrics.max_orientation_error_deg <= 0.01
     # the same end joints and the same joint-space path length as the fine minimum-norm integration
     assert np.max(np.abs(traj.q[-1] - ref[-1])) < math.radians(0.1)
     length = float(np.sum(np.linalg.norm(np.diff(traj.q, axis=0), axis=1)))

@@ -125,10 +125,10 @@ def test_a_planned_trajectory_carries_the_series_its_worst_and_loads_it_back(pla
     series = traj.samples["stopping_distance_m"]
     assert series.shape == traj.t.shape and series[0] == 0.0 and series[-1] == 0.0  # at rest at both ends
     k = int(np.argmax(series))
-    assert traj.metrics["max_stopping_distance_mm"] == series[k] * 1e3
-    assert traj.metrics["max_stopping_distance_at_s"] == pytest.approx(traj.t[k])
+    assert traj.metrics.max_stopping_distance_mm == series[k] * 1e3
+    assert traj.metrics.max_stopping_distance_at_s == pytest.approx(traj.t[k])
     robot = robot_of(traj)
-    acc = np.broadcast_to(np.asarray(traj.task["limits"]["acceleration"], dtype=float), (robot.n_joints,))
+    acc = np.broadcast_to(np.asarray(traj.task.limits.acceleration_rad_s2, dtype=float), (robot.n_joints,))
     np.testing.assert_allclose(series, stopping_distances(robot, traj.q, traj.qd, acc), rtol=1e-12, atol=0)
     # the file holds the floats as computed: loading gives the same ones back
     again = load(save(traj, planned_kuka.parent / "again"))
@@ -138,7 +138,7 @@ def test_a_planned_trajectory_carries_the_series_its_worst_and_loads_it_back(pla
 def test_plan_and_check_print_the_worst_figure(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     task = Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml"
     assert main(["plan", str(task), "-o", str(tmp_path), "--no-report", "--no-replay"]) == 0
-    planned = load(tmp_path).metrics["max_stopping_distance_mm"]
+    planned = load(tmp_path).metrics.max_stopping_distance_mm
     assert f"stopping distance: up to {planned:.3f} mm" in capsys.readouterr().out
     assert main(["check", str(task)]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
@@ -205,7 +205,7 @@ def test_a_joint_from_rest_is_no_faster_than_its_travel_allows(planned_kuka: Pat
     worth of acceleration), the travel counted from the start and to the end (both at rest)."""
     traj = load(planned_kuka)
     robot = robot_of(traj)
-    acc = np.broadcast_to(np.asarray(traj.task["limits"]["acceleration"], dtype=float), (robot.n_joints,))
+    acc = np.broadcast_to(np.asarray(traj.task.limits.acceleration_rad_s2, dtype=float), (robot.n_joints,))
     turned = travel(traj.q)
     away = np.minimum(turned, turned[-1] - turned)
     assert np.all(np.abs(traj.qd) <= rest_speed_bounds(away, acc, traj.period))

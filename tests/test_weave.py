@@ -22,7 +22,8 @@ from singplan.errors import TaskError
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.planning.path.cartesian import CartesianPiece
 from singplan.planning.path.pieces import move_piece
-from singplan.planning.path.weave import WovenPiece, wave, wave_slope, whole_periods, woven_moves
+from singplan.planning.path.weave import WovenPiece, wave, wave_slope, whole_periods
+from singplan.results.path import woven_moves
 from singplan.results.plan import plan
 from singplan.results.trajectory import save
 from singplan.task.load import parse_task
@@ -65,7 +66,7 @@ def test_a_woven_path_through_a_wrist_singularity_is_detected_crossed_and_checke
     traj = plan(parse_task(doc))
     crossings = [s for s in traj.segments if s.kind == "crossing"]
     assert [s.singularity for s in crossings] == ["wrist"] and crossings[0].move == 0
-    assert traj.metrics["max_position_error_mm"] < 0.01
+    assert traj.metrics.max_position_error_mm < 0.01
     assert woven_moves(traj.task) == {0}
     task_file = tmp_path / "task.yaml"
     task_file.write_text(yaml.safe_dump(doc))
@@ -277,7 +278,7 @@ def test_the_weave_seam_example_plans_and_its_triangle_corners_keep_the_accelera
     from singplan.results.trajectory import load
 
     traj = load(tmp_path)
-    assert traj.metrics["max_joint_accel_ratio"] <= 1.0 and traj.metrics["max_position_error_mm"] < 0.01
+    assert traj.metrics.max_joint_accel_ratio <= 1.0 and traj.metrics.max_position_error_mm < 0.01
     assert woven_moves(traj.task) == {0, 1}
     run = run_checker(task, tmp_path)
     assert run.returncode == 0, run.stdout + run.stderr
@@ -286,12 +287,12 @@ def test_the_weave_seam_example_plans_and_its_triangle_corners_keep_the_accelera
 def test_report_and_replay_show_the_weave_and_the_stopping_distance() -> None:
     from singplan.outputs.report import report_html
     from singplan.outputs.timeline import SEGMENT_COLOURS, page_basis
-    from singplan.outputs.viewer import _page_data, joint_travel, programmed_path, robot_of, tcp_path
+    from singplan.outputs.viewer import _page_data, joint_travel, programmed_points, robot_of, tcp_path
 
     # a triangle corner sits on the singular point: this failed (acceleration x7) without corner samples
     doc = _demo_with_weave("exact", {"pattern": "triangle", "amplitude_mm": 3.0, "wavelength_mm": 20.0})
     traj = plan(parse_task(doc))
-    assert traj.metrics["max_joint_accel_ratio"] <= 1.0
+    assert traj.metrics.max_joint_accel_ratio <= 1.0
     robot = robot_of(traj)
     page = report_html(traj, robot)
     assert 'id="plot-stopping"' in page and "max_stopping_distance_mm" in page
@@ -304,8 +305,10 @@ def test_report_and_replay_show_the_weave_and_the_stopping_distance() -> None:
     assert {colours[(0, kind)] for kind in ("pre", "post")} == {SEGMENT_COLOURS["weave"]}
     assert colours[(1, "ptp")] == SEGMENT_COLOURS["ptp"]
     # the programmed path drawn is the woven one: its points leave the straight line by up to the amplitude
-    lin = programmed_path(traj, robot, tcp)
-    start, end = lin[0], traj.task["moves"][0]["lin"]["to"]["xyz"]
+    lin = programmed_points(traj, robot, tcp)
+    target = traj.task.moves[0].to
+    assert target is not None
+    start, end = lin[0], target.xyz
     axis = (np.asarray(end) - start) / np.linalg.norm(np.asarray(end) - start)
     off = lin[: np.argmin(np.linalg.norm(lin - end, axis=1)) + 1] - start
     lateral = np.linalg.norm(off - np.outer(off @ axis, axis), axis=1)

@@ -8,7 +8,7 @@ read later is still named by its field.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -41,24 +41,6 @@ class Shape:
     mesh_scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
     name: str = ""
     field: str = ""
-
-    @classmethod
-    def from_mapping(cls, spec: Mapping[str, Any], field: str = "") -> Shape:
-        """The shape of a validated task's mapping (:meth:`to_mapping`, as trajectory.json keeps it): its
-        inverse, with no checks (the task was validated when planned)."""
-        kind: ShapeKind = next(k for k in SHAPE_KINDS if k in spec)
-        body = spec[kind]
-        xyz = _triple(spec.get("xyz", (0.0, 0.0, 0.0)))
-        rpy = _triple(spec.get("rpy_deg", (0.0, 0.0, 0.0)))
-        name = str(spec.get("name", ""))
-        if kind == "mesh":
-            scale = body.get("scale", 1.0)
-            scales = _triple(scale) if isinstance(scale, (list, tuple)) else (float(scale),) * 3
-            return cls("mesh", (), xyz, rpy, str(body["file"]), _triple(scales), name, field)
-        dims = {"box": lambda: tuple(float(v) for v in body["size"]),
-                "cylinder": lambda: (float(body["radius"]), float(body["length"])),
-                "sphere": lambda: (float(body["radius"]),)}[kind]()
-        return cls(kind, dims, xyz, rpy, name=name, field=field)
 
     def to_mapping(self, named: bool = True) -> dict[str, Any]:
         """The shape as the task's YAML gives it (``named``: with its name, as a cell shape)."""
@@ -93,12 +75,6 @@ class CollisionSettings:
     srdf: str | None = None
     allow: tuple[tuple[str, str], ...] = ()
 
-    @classmethod
-    def from_mapping(cls, doc: Mapping[str, Any]) -> CollisionSettings:
-        """The settings of a validated task's mapping (:meth:`to_mapping`): its inverse, with no checks."""
-        return cls(float(doc.get("clearance_mm", 0.0)), bool(doc.get("self", True)), doc.get("srdf"),
-                   tuple((str(a), str(b)) for a, b in doc.get("allow", ())))
-
     def to_mapping(self) -> dict[str, Any]:
         out: dict[str, Any] = {"clearance_mm": self.clearance_mm, "self": self.self_collision}
         if self.srdf is not None:
@@ -109,13 +85,3 @@ class CollisionSettings:
 def _triple(values: Sequence[Any]) -> tuple[float, float, float]:
     x, y, z = (float(v) for v in values)
     return x, y, z
-
-
-def task_shapes(task: Mapping[str, Any]) -> tuple[tuple[Shape, ...], tuple[Shape, ...], CollisionSettings | None]:
-    """The tool's shapes, the cell and the ``collision`` settings of a validated task's mapping (as
-    trajectory.json keeps it); settings None when the task has none of the three keys."""
-    tool = tuple(Shape.from_mapping(s, f"tool.geometry[{i}]")
-                 for i, s in enumerate((task.get("tool") or {}).get("geometry") or ()))
-    cell = tuple(Shape.from_mapping(s, f"cell[{i}]") for i, s in enumerate(task.get("cell") or ()))
-    settings = task.get("collision")
-    return tool, cell, CollisionSettings.from_mapping(settings) if settings is not None else None

@@ -22,17 +22,10 @@ from singplan.kinematics.clearance import clearance_curve
 from singplan.kinematics.collision import collision_model
 from singplan.kinematics.dynamics import trajectory_torques
 from singplan.kinematics.robot import Robot
-from singplan.kinematics.shapes import task_shapes
 from singplan.outputs.svgplot import Panel, envelope, figure_svg
 from singplan.outputs.timeline import SHADED_OPACITY, PageBasis, Stretch, page_basis
+from singplan.results.metrics import Metrics, TorqueFigures, crossing_costs
 from singplan.results.trajectory import Segment, Trajectory
-from singplan.task.schema import (
-    DEFAULT_ORIENTATION_TOLERANCE_DEG,
-    DEFAULT_POSITION_TOLERANCE_MM,
-    DEFAULT_ZONE_ELBOW_DEG,
-    DEFAULT_ZONE_SHOULDER_MM,
-    DEFAULT_ZONE_WRIST_DEG,
-)
 
 _PLOT_BUCKETS = 1000  # a curve longer than two points a bucket is drawn as its min/max envelope (> 1 a pixel)
 _LEGEND = {"path": "path", "pre": "before a zone", "crossing": "crossing", "post": "after a zone", "ptp": "PTP",
@@ -163,11 +156,10 @@ def _tcp_speed(traj: Trajectory, step_m: np.ndarray, shading: _Shading) -> list[
     panel = shading.panel(xlabel="t [s]", ylabel="[m/s]")
     _curve(panel, traj.t[1:], step_m / traj.period, label="TCP speed")
     by_move = traj.segments_by_move()
-    for i, move in enumerate(traj.task["moves"]):
-        kind, spec = next(iter(move.items()))
+    for i, move in enumerate(traj.task.moves):
         segs = by_move.get(i)
-        if kind != "ptp" and segs:
-            panel.hline(spec["speed"], x0=segs[0].t0, x1=segs[-1].t1)
+        if move.kind != "ptp" and segs:
+            panel.hline(move.speed_m_s, x0=segs[0].t0, x1=segs[-1].t1)
     return [panel]
 
 
@@ -189,7 +181,8 @@ def _clearance(traj: Trajectory, robot: Robot, shading: _Shading) -> list[Panel]
     the closest approach), against the clearance asked for."""
     figures = traj.metrics.clearance
     assert figures is not None and figures.min_clearance_mm is not None and figures.min_clearance_t is not None
-    model = collision_model(robot, *task_shapes(traj.task), traj.q[0])  # as planned (planning.targets)
+    task = traj.task  # the bodies and pairs as planned (planning.orchestration.targets)
+    model = collision_model(robot, task.tool_geometry, task.cell, task.collision, traj.q[0])
     picks, distance_m = clearance_curve(model, traj.q, _CLEARANCE_POINTS)
     panel = shading.panel(xlabel="t [s]", ylabel="least distance [mm]")
     _curve(panel, traj.t[picks], distance_m * 1e3, label="closest pair")
@@ -214,6 +207,26 @@ def _timeline(traj: Trajectory, stretches: list[Stretch]) -> str:
             f'<p class="legend">{legend} (0 - {traj.duration_s:.3f} s)</p>')
 
 
+def _deviation_cells(seg: Segment) -> list[str]:
+    """A crossing's largest position [mm] and orientation [deg] deviation and its time lost [s], as table cells."""
+    pos, ori, lost = crossing_costs(seg.details)
+    return [f"{pos:.4f}", f"{ori:.4f}", f"{lost:.3f}"]
+
+
+def _metric_figures(m: Metrics) -> dict[str, float | int | None]:
+    """The figures the metrics table lists, in its order (None: the trajectory has no such figure)."""
+    jerk, torques = m.jerk, m.torques if isinstance(m.torques, TorqueFigures) else None
+    return {"duration_s": m.duration_s, "max_position_error_mm": m.max_position_error_mm,
+            "max_orientation_error_deg": m.max_orientation_error_deg, "max_joint_speed_ratio": m.max_joint_speed_ratio,
+            "max_joint_accel_ratio": m.max_joint_accel_ratio,
+            "max_joint_jerk_ratio": None if jerk is None else jerk.max_joint_jerk_ratio,
+            "acceleration_limited_duration_s": None if jerk is None else jerk.acceleration_limited_duration_s,
+            "jerk_time_lost_s": None if jerk is None else jerk.jerk_time_lost_s,
+            "max_torque_ratio": None if torques is None else torques.max_torque_ratio,
+            "max_stopping_distance_mm": m.max_stopping_distance_mm,
+            "max_stopping_distance_at_s": m.max_stopping_distance_at_s, "planning_time_s": m.planning_time_s}
+
+
 def _table(header: list[str], rows: list[list[Any]]) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows)
@@ -223,25 +236,20 @@ def _table(header: list[str], rows: list[list[Any]]) -> str:
 def _tables(traj: Trajectory) -> str:
     moves = []
     by_move = traj.segments_by_move()
-    for i, move in enumerate(traj.task["moves"]):
-        kind = next(iter(move))
+    for i, move in enumerate(traj.task.moves):
         segs = by_move.get(i)
-        moves.append([i, kind, f"{segs[0].t0:.3f}", f"{segs[-1].t1:.3f}", segs[0].config_before, segs[-1].config_after]
-                     if segs else [i, kind, "-", "-", "-", "-"])
+        moves.append([i, move.kind, f"{segs[0].t0:.3f}", f"{segs[-1].t1:.3f}", segs[0].config_before,
+                      segs[-1].config_after] if segs else [i, move.kind, "-", "-", "-", "-"])
     crossings = [[s.move, s.singularity, s.method, f"{s.t0:.3f} .. {s.t1:.3f}", _zone_cell(traj, s),
-                  f"{s.config_before} -> {s.config_after}", f"{s.details.get('max_position_error_mm', 0.0):.4f}",
-                  f"{s.details.get('max_orientation_error_deg', 0.0):.4f}", f"{s.details.get('time_lost_s', 0.0):.3f}"]
+                  f"{s.config_before} -> {s.config_after}", *_deviation_cells(s)]
                  for s in traj.segments if s.kind == "crossing"]
-    m = traj.metrics
-    metrics = [[k, f"{m[k]:.6g}"] for k in ("duration_s", "max_position_error_mm", "max_orientation_error_deg",
-                                            "max_joint_speed_ratio", "max_joint_accel_ratio", "max_joint_jerk_ratio",
-                                            "acceleration_limited_duration_s", "jerk_time_lost_s", "max_torque_ratio",
-                                            "max_stopping_distance_mm", "max_stopping_distance_at_s",
-                                            "planning_time_s") if isinstance(m.get(k), (int, float))]
-    metrics += [[f"peak torque {name} [N m]", f"{value:.4g} of {m['torque_limit_Nm'][name]:.4g}"]
-                for name, value in m.get("peak_torque_Nm", {}).items()]
-    if "torques" in m:
-        metrics.append(["torques", str(m["torques"])])
+    metrics = [[k, f"{v:.6g}"] for k, v in _metric_figures(traj.metrics).items() if isinstance(v, (int, float))]
+    torques = traj.metrics.torques
+    if isinstance(torques, str):
+        metrics.append(["torques", torques])
+    else:
+        metrics += [[f"peak torque {name} [N m]", f"{value:.4g} of {torques.torque_limit_Nm[name]:.4g}"]
+                    for name, value in torques.peak_torque_Nm.items()]
     return ("<h2>Moves</h2>" + _table(["move", "kind", "t0 [s]", "t1 [s]", "config before", "config after"], moves)
             + "<h2>Crossings</h2>" + (_table(["move", "singularity", "method", "time [s]", "zone [s]", "configuration",
                                               "max pos dev [mm]", "max ori dev [deg]", "time lost [s]"], crossings)
@@ -270,8 +278,8 @@ def report_html(traj: Trajectory, robot: Robot, basis: PageBasis | None = None) 
 def _figures(traj: Trajectory, robot: Robot, basis: PageBasis) -> list[_Figure]:
     """The page's figures, in order; a series the trajectory does not have is left out."""
     shading = _Shading(basis.stretches, traj.duration_s)
-    sing = traj.task.get("singularity", {})
-    zone = sing.get("zone", {})
+    sing = traj.task.singularity
+    zone = sing.zone
     s_mm = basis.track.length_m * 1e3
     figures = [
         _Figure("joints", "Joint positions [deg] with their limits (dashed); crossings shaded.",
@@ -280,15 +288,13 @@ def _figures(traj: Trajectory, robot: Robot, basis: PageBasis) -> list[_Figure]:
                 _joint_ratios(traj, traj.t[1:], basis.speed_ratio, "|qd| / limit", shading)),
     ]
     if "distances" in traj.samples:  # none for an arm without labels (7 joints)
-        thresholds = [zone.get("wrist_deg", DEFAULT_ZONE_WRIST_DEG), zone.get("shoulder_mm", DEFAULT_ZONE_SHOULDER_MM),
-                      zone.get("elbow_deg", DEFAULT_ZONE_ELBOW_DEG)]
+        thresholds = [zone.wrist_deg, zone.shoulder_mm, zone.elbow_deg]
         figures.append(_Figure("distances", "Signed singular distances with the detection thresholds, against time "
                                             "(bottom) and path length (top).",
                                _distances(traj, thresholds, s_mm, shading), 3, 3.3))
     figures += [
         _Figure("deviation", "Deviation from the programmed path with the tolerances, against time and path length.",
-                _deviation(traj, sing.get("position_tolerance_mm", DEFAULT_POSITION_TOLERANCE_MM),
-                           sing.get("orientation_tolerance_deg", DEFAULT_ORIENTATION_TOLERANCE_DEG), s_mm, shading),
+                _deviation(traj, sing.position_tolerance_mm, sing.orientation_tolerance_deg, s_mm, shading),
                 2, 3.3),
         _Figure("tcp", "TCP speed against the programmed speed (dashed).",
                 _tcp_speed(traj, basis.track.step_m, shading)),
@@ -303,7 +309,7 @@ def _figures(traj: Trajectory, robot: Robot, basis: PageBasis) -> list[_Figure]:
                                             f"dashed); the closest approach marked.", _clearance(traj, robot, shading)))
     torques = traj.metrics.torques
     if not isinstance(torques, str):  # the metrics' limits: efforts x limits.torque_scale (1 if unset)
-        limit = ("effort x torque_scale" if traj.task.get("limits", {}).get("torque_scale") is not None
+        limit = ("effort x torque_scale" if traj.task.limits.torque_scale is not None
                  else "URDF effort, not enforced: no limits.torque_scale")
         limit_nm = np.array([torques.torque_limit_Nm[name] for name in traj.joint_names])
         figures.append(_Figure("torque", f"Joint torque (inverse dynamics of the samples) as a fraction of its limit "

@@ -20,9 +20,8 @@ import pinocchio as pin
 
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot, bundled_robots, load_robot
-from singplan.planning.path.weave import woven_moves
+from singplan.results.path import woven_moves
 from singplan.results.trajectory import Segment, Trajectory
-from singplan.task.schema import DEFAULT_VELOCITY_SCALE
 
 # one colour per stretch kind, for the report's shading and the replay's path, markers, strip and legend
 # (the one home of the pages' colours, with svgplot's curve palette and limit colour)
@@ -118,7 +117,7 @@ def sample_range(traj: Trajectory, seg: Segment) -> tuple[int, int]:
 
 def speed_limits(traj: Trajectory, robot: Robot) -> np.ndarray:
     """The joint speed limits (n,) [rad/s] the trajectory was planned under (URDF x ``limits.velocity_scale``)."""
-    return robot.velocity_rad_s * float(traj.task.get("limits", {}).get("velocity_scale", DEFAULT_VELOCITY_SCALE))
+    return robot.velocity_rad_s * traj.task.limits.velocity_scale
 
 
 def joint_speed_ratios(traj: Trajectory, vmax_rad_s: np.ndarray) -> np.ndarray:
@@ -146,7 +145,7 @@ def timeline(traj: Trajectory, track: TcpTrack) -> list[Stretch]:
     for n, seg in enumerate(traj.segments):
         k0, k1 = sample_range(traj, seg)
         kind = display_kind(seg, woven)
-        pause = pause_window(track.step_m, k0, k1) if "pause_s" in seg.details else None
+        pause = pause_window(track.step_m, k0, k1) if seg.pause_s is not None else None
         parts = [(kind, k0, k1)] if pause is None else [(kind, k0, pause[0]), ("pause", *pause), (kind, pause[1], k1)]
         out += [Stretch(name, n, a, b, float(traj.t[a]), float(traj.t[b])) for name, a, b in parts if b > a]
     return out

@@ -43,6 +43,7 @@ from singplan.kinematics.collision import MAX_MESH_BYTES
 from singplan.kinematics.files import read_bounded
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot
+from singplan.kinematics.shapes import Shape
 from singplan.outputs.choices import DEFAULT_HOST
 from singplan.outputs.scene import ROOT, AnimationCommand, RobotScene, ZCylinder
 from singplan.outputs.svgplot import LIMIT_COLOUR, PALETTE
@@ -60,12 +61,10 @@ from singplan.outputs.timeline import (
     tcp_track,
     timeline,
 )
-from singplan.planning.path.cartesian import move_target
-from singplan.planning.path.pieces import move_piece
-from singplan.planning.path.weave import woven_moves
 from singplan.results.files import check_output_file, hold_output_folder, text_writer, write_file
+from singplan.results.metrics import crossing_costs
+from singplan.results.path import programmed_path, woven_moves
 from singplan.results.trajectory import Segment, Trajectory, load
-from singplan.task.schema import Move
 
 _SERVER_START_S = 60.0  # longest wait for the live server to report its address
 ANIMATION_STEP_S = 0.02  # animation keyframes at most this often; the browser interpolates between them
@@ -179,7 +178,7 @@ def _scene(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, tcp: TcpPath
     scene = RobotScene.of(robot)
     shown = scene.send(vis, traj.q[0])
     vis["/Grid"].set_property("visible", False)  # the robot's base axes show the ground frame
-    vis["paths/programmed"].set_object(_line(programmed_path(traj, robot, tcp), PROGRAMMED_COLOUR, 1.0))
+    vis["paths/programmed"].set_object(_line(programmed_points(traj, robot, tcp), PROGRAMMED_COLOUR, 1.0))
     _draw_segments(vis, traj, tcp, stretches)
     _draw_cell(vis, traj)
     # a frame is a sample: keyframes at kept samples, the exact joint values there
@@ -224,43 +223,43 @@ TOOL_COLOUR = 0xD9A441  # the tool's shapes
 CLOSEST_COLOUR = 0xE0301E  # the closest approach: a line between the two closest points
 
 
-def _shape_object(spec: dict[str, Any], colour: int, opacity: float) -> tuple[Any, np.ndarray]:
-    """A cell or tool shape of the task mapping as a meshcat geometry and the transform that scales it
+def _shape_object(shape: Shape, colour: int, opacity: float) -> tuple[Any, np.ndarray]:
+    """A cell or tool shape of the task as a meshcat geometry and the transform that scales it
     (a mesh's ``scale``; identity otherwise). The mesh file is read through the bounded reader."""
     material = mg.MeshLambertMaterial(color=colour, opacity=opacity, transparent=opacity < 1.0)
     scale = np.eye(4)
-    if "box" in spec:
-        geometry: Any = mg.Box([float(v) for v in spec["box"]["size"]])
-    elif "cylinder" in spec:
-        geometry = ZCylinder(float(spec["cylinder"]["length"]), float(spec["cylinder"]["radius"]))
-    elif "sphere" in spec:
-        geometry = mg.Sphere(float(spec["sphere"]["radius"]))
+    dims = shape.dimensions_m
+    if shape.kind == "box":
+        geometry: Any = mg.Box(list(dims))
+    elif shape.kind == "cylinder":
+        geometry = ZCylinder(dims[1], dims[0])  # (length, radius)
+    elif shape.kind == "sphere":
+        geometry = mg.Sphere(dims[0])
     else:
-        mesh = spec["mesh"]
-        data = read_bounded(mesh["file"], MAX_MESH_BYTES, "mesh")
-        geometry = (mg.StlMeshGeometry.from_stream(io.BytesIO(data)) if str(mesh["file"]).lower().endswith(".stl")
+        assert shape.mesh_file is not None  # a validated mesh shape names its file
+        data = read_bounded(shape.mesh_file, MAX_MESH_BYTES, "mesh")
+        geometry = (mg.StlMeshGeometry.from_stream(io.BytesIO(data)) if shape.mesh_file.lower().endswith(".stl")
                     else mg.ObjMeshGeometry.from_stream(io.StringIO(data.decode("utf-8", "replace"))))
-        factor = mesh.get("scale", 1.0)
-        scale = np.diag([*(factor if isinstance(factor, list) else [factor] * 3), 1.0])
+        scale = np.diag([*shape.mesh_scale, 1.0])
     return (geometry, material), scale
 
 
-def _shape_pose(spec: dict[str, Any]) -> np.ndarray:
-    """A shape's pose (4, 4) in its frame: ``xyz`` and ``rpy_deg`` of the task mapping."""
+def _shape_pose(shape: Shape) -> np.ndarray:
+    """A shape's pose (4, 4) in its frame (the base for the cell, the tip for the tool)."""
     T = np.eye(4)
-    T[:3, :3] = rpy_deg_to_rotation(spec.get("rpy_deg", [0.0, 0.0, 0.0]))
-    T[:3, 3] = spec.get("xyz", [0.0, 0.0, 0.0])
+    T[:3, :3] = rpy_deg_to_rotation(shape.rpy_deg)
+    T[:3, 3] = shape.xyz
     return T
 
 
 def _draw_cell(vis: meshcat.Visualizer, traj: Trajectory) -> None:
     """The task's cell (fixed shapes, see-through) and the closest approach of the collision check (a line
     between the two closest points, a dot at each)."""
-    for i, spec in enumerate(traj.task.get("cell", ())):
-        obj, scale = _shape_object(spec, CELL_COLOUR, 0.55)
-        node = vis[f"cell/{i:03d}_{spec.get('name', i)}"]
+    for i, shape in enumerate(traj.task.cell):
+        obj, scale = _shape_object(shape, CELL_COLOUR, 0.55)
+        node = vis[f"cell/{i:03d}_{shape.name}"]
         node.set_object(*obj)
-        node.set_transform(_shape_pose(spec) @ scale)
+        node.set_transform(_shape_pose(shape) @ scale)
     clearance = traj.metrics.clearance
     if clearance is None or clearance.min_clearance_points is None:
         return
@@ -275,15 +274,15 @@ def _draw_tool(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, frames: 
                ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
     """The tool's shapes (``tool.geometry``) fixed to the tip: their nodes, and their positions (F, S, 3) and
     quaternions (x, y, z, w) (F, S, 4) at the animation's frames."""
-    specs = (traj.task.get("tool") or {}).get("geometry") or []
-    xyz, quat = np.empty((len(frames), len(specs), 3)), np.empty((len(frames), len(specs), 4))
+    shapes = traj.task.tool_geometry
+    xyz, quat = np.empty((len(frames), len(shapes), 3)), np.empty((len(frames), len(shapes), 4))
     tips = [robot.fk_tip(traj.q[k]).homogeneous for k in frames]
     paths = []
-    for s, spec in enumerate(specs):
-        obj, scale = _shape_object(spec, TOOL_COLOUR, 1.0)
+    for s, shape in enumerate(shapes):
+        obj, scale = _shape_object(shape, TOOL_COLOUR, 1.0)
         node = vis[f"tool/{s:02d}"]
         node.set_object(*obj)
-        local = _shape_pose(spec)
+        local = _shape_pose(shape)
         node.set_transform(tips[0] @ local @ scale if tips else local @ scale)
         paths.append(node.path.lower())
         for f, tip in enumerate(tips):
@@ -293,24 +292,18 @@ def _draw_tool(vis: meshcat.Visualizer, traj: Trajectory, robot: Robot, frames: 
     return tuple(paths), xyz, quat
 
 
-def programmed_path(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
-    """Points (M, 3) [m] of the programmed path: each LIN / CIRC (woven if it weaves) is the
-    planner's own piece (:func:`singplan.planning.pieces.move_piece`) of the recorded task's
-    move; a PTP as executed."""
+def programmed_points(traj: Trajectory, robot: Robot, tcp: TcpPath) -> np.ndarray:
+    """Points (M, 3) [m] of the programmed path: each LIN / CIRC (woven if it weaves) is its
+    piece of the trajectory's programmed path (:func:`singplan.results.path.programmed_path`); a
+    PTP as executed."""
     points = []
-    T = robot.fk(traj.q[0])
     by_move = traj.segments_by_move()
-    for i, mapping in enumerate(traj.task["moves"]):
-        move = Move.from_mapping(mapping)
-        segs = by_move.get(i)
-        if move.kind == "ptp":
-            if segs:
-                points.append(tcp.between(sample_range(traj, segs[0])[0], sample_range(traj, segs[-1])[1]))
-            T = robot.fk(np.radians(move.to_joints_deg)) if move.to_joints_deg is not None else move_target(move, T)
-            continue
-        piece = move_piece(i, move, T)
-        points.append(piece.positions(np.linspace(0.0, 1.0, piece.drawing_count())))
-        T = piece.T_end
+    for i, programmed in enumerate(programmed_path(traj.task, robot, traj.q[0])):
+        piece, segs = programmed.piece, by_move.get(i)
+        if piece is not None:
+            points.append(piece.positions(np.linspace(0.0, 1.0, piece.drawing_count())))
+        elif segs:
+            points.append(tcp.between(sample_range(traj, segs[0])[0], sample_range(traj, segs[-1])[1]))
     return np.concatenate(points) if points else tcp.xyz[:1]
 
 
@@ -357,9 +350,8 @@ def _page_data(traj: Trajectory, tcp: TcpPath, basis: PageBasis) -> dict[str, An
         segments.append({"kind": seg.kind, "move": seg.move, "t0": seg.t0, "t1": seg.t1, "t_jump": float(t_jump),
                          "colour": _colour(seg, woven), "title": title, "detail": detail})
         if crossing:
-            d = seg.details
-            text = (f"{title.split(': ', 1)[1]}; {d.get('max_position_error_mm', 0.0):.3f} mm / "
-                    f"{d.get('max_orientation_error_deg', 0.0):.2f} deg")
+            pos_mm, ori_deg, _ = crossing_costs(seg.details)
+            text = f"{title.split(': ', 1)[1]}; {pos_mm:.3f} mm / {ori_deg:.2f} deg"
             labels.append({"text": text, "xyz": tcp.at(_midpoint(traj, seg)).tolist()})
     clearance = traj.metrics.clearance
     if clearance is not None and clearance.min_clearance_points is not None and clearance.min_clearance_pair:
@@ -406,14 +398,15 @@ def _describe(seg: Segment, pause: Stretch | None = None) -> tuple[str, str]:
         what = "fly-by blend" if seg.kind == "blend" else seg.kind
         return f"move {seg.move}: {what}", span + ("" if seg.config_after == seg.config_before
                                                    else f" -> {seg.config_after}")
-    d = seg.details
+    pos_mm, ori_deg, lost_s = crossing_costs(seg.details)
     title = f"move {seg.move}: {seg.singularity} crossing, {seg.method}, {seg.config_before} -> {seg.config_after}"
-    detail = (f"t {seg.t0:.3f}-{seg.t1:.3f} s; deviation {d.get('max_position_error_mm', 0.0):.4f} mm / "
-              f"{d.get('max_orientation_error_deg', 0.0):.3f} deg; time lost {d.get('time_lost_s', 0.0):.3f} s")
-    if "pause_s" in d:
+    detail = (f"t {seg.t0:.3f}-{seg.t1:.3f} s; deviation {pos_mm:.4f} mm / {ori_deg:.3f} deg; "
+              f"time lost {lost_s:.3f} s")
+    if seg.pause_s is not None:
         at = f" at t {pause.t0:.3f}-{pause.t1:.3f} s" if pause is not None else ""
-        detail += f"; TCP paused {float(d['pause_s']):.3f} s{at} while the aligned joints turn"
+        detail += f"; TCP paused {seg.pause_s:.3f} s{at} while the aligned joints turn"
     return title, detail
+
 
 
 @dataclass

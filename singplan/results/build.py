@@ -127,7 +127,7 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     if not np.isnan(distances).all():  # an arm without labels (7 joints) has no singular distances to store
         samples["distances"] = distances
     least = collision[1].least if collision is not None and collision[0].active else None
-    return Trajectory(arm.name, str(arm.urdf_path), arm.tip, tool, task.to_mapping(), arm.joint_names,
+    return Trajectory(arm.name, str(arm.urdf_path), arm.tip, tool, task, arm.joint_names,
                       period, t, q, qd, qdd, tuple(segments), tuple(events), metrics, samples,
                       _move_records(arm, task, segments, q, period, least))
 

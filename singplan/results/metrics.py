@@ -1,8 +1,9 @@
 """The figures a trajectory carries, as typed records (DESIGN.md "Metrics every trajectory carries").
 
-Each record has typed fields for code and reads as its trajectory.json mapping
-(``traj.metrics["max_joint_accel_ratio"]``), so the file contract and the Python API say the
-same thing. :meth:`Metrics.from_json` reads them back from a file.
+Each record is a frozen dataclass with typed fields, read by attribute
+(``traj.metrics.max_joint_accel_ratio``); ``to_json()`` writes it as trajectory.json holds it (the
+keys of DESIGN.md, in the file's order) and ``from_json()`` reads it back from a checked file, so
+the file contract and the Python API say the same thing.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from singplan.planning.orchestration.alternatives import Alternative, JsonRecord
+from singplan.planning.orchestration.alternatives import Alternative
 
 
 def _f(value: Any) -> float:
@@ -20,19 +21,20 @@ def _f(value: Any) -> float:
     return math.nan if value is None else float(value)
 
 
-@dataclass(frozen=True, eq=False)
-class CrossingFigures(JsonRecord):
-    """What a crossing segment cost and how close it came.
+@dataclass(frozen=True)
+class CrossingFigures:
+    """What a crossing segment cost and how close it came (its trajectory.json keys beyond the segment's own).
 
     Attributes:
         min_distance: the closest approach to the singular configuration, in ``min_distance_unit``
             ("rad", or "m" for the shoulder).
-        max_position_error_mm, max_orientation_error_deg: the largest deviation from the path in it.
+        min_distance_unit: "rad" or "m".
+        max_position_error_mm, max_orientation_error_deg: the largest deviation from the path in it [mm, deg].
         max_orientation_error_at_s: where along the move's path that orientation error is [m].
-        time_lost_s: against crossing the same stretch at the programmed speed.
+        time_lost_s: against crossing the same stretch at the programmed speed [s].
         changes_branch: the crossing changes the configuration on purpose.
         alternatives: what auto compared on this move, fastest first.
-        pause_s: how long the TCP waits on the singular point (null-space), None without a pause.
+        pause_s: how long the TCP waits on the singular point (null-space) [s], None without a pause.
     """
 
     min_distance: float
@@ -46,6 +48,7 @@ class CrossingFigures(JsonRecord):
     pause_s: float | None = None
 
     def to_json(self) -> dict[str, Any]:
+        """Its keys in a crossing segment (and in ``metrics.crossings``), ``pause_s`` only with a pause."""
         out: dict[str, Any] = {} if self.pause_s is None else {"pause_s": self.pause_s}
         return {**out, "min_distance": self.min_distance, "min_distance_unit": self.min_distance_unit,
                 "max_position_error_mm": self.max_position_error_mm,
@@ -62,15 +65,21 @@ class CrossingFigures(JsonRecord):
                    None if doc.get("pause_s") is None else _f(doc["pause_s"]))
 
 
-@dataclass(frozen=True, eq=False)
-class BlendFigures(JsonRecord):
-    """A fly-by corner (the incoming move's ``blend`` segment): the radius used, the radius asked
-    for [mm], why they differ ("" when they do not), and the ramp of the superposition."""
+@dataclass(frozen=True)
+class BlendFigures:
+    """A fly-by corner (the incoming move's ``blend`` segment).
+
+    Attributes:
+        radius_mm: the radius flown [mm].
+        requested_mm: the radius the task asked for (``blend_mm``) [mm].
+        reduced: why they differ ("" when they do not; the key is then left out of the file).
+        ramp: the superposition's weights: "quartic" or "quadratic".
+    """
 
     radius_mm: float
     requested_mm: float
     reduced: str = ""
-    ramp: str = "quartic"  # the superposition's weights: "quartic" or "quadratic"
+    ramp: str = "quartic"
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"radius_mm": self.radius_mm, "requested_mm": self.requested_mm, "ramp": self.ramp}
@@ -82,9 +91,9 @@ class BlendFigures(JsonRecord):
                    str(doc.get("ramp", "quartic")))
 
 
-@dataclass(frozen=True, eq=False)
-class NoFigures(JsonRecord):
-    """The figures of a segment that has none of its own (path, pre, post, ptp)."""
+@dataclass(frozen=True)
+class NoFigures:
+    """The figures of a segment that has none of its own (path, pre, post, ptp): no keys in the file."""
 
     def to_json(self) -> dict[str, Any]:
         return {}
@@ -92,6 +101,14 @@ class NoFigures(JsonRecord):
 
 SegmentFigures = CrossingFigures | BlendFigures | NoFigures
 NO_FIGURES = NoFigures()
+
+
+def crossing_costs(figures: SegmentFigures) -> tuple[float, float, float]:
+    """A segment's largest position [mm] and orientation [deg] deviation and its time lost [s]: a
+    crossing's figures, 0 for a segment without them."""
+    if isinstance(figures, CrossingFigures):
+        return figures.max_position_error_mm, figures.max_orientation_error_deg, figures.time_lost_s
+    return 0.0, 0.0, 0.0
 
 
 def figures_from_json(kind: str, doc: Mapping[str, Any]) -> SegmentFigures:
@@ -103,9 +120,18 @@ def figures_from_json(kind: str, doc: Mapping[str, Any]) -> SegmentFigures:
     return NO_FIGURES
 
 
-@dataclass(frozen=True, eq=False)
-class CrossingReport(JsonRecord):
-    """One crossing of the trajectory: its segment's place and its figures (``metrics.crossings``)."""
+@dataclass(frozen=True)
+class CrossingReport:
+    """One crossing of the trajectory (``metrics.crossings``): its segment's place and its figures.
+
+    Attributes:
+        move: the task move's index.
+        t0, t1: the crossing segment's span [s].
+        singularity: "wrist", "shoulder" or "elbow" (None: not known).
+        method: the crossing method used.
+        config_before, config_after: the configuration labels at its ends.
+        figures: what it cost and how close it came (written flat, beside the fields above).
+    """
 
     move: int
     t0: float
@@ -127,15 +153,24 @@ class CrossingReport(JsonRecord):
                    str(doc["config_before"]), str(doc["config_after"]), CrossingFigures.from_json(doc))
 
 
-@dataclass(frozen=True, eq=False)
-class BlendReport(JsonRecord):
-    """A corner that asked for a fly-by (``metrics.blends``): flown or not, and its radius [mm]."""
+@dataclass(frozen=True)
+class BlendReport:
+    """A corner that asked for a fly-by (``metrics.blends``).
+
+    Attributes:
+        move: the incoming move's index.
+        requested_mm: the radius asked for [mm].
+        radius_mm: the radius flown [mm] (0 when stopped at).
+        flown: the corner is flown.
+        reduced: why the radius is smaller than asked, or why the corner is stopped at ("" for neither;
+            the key is then left out of the file).
+    """
 
     move: int
     requested_mm: float
     radius_mm: float
     flown: bool
-    reduced: str = ""  # why the radius is smaller than asked, or why the corner is stopped at
+    reduced: str = ""
 
     def to_json(self) -> dict[str, Any]:
         out = {"move": self.move, "requested_mm": self.requested_mm, "radius_mm": self.radius_mm, "flown": self.flown}
@@ -147,9 +182,18 @@ class BlendReport(JsonRecord):
                    str(doc.get("reduced", "")))
 
 
-@dataclass(frozen=True, eq=False)
-class TorqueFigures(JsonRecord):
-    """Inverse-dynamics torques of the samples against the efforts x ``limits.torque_scale``."""
+@dataclass(frozen=True)
+class TorqueFigures:
+    """Inverse-dynamics torques of the samples against the efforts x ``limits.torque_scale``
+    (written flat into ``metrics``).
+
+    Attributes:
+        max_torque_ratio: the largest |torque| / limit over samples and joints.
+        max_torque_at_s: when [s].
+        max_torque_joint: which joint.
+        peak_torque_Nm: each joint's largest |torque| [N m], by joint name.
+        torque_limit_Nm: each joint's limit [N m], by joint name.
+    """
 
     max_torque_ratio: float
     max_torque_at_s: float
@@ -163,11 +207,15 @@ class TorqueFigures(JsonRecord):
                 "torque_limit_Nm": dict(self.torque_limit_Nm)}
 
 
-@dataclass(frozen=True, eq=False)
-class JerkFigures(JsonRecord):
-    """With a jerk limit or the quintic PTP law: what the smoother time law costs.
+@dataclass(frozen=True)
+class JerkFigures:
+    """With a jerk limit or the quintic PTP law: what the smoother time law costs (written flat into ``metrics``).
 
-    ``max_joint_jerk_ratio`` is None with the quintic law alone (no jerk limit to compare with).
+    Attributes:
+        acceleration_limited_duration_s: the duration timed under the acceleration limits alone [s].
+        jerk_time_lost_s: what the smoother law adds to it [s].
+        max_joint_jerk_ratio: the largest |jerk| / limit of the samples; None with the quintic law alone
+            (no jerk limit to compare with; the key is then left out of the file).
     """
 
     acceleration_limited_duration_s: float
@@ -180,8 +228,8 @@ class JerkFigures(JsonRecord):
         return out if self.max_joint_jerk_ratio is None else {**out, "max_joint_jerk_ratio": self.max_joint_jerk_ratio}
 
 
-@dataclass(frozen=True, eq=False)
-class ClearanceFigures(JsonRecord):
+@dataclass(frozen=True)
+class ClearanceFigures:
     """The collision check of a trajectory (DESIGN.md, "Collision").
 
     Attributes:
@@ -245,10 +293,30 @@ def _point(values: Any) -> tuple[float, float, float]:
     return x, y, z
 
 
-@dataclass(frozen=True, eq=False)
-class Metrics(JsonRecord):
-    """Every trajectory's figures (deviations, limit ratios, timing, crossings, torques, jerk,
-    stopping distance, fly-by corners); as a mapping, trajectory.json's ``metrics``."""
+@dataclass(frozen=True)
+class Metrics:
+    """Every trajectory's figures (DESIGN.md "Metrics every trajectory carries"), trajectory.json's
+    ``metrics`` (:meth:`to_json`).
+
+    Attributes:
+        max_position_error_mm: the largest TCP position deviation from the programmed path [mm].
+        max_orientation_error_deg: the largest orientation deviation [deg].
+        max_joint_speed_ratio, max_joint_accel_ratio: the largest |qd| / limit and |qdd| / limit of
+            the samples (the limits scaled as the task says).
+        duration_s: the trajectory's duration [s].
+        planning_time_s: wall time of the planning [s].
+        samples: the number of samples.
+        method: the crossing method asked for ("auto", a method's name).
+        crossings: every crossing, in time order.
+        torques: the torque figures, or why there are none ("not computed: ...").
+        max_stopping_distance_mm: the largest stopping distance of the samples [mm].
+        max_stopping_distance_at_s: when [s].
+        jerk: what a jerk limit or the quintic PTP law costs; None with neither.
+        blends: every corner that asked for a fly-by.
+        clearance: the collision check; None when the task and robot have nothing to check.
+        max_tcp_speed_ratio: the largest TCP speed on the samples over the move's programmed speed
+            (fly-by corners: the faster neighbour's); 0 for a trajectory of PTP moves only.
+    """
 
     max_position_error_mm: float
     max_orientation_error_deg: float
@@ -259,17 +327,17 @@ class Metrics(JsonRecord):
     samples: int
     method: str
     crossings: tuple[CrossingReport, ...]
-    torques: TorqueFigures | str  # str: why there are none ("not computed: ...")
+    torques: TorqueFigures | str
     max_stopping_distance_mm: float
     max_stopping_distance_at_s: float
     jerk: JerkFigures | None = None
     blends: tuple[BlendReport, ...] = ()
-    clearance: ClearanceFigures | None = None  # the collision check (None: the task and robot have nothing to check)
-    # the TCP speed on the samples over the move's programmed speed (fly-by corners: the faster
-    # neighbour's), the largest; 0 for a trajectory of PTP moves only
+    clearance: ClearanceFigures | None = None
     max_tcp_speed_ratio: float = 0.0
 
     def to_json(self) -> dict[str, Any]:
+        """trajectory.json's ``metrics``: torque and jerk figures flat among the others, the closest
+        approach at the top and the whole check under ``collision``, ``blends`` only when a corner asked."""
         torques = {"torques": self.torques} if isinstance(self.torques, str) else self.torques.to_json()
         out: dict[str, Any] = {
             "max_position_error_mm": self.max_position_error_mm,
@@ -282,8 +350,9 @@ class Metrics(JsonRecord):
             "max_stopping_distance_mm": self.max_stopping_distance_mm,
             "max_stopping_distance_at_s": self.max_stopping_distance_at_s}
         if self.clearance is not None:  # the two figures DESIGN names at the top, the rest under "collision"
+            collision = self.clearance.to_json()
             out.update(min_clearance_mm=self.clearance.min_clearance_mm,
-                       min_clearance_pair=self.clearance["min_clearance_pair"], collision=self.clearance.to_json())
+                       min_clearance_pair=collision["min_clearance_pair"], collision=collision)
         return {**out, "blends": [b.to_json() for b in self.blends]} if self.blends else out
 
     @classmethod
@@ -310,5 +379,11 @@ class Metrics(JsonRecord):
         return cls(0.0, 0.0, 0.0, 0.0, duration_s, 0.0, samples, "exact", (), "not computed", 0.0, 0.0)
 
     def limit_ratios(self) -> dict[str, float]:
-        """Every ``max_*_ratio`` figure (the limits a plan must keep, and the torque it reports)."""
-        return {k: v for k, v in self.items() if k.startswith("max_") and k.endswith("_ratio") and isinstance(v, float)}
+        """Every ``max_*_ratio`` figure (the limits a plan must keep, the torque it reports), in the file's order."""
+        out = {"max_joint_speed_ratio": self.max_joint_speed_ratio, "max_joint_accel_ratio": self.max_joint_accel_ratio,
+               "max_tcp_speed_ratio": self.max_tcp_speed_ratio}
+        if isinstance(self.torques, TorqueFigures):
+            out["max_torque_ratio"] = self.torques.max_torque_ratio
+        if self.jerk is not None and self.jerk.max_joint_jerk_ratio is not None:
+            out["max_joint_jerk_ratio"] = self.jerk.max_joint_jerk_ratio
+        return out

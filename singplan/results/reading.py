@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from typing import Any, NoReturn, TypeVar
 
 import numpy as np
@@ -26,7 +27,16 @@ from singplan.errors import TaskError
 from singplan.kinematics.files import FileFieldError
 from singplan.kinematics.yamldoc import shorten
 from singplan.task.load import parse_task
-from singplan.task.schema import ANGLE_DEG, JOINT_DEG, MAX_JOINTS, MAX_OUTPUT_SAMPLES, PERIOD_S, TOOL_OFFSET_M, Range
+from singplan.task.schema import (
+    ANGLE_DEG,
+    JOINT_DEG,
+    MAX_JOINTS,
+    MAX_OUTPUT_SAMPLES,
+    PERIOD_S,
+    TOOL_OFFSET_M,
+    Range,
+    Task,
+)
 
 MAX_TRAJECTORY_BYTES = 256 * 1024 * 1024  # ~500 000 samples of a 6-joint arm; parsing peaks at ~3.5x the file
 MAX_NAME_CHARS = 256
@@ -165,7 +175,7 @@ def check_document(doc: Any, name: str, fmt: str) -> FieldChecks:
     _arrays(f, doc, len(doc["joint_names"]))
     k, duration = len(doc["t"]), float(doc["t"][-1])
     doc["task"] = _task(f, doc.get("task"))
-    n_moves = len(doc["task"]["moves"])
+    n_moves = len(doc["task"].moves)
     for key, max_chars in (("robot", MAX_NAME_CHARS), ("urdf", 4096), ("tip", MAX_NAME_CHARS)):
         f.text(key, doc.get(key), max_chars)
     if doc.get("urdf_source") is not None:  # the URDF planned, when "urdf" names its copy (continuous joints)
@@ -214,17 +224,18 @@ def _arrays(f: FieldChecks, doc: dict[str, Any], n: int) -> None:
         doc[field] = f.array(field, value, (k, n), bound)
 
 
-def _task(f: FieldChecks, value: Any) -> dict[str, Any]:
-    """The recorded task, checked as a task (its URDF need not exist any more: the record names it),
-    as the validated task's mapping (defaults filled in, ``null`` of an optional key gone), the
-    form the file is written in and the pages read."""
+def _task(f: FieldChecks, value: Any) -> Task:
+    """The recorded task, parsed and checked once as a task (its URDF need not exist any more: the
+    record names it, and ``robot`` is kept as written). Its mapping
+    (:meth:`~singplan.task.schema.Task.to_mapping`: defaults filled in, ``null`` of an optional key
+    gone) is what the file holds."""
     task = f.mapping("task", value)
     robot = f.text("task.robot", task.get("robot"), 4096)
     try:
         checked = parse_task({**task, "robot": "recorded"})
     except TaskError as exc:
         f.fail(f"task.{exc.field}" if exc.field else "task", exc.reason)
-    return {**checked.to_mapping(), "robot": robot}
+    return replace(checked, robot=robot)
 
 
 def _span(f: FieldChecks, field: str, doc: Mapping[str, Any], duration: float) -> tuple[float, float]:

@@ -25,8 +25,9 @@ from singplan.kinematics.continuous import continuous_joint_names, portable_urdf
 from singplan.kinematics.files import FileRefusedError, display_path, read_bounded_text, read_json
 from singplan.kinematics.robot import MAX_URDF_BYTES
 from singplan.results.files import Writer, text_writer, write_files
-from singplan.results.metrics import Metrics, NoFigures, SegmentFigures, figures_from_json
+from singplan.results.metrics import CrossingFigures, Metrics, NoFigures, SegmentFigures, figures_from_json
 from singplan.results.reading import MAX_TRAJECTORY_BYTES, check_document
+from singplan.task.schema import Task
 
 FORMAT = "singplan.trajectory/1"
 CSV_FILE = "trajectory.csv"
@@ -62,7 +63,13 @@ class Segment:
     method: str | None = None
     details: SegmentFigures = field(default_factory=NoFigures)
 
+    @property
+    def pause_s(self) -> float | None:
+        """How long the TCP waits on the singular point in this crossing (null-space) [s]; None without a pause."""
+        return self.details.pause_s if isinstance(self.details, CrossingFigures) else None
+
     def to_json(self) -> dict[str, Any]:
+        """Its trajectory.json mapping: the segment's fields, then its figures' keys."""
         return {"move": self.move, "kind": self.kind, "t0": self.t0, "t1": self.t1,
                 "config_before": self.config_before, "config_after": self.config_after,
                 "singularity": self.singularity, "method": self.method, **self.details.to_json()}
@@ -132,7 +139,7 @@ class Trajectory:
         segments: tile [0, t[-1]] in time, in move order.
         events: zone entries/exits and configuration changes.
         metrics: the figures of DESIGN.md ("Metrics every trajectory carries").
-        task: the validated task as a mapping.
+        task: the validated task (trajectory.json holds its mapping, :meth:`~singplan.task.schema.Task.to_mapping`).
 
     Its arrays are read-only. :func:`save` and :func:`load` give back every field: the arrays and
     ``samples`` exactly, except the per-sample series the file holds in mm and deg
@@ -144,7 +151,7 @@ class Trajectory:
     urdf: str
     tip: str
     tool: dict[str, list[float]]
-    task: dict[str, Any]
+    task: Task
     joint_names: tuple[str, ...]
     period: float
     t: np.ndarray  # (K,)
@@ -206,7 +213,7 @@ class Trajectory:
         """The trajectory.json document with its per-sample series left as numpy arrays."""
         return {
             "format": FORMAT, "robot": self.robot, "urdf": self.urdf, "tip": self.tip, "tool": self.tool,
-            "task": self.task, "joint_names": list(self.joint_names), "period": self.period,
+            "task": self.task.to_mapping(), "joint_names": list(self.joint_names), "period": self.period,
             "t": self.t, "q": self.q, "qd": self.qd, "qdd": self.qdd,
             "segments": [s.to_json() for s in self.segments], "events": [e.to_json() for e in self.events],
             "moves": [m.to_json() for m in self.moves], "metrics": _jsonable(self.metrics.to_json()),

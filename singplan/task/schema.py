@@ -165,24 +165,6 @@ class Move:
     weave: Weave | None = None  # LIN / CIRC only
     blend_mm: float = DEFAULT_BLEND_MM  # fly-by radius around the move's end point; 0: the move ends at rest
 
-    @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any]) -> Move:
-        """The move of a validated task's mapping (:meth:`Task.to_mapping`, as trajectory.json keeps
-        it): the inverse of that mapping, with no checks (the task was validated when planned)."""
-        (kind, spec), = mapping.items()
-        to = spec["to"]
-        joints = to.get("joints_deg")
-        pose = None if joints is not None else PoseSpec(
-            _floats(to["xyz"]), None if to.get("rpy_deg") is None else _floats(to["rpy_deg"]))
-        weave = spec.get("weave")
-        return cls(kind, to=pose, to_joints_deg=None if joints is None else tuple(float(v) for v in joints),
-                   via_xyz=_floats(spec["via"]["xyz"]) if spec.get("via") is not None else None,
-                   speed_m_s=float(spec.get("speed", DEFAULT_SPEED_M_S)),
-                   velocity_scale=float(spec.get("velocity_scale", DEFAULT_VELOCITY_SCALE)),
-                   config=str(spec.get("config", DEFAULT_CONFIG)),
-                   weave=None if weave is None else Weave(str(weave["pattern"]), float(weave["amplitude_mm"]),
-                                                          float(weave["wavelength_mm"])),
-                   blend_mm=float(spec.get("blend_mm", DEFAULT_BLEND_MM)))
 
 
 @dataclass(frozen=True)

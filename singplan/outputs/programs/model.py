@@ -234,7 +234,7 @@ def build_model(traj: Trajectory, robot: Robot, conv: ControllerConvention, poin
 
 def _header(traj: Trajectory, conv: ControllerConvention, points: ProgramPoints, dialect: Dialect,
             motions: Sequence[Motion], tolerance_mm: float, tolerance_deg: float, source: str | None) -> list[str]:
-    kinds = [next(iter(m)) if isinstance(m, dict) and m else "?" for m in traj.task.get("moves", [])]
+    kinds = [m.kind for m in traj.task.moves]
     xyz, rpy = _short_list(traj.tool.get("xyz", [0, 0, 0])), _short_list(traj.tool.get("rpy_deg", [0, 0, 0]))
     reached_mm, reached_deg = points.max_position_error_m * 1e3, math.degrees(points.max_orientation_error_rad)
     lines = [f"singplan {__version__}: {dialect.title} joint-space replay of a planned trajectory",
@@ -283,7 +283,7 @@ def _with_notes(traj: Trajectory, robot: Robot, points: ProgramPoints, motions: 
     by_move = traj.segments_by_move()
     ends = [sample_range(traj, segs[-1])[1] for segs in by_move.values()]
     configs = vendor_configs(robot, traj.q[ends]) if ends else []
-    kinds = [next(iter(m)) if isinstance(m, dict) and m else "move" for m in traj.task.get("moves", [])]
+    kinds = [m.kind for m in traj.task.moves]
     for (move, segs), config in zip(by_move.items(), configs, strict=True):
         first = sample_range(traj, segs[0])[0]
         kind = kinds[move] if move < len(kinds) else "move"

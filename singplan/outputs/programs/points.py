@@ -36,17 +36,15 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from singplan.kinematics.geometry import rotation_angles
 from singplan.kinematics.robot import Robot
 from singplan.outputs.timeline import pause_window, sample_range
-from singplan.planning.path.pieces import move_piece
-from singplan.planning.path.weave import whole_periods
+from singplan.results.path import programmed_path
 from singplan.results.trajectory import Trajectory
-from singplan.task.schema import Move
 
 
 @dataclass(frozen=True)
@@ -76,21 +74,12 @@ def weave_scale(traj: Trajectory, robot: Robot) -> np.ndarray:
     """
     scale = np.ones(len(traj.t))
     by_move = traj.segments_by_move()
-    for i, mapping in enumerate(traj.task.get("moves", [])):
+    for i, programmed in enumerate(programmed_path(traj.task, robot, traj.q[0])):
         segs = by_move.get(i)
-        if not segs:
+        if not segs or programmed.move.weave is None:
             continue
         k0, k1 = sample_range(traj, segs[0])[0], sample_range(traj, segs[-1])[1]
-        move = Move.from_mapping(mapping)
-        if move.kind == "ptp" or move.weave is None:
-            continue
-        base = move_piece(i, replace(move, weave=None), robot.fk(traj.q[k0]))  # from where the move started
-        if base.length_m <= 0.0:
-            continue
-        periods = whole_periods(base.length_m, move.weave.wavelength_mm / 1e3)
-        steepest = 1.0 if move.weave.pattern == "sine" else 2.0 / math.pi
-        slope = move.weave.amplitude_mm / 1e3 * 2.0 * math.pi * periods / base.length_m * steepest
-        scale[k0:k1 + 1] = 1.0 / math.sqrt(1.0 + slope**2)
+        scale[k0:k1 + 1] = 1.0 / math.sqrt(1.0 + programmed.weave_slope**2)
     return scale
 
 
@@ -130,7 +119,7 @@ class _Plan:
 def null_space_pauses(traj: Trajectory, tcp_step_m: np.ndarray) -> tuple[tuple[int, int], ...]:
     """The (first, last) sample of each null-space pause: in a crossing that paused (``pause_s``), the
     longest run of samples at which the TCP stands still (:func:`~singplan.outputs.timeline.pause_window`)."""
-    windows = (pause_window(tcp_step_m, *sample_range(traj, seg)) for seg in traj.segments if "pause_s" in seg.details)
+    windows = (pause_window(tcp_step_m, *sample_range(traj, seg)) for seg in traj.segments if seg.pause_s is not None)
     return tuple(w for w in windows if w is not None)
 
 

@@ -1,37 +1,12 @@
-"""What auto compared on a move (:class:`Alternative`), and the record base that reads as its
-trajectory.json mapping (:class:`JsonRecord`). Imports nothing heavy: the trajectory record and
-the pages use them without loading the planner."""
+"""What auto compared on a move (:class:`Alternative`) and how far a candidate leaves the pose
+(:class:`Deviation`). Imports nothing heavy: the trajectory record and the pages use them without
+loading the planner."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
-from functools import cached_property
 from typing import Any, NamedTuple
-
-
-class JsonRecord(Mapping[str, Any]):
-    """A frozen record that also reads as its trajectory.json mapping (``record["key"]``).
-
-    Subclasses are frozen dataclasses with typed fields and say how they are written
-    (:meth:`to_json`); the mapping view is that document, formed once.
-    """
-
-    def to_json(self) -> dict[str, Any]:
-        raise NotImplementedError
-
-    @cached_property
-    def _document(self) -> dict[str, Any]:
-        return self.to_json()
-
-    def __getitem__(self, key: str) -> Any:
-        return self._document[key]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._document)
-
-    def __len__(self) -> int:
-        return len(self._document)
 
 
 class Deviation(NamedTuple):
@@ -47,8 +22,8 @@ class Deviation(NamedTuple):
 NO_DEVIATION = Deviation(0.0, 0.0, 0.0)
 
 
-@dataclass(frozen=True, eq=False)
-class Alternative(JsonRecord):
+@dataclass(frozen=True)
+class Alternative:
     """One method auto (or a multi-variant method) tried on a move.
 
     Attributes:
@@ -73,6 +48,7 @@ class Alternative(JsonRecord):
     orientation_deg: float | None = None
 
     def to_json(self) -> dict[str, Any]:
+        """Its trajectory.json mapping (inside a crossing's ``alternatives``): the keys its verdict has."""
         out: dict[str, Any] = {"method": self.method, "variant": self.variant}
         if self.feasible is False:
             return {**out, "feasible": False, "reason": self.reason}
@@ -83,6 +59,7 @@ class Alternative(JsonRecord):
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Alternative:
+        """The inverse of :meth:`to_json` (a checked trajectory.json's mapping)."""
         def number(key: str) -> float | None:
             return None if doc.get(key) is None else float(doc[key])
 

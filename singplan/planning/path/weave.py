@@ -19,9 +19,7 @@ DESIGN.md asks; the TCP itself moves faster by the lateral motion.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass, fields
-from typing import Any
 
 import numpy as np
 
@@ -79,6 +77,14 @@ class WovenPiece(CartesianPiece):
     def amplitude_m(self) -> float:
         assert self.weave is not None
         return self.weave.amplitude_mm / 1e3
+
+    @property
+    def steepest_slope(self) -> float:
+        """The weave's steepest slope against its base path: a (2 pi P / L) max|f'| (amplitude a, P
+        periods over the base length L, f' = cos for a sine, 2 / pi for the triangle)."""
+        assert self.weave is not None
+        steepest = 1.0 if self.weave.pattern == "sine" else 2.0 / math.pi
+        return self.amplitude_m * 2.0 * math.pi * self.periods / self.length_m * steepest
 
     def base_poses(self, u: np.ndarray) -> np.ndarray:
         """Homogeneous poses (N, 4, 4) of the base path, without the weave."""
@@ -196,10 +202,3 @@ def _check_lateral(piece: WovenPiece, where: str) -> None:
                                f"{at}): a weave needs the lateral "
                                f"direction z_tcp x tangent, so the tool must stand at least {MIN_LATERAL_DEG:g} deg "
                                "off the path")
-
-
-def woven_moves(task: Mapping[str, Any]) -> frozenset[int]:
-    """Indices of the moves of a task mapping (trajectory.json's ``task``) that carry a weave."""
-    return frozenset(i for i, move in enumerate(task.get("moves", ()))
-                     if isinstance(move, Mapping) and any(isinstance(spec, Mapping) and spec.get("weave")
-                                                          for spec in move.values()))

@@ -13,7 +13,16 @@ import sys
 from pathlib import Path
 
 import singplan
-from singplan.results.metrics import CrossingFigures
+from singplan.results.metrics import Alternative, CrossingFigures
+
+
+def _outcome(alt: Alternative) -> str:
+    """A candidate planned and timed, not timed (it could not win: the least it can take), or infeasible."""
+    if alt.feasible:
+        return f"{alt.duration_s:.3f} s"
+    if alt.feasible is None:
+        return f">= {alt.at_least_s:.3f} s, {alt.reason}"  # the reason says why it was not timed
+    return f"infeasible: {alt.reason}"
 
 
 def main() -> int:
@@ -28,8 +37,7 @@ def main() -> int:
                      f"orientation dev {d.max_orientation_error_deg:.3f} deg, time lost {d.time_lost_s:.3f} s")
             for alt in d.alternatives:
                 variant = f" ({alt.variant})" if alt.variant else ""
-                line += f"\n      compared: {alt.method}{variant} " + (
-                    f"{alt.duration_s:.3f} s" if alt.feasible else f"infeasible: {alt.reason}")
+                line += f"\n      compared: {alt.method}{variant} " + _outcome(alt)
         print(line)
     return 0
 

@@ -181,17 +181,20 @@ class CollisionModel:
         return bool(self.pairs)
 
     def pair_distance(self, pair: Pair, rotations: np.ndarray, origins: np.ndarray,
-                      enough: float = math.inf) -> Distance:
+                      enough: float = math.inf, placed: dict[int, coal.Transform3s] | None = None) -> Distance:
         """The least distance of a pair with the joint frames at ``rotations`` (J, 3, 3), ``origins`` (J, 3).
 
         ``enough``: a distance that need not be known more exactly: where the convex hulls of the
         meshes are that far apart, their distance is returned as a lower bound (``exact`` False).
+        ``placed``: the shapes already placed at these frames, by ``id`` of their geom (filled in as
+        they are placed: a body measured against several others at one sample is placed once).
         """
+        placed = placed if placed is not None else {}
         best = Distance(math.inf, np.zeros(3), np.zeros(3))
         for ga in pair.a.geoms:
-            Ta = _placed(ga, pair.a.joint, rotations, origins)
+            Ta = _placed_once(placed, ga, pair.a.joint, rotations, origins)
             for gb in pair.b.geoms:
-                Tb = _placed(gb, pair.b.joint, rotations, origins)
+                Tb = _placed_once(placed, gb, pair.b.joint, rotations, origins)
                 exact = True
                 if ga.hull is not None or gb.hull is not None:
                     d = self._distance(ga.hull or ga.geometry, Ta, gb.hull or gb.geometry, Tb)
@@ -228,6 +231,14 @@ class CollisionModel:
                     if _inside(go, To.inverse().transform(probe)):
                         return True
         return False
+
+
+def _placed_once(placed: dict[int, coal.Transform3s], g: Geom, joint: int | None, rotations: np.ndarray,
+                 origins: np.ndarray) -> coal.Transform3s:
+    found = placed.get(id(g))
+    if found is None:
+        found = placed[id(g)] = _placed(g, joint, rotations, origins)
+    return found
 
 
 def _placed(g: Geom, joint: int | None, rotations: np.ndarray, origins: np.ndarray) -> coal.Transform3s:

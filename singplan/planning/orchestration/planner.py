@@ -97,6 +97,7 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
         else:
             pm, tm = _best_of(robot, arm_task, i, arm_task.moves[i], T, q, methods, left, place)
         left -= len(tm.q) - 1
+        pm.jmap.release()  # its timing is done: a fly-by or a message that evaluates it makes them again
         planned.append(pm)
         timed.append(tm)
         q = tm.q[-1]

@@ -46,3 +46,16 @@ def test_compiled_chain_agrees_with_pinocchio() -> None:
         assert np.allclose(position[k], T.translation, atol=1e-12)
         assert np.allclose(rotation[k], T.rotation, atol=1e-12)
         assert np.allclose(jacobian[k], robot.jacobian(q[k]), atol=1e-12)
+
+
+def test_placement_is_numpy_bit_for_bit() -> None:
+    """A collision shape placed for coal: the frame times the shape's placement (C and Fortran order)."""
+    if not chain.faithful():
+        pytest.skip("this BLAS sums otherwise: numpy places the shapes (chain.faithful() is False)")
+    rng = np.random.default_rng(11)
+    for _ in range(500):
+        R, origin, t = rng.normal(size=(3, 3)), rng.normal(size=3), rng.normal(size=3)
+        for rotation in (rng.normal(size=(3, 3)), np.asfortranarray(rng.normal(size=(3, 3)))):
+            out_R, out_t = chain.placed(R, origin, rotation, t)
+            assert np.array_equal(out_R, R @ rotation)
+            assert np.array_equal(out_t, origin + R @ t)

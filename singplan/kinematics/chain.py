@@ -115,6 +115,19 @@ def _joint_chain(sin: np.ndarray, cos: np.ndarray, translations: np.ndarray, rot
     return rotation, origin
 
 
+@jit
+def placed(R: np.ndarray, origin: np.ndarray, rotation: np.ndarray, translation: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """A frame (R (3, 3), origin (3,)) times a placement in it: ``R @ rotation`` and ``origin + R @ translation``,
+    numpy's numbers where :func:`faithful` (a shape placed for coal, one sample at a time)."""
+    out_R, out_t = np.empty((3, 3)), np.empty(3)
+    _matmul(R, rotation, out_R)
+    _matvec(R, translation, out_t)
+    for a in range(3):
+        out_t[a] = origin[a] + out_t[a]
+    return out_R, out_t
+
+
 class ChainArrays:
     """A chain's constant arrays, read from Pinocchio once: per chain joint its placement in its parent's
     frame (translation (J, 3), rotation (J, 3, 3)), unit axis (J, 3), skew matrix K and K @ K (J, 3, 3)

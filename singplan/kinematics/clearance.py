@@ -28,6 +28,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import coal
 import numpy as np
 
 from singplan.kinematics.collision import CollisionModel, Distance, Pair, support
@@ -225,20 +226,46 @@ class _PairState:
         self.relative: _Relative | None = None
         self.S: np.ndarray | None = None
         self.found: dict[int, Distance] = {}
+        self._measured = np.full(len(M), -math.inf)  # (m,) the distances of ``found`` (-inf: none)
         self._bound: np.ndarray | None = None
 
     def bound(self) -> np.ndarray:
         """Lower bounds at every sample, each carried to the others by the motion (cached until tightened)."""
         if self._bound is None:
-            bound = self.lower.copy()
-            if self.found:
-                at = np.fromiter(self.found, dtype=int)
-                bound[at] = np.maximum(bound[at], [self.found[i].distance_m for i in self.found])
-            steps = self.S if self.S is not None else self.M
+            bound = np.maximum(self.lower, self._measured)
+            steps = self.steps()
             forward = np.maximum.accumulate(bound + steps) - steps
             backward = np.maximum.accumulate((bound - steps)[::-1])[::-1] + steps
             self._bound = np.maximum(bound, np.maximum(forward, backward))
         return self._bound
+
+    def steps(self) -> np.ndarray:
+        """(m,) the motion bound the lower bounds are carried along: S where made, else M [m]."""
+        return self.S if self.S is not None else self.M
+
+    def measure(self, i: int, found: Distance) -> None:
+        """Keep a measurement at sample i; the cached bounds take its cone ``d - |steps - steps[i]|``.
+
+        The same numbers as :meth:`bound` made afresh: ``fl(x - s)`` and ``fl(x + s)`` are monotone in
+        x, so the running maxima there commute with them, and a bound raised at one sample raises the
+        others by its own cone alone. A measurement below the one it replaces (a hull's bound measured
+        again) lowers a bound: then they are made afresh.
+        """
+        seen = self.found.get(i)
+        self.found[i] = found
+        d = found.distance_m
+        raised = seen is None or seen.distance_m <= d
+        self._measured[i] = d
+        if self._bound is None:
+            return
+        if not raised:
+            self._bound = None
+            return
+        bound, steps = self._bound, self.steps()
+        s_i = steps[i]
+        np.maximum(bound[i:], (d + s_i) - steps[i:], out=bound[i:])
+        np.maximum(bound[:i + 1], (d - s_i) + steps[:i + 1], out=bound[:i + 1])
+        bound[i] = max(bound[i], d)
 
     def tightened(self) -> None:
         self._bound = None
@@ -261,6 +288,7 @@ class _Block:
         self.states.sort(key=lambda st: float(st.lower.min()))
         self.k = s + np.arange(e - s + 1)
         self.ends: dict[int, np.ndarray] = {}  # capsule ends placed at the block's samples, by shape
+        self.placed: dict[int, dict[int, coal.Transform3s]] = {}  # shapes placed for coal, by sample and shape
 
     def check(self) -> None:
         unproven = [st for st in self.states if not self._proven(st)]
@@ -282,14 +310,13 @@ class _Block:
         seen = st.found.get(i)
         if seen is None or (not seen.exact and seen.distance_m < enough):
             walk, k = self.walk, self.s + i
-            found = walk.model.pair_distance(st.pair, self.R[i], self.P[i], enough)
+            found = walk.model.pair_distance(st.pair, self.R[i], self.P[i], enough, self.placed.setdefault(i, {}))
             if k == 0 and walk.start and found.distance_m > 0 and walk.model.inside_mesh(st.pair, self.R[i],
                                                                                          self.P[i]):
                 found = Distance(-math.inf, found.point_a, found.point_b)
-            st.found[i] = found
+            st.measure(i, found)
             walk.record(st.pair, k, found)
             self._tighten(st, i, found)
-            st.tightened()
         return st.found[i].distance_m
 
     def _tighten(self, st: _PairState, i: int, found: Distance) -> None:
@@ -303,6 +330,7 @@ class _Block:
             plane = st.relative.plane_bounds(i, found)
             if plane is not None:
                 st.lower = np.maximum(st.lower, plane)
+                st.tightened()
 
     def _relative(self, st: _PairState) -> None:
         if st.relative is None:

@@ -35,6 +35,7 @@ import numpy as np
 import pinocchio as pin
 
 from singplan.errors import InputError, RobotModelError, TaskError
+from singplan.kinematics.chain import faithful, placed
 from singplan.kinematics.files import FileRefusedError, display_path, read_bounded, read_bounded_text
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.packages import resolve_uri
@@ -181,17 +182,20 @@ class CollisionModel:
         return bool(self.pairs)
 
     def pair_distance(self, pair: Pair, rotations: np.ndarray, origins: np.ndarray,
-                      enough: float = math.inf) -> Distance:
+                      enough: float = math.inf, placed: dict[int, coal.Transform3s] | None = None) -> Distance:
         """The least distance of a pair with the joint frames at ``rotations`` (J, 3, 3), ``origins`` (J, 3).
 
         ``enough``: a distance that need not be known more exactly: where the convex hulls of the
         meshes are that far apart, their distance is returned as a lower bound (``exact`` False).
+        ``placed``: the shapes already placed at these frames, by ``id`` of their geom (filled in as
+        they are placed: a body measured against several others at one sample is placed once).
         """
+        placed = placed if placed is not None else {}
         best = Distance(math.inf, np.zeros(3), np.zeros(3))
         for ga in pair.a.geoms:
-            Ta = _placed(ga, pair.a.joint, rotations, origins)
+            Ta = _placed_once(placed, ga, pair.a.joint, rotations, origins)
             for gb in pair.b.geoms:
-                Tb = _placed(gb, pair.b.joint, rotations, origins)
+                Tb = _placed_once(placed, gb, pair.b.joint, rotations, origins)
                 exact = True
                 if ga.hull is not None or gb.hull is not None:
                     d = self._distance(ga.hull or ga.geometry, Ta, gb.hull or gb.geometry, Tb)
@@ -230,10 +234,20 @@ class CollisionModel:
         return False
 
 
+def _placed_once(placed: dict[int, coal.Transform3s], g: Geom, joint: int | None, rotations: np.ndarray,
+                 origins: np.ndarray) -> coal.Transform3s:
+    found = placed.get(id(g))
+    if found is None:
+        found = placed[id(g)] = _placed(g, joint, rotations, origins)
+    return found
+
+
 def _placed(g: Geom, joint: int | None, rotations: np.ndarray, origins: np.ndarray) -> coal.Transform3s:
     if joint is None:
         return coal.Transform3s(g.rotation, g.translation)
     R = rotations[joint]
+    if faithful():  # numpy's products, compiled (one call instead of three)
+        return coal.Transform3s(*placed(R, origins[joint], g.rotation, g.translation))
     return coal.Transform3s(R @ g.rotation, origins[joint] + R @ g.translation)
 
 

@@ -26,6 +26,7 @@ from typing import Any
 import numba
 
 _njit = numba.njit(cache=True, nogil=True)
+_njit_fused = numba.njit(cache=True, nogil=True, fastmath={"contract"})
 
 
 def _digest(path: Path) -> str:
@@ -42,3 +43,11 @@ def jit(func: Callable[..., Any]) -> Any:
     """numba.njit(cache=True, nogil=True), cached under the function's name and :data:`SHARED_DIGEST`."""
     func.__qualname__ = f"{func.__qualname__}__{SHARED_DIGEST}"  # numba names the cache files after it
     return _njit(func)
+
+
+def jit_fused(func: Callable[..., Any]) -> Any:
+    """:func:`jit` with ``a * b + c`` fused into one rounding where the CPU has FMA (fastmath "contract"
+    only: no reordering, no approximations), for the kernels that form products as BLAS does
+    (:mod:`singplan.kinematics.chain`)."""
+    func.__qualname__ = f"{func.__qualname__}__{SHARED_DIGEST}"
+    return _njit_fused(func)

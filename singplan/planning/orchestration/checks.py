@@ -111,7 +111,8 @@ def screen(robot: Robot, task: Task, move: Move, pm: PlannedMove) -> tuple[Plann
     """
     u = np.array([0.0, 1.0])
     try:
-        check_config(robot, move, pm, u, pm.jmap.evaluate(u))
+        if move.config != "auto":  # check_config asks nothing of "auto": its ends need not be solved
+            check_config(robot, move, pm, u, pm.jmap.evaluate(u))
     except PlanningError as exc:
         return exc, NO_DEVIATION
     return _crossing_screen(robot, task, pm)

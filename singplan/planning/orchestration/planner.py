@@ -98,6 +98,7 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
         else:
             pm, tm = _best_of(robot, arm_task, i, arm_task.moves[i], T, q, methods, left, place)
         left -= len(tm.q) - 1
+        pm.jmap.release()  # its timing is done: a fly-by or a message that evaluates it makes them again
         planned.append(pm)
         timed.append(tm)
         q = tm.q[-1]
@@ -116,6 +117,8 @@ def _fly_by(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], re
     """The fly-by corners, and the moves timed through them: with each ramp shape of
     :func:`~singplan.planning.blending.ramps` (the quartic's smooth seams win on some corners, the
     quadratic's tighter curve on others), the one whose program ends sooner kept."""
+    if not any(r > 0 for r in requested_m[:-1]):
+        return timed, {}  # no corner asks for a fly-by (corners() would list none)
     sides = [side_of(robot, pm.jmap, pm.piece is not None, pm.limits.tcp_speed_m_s) for pm in planned]
     at_rest = [_at_rest(pm) for pm in planned]
     best: tuple[float, list[TimedMove], dict[int, Blend]] | None = None

@@ -111,6 +111,11 @@ class JointMap:
         # part is kept: its id stays its own)
         self._starts: dict[int, tuple[JointPart, CubicSpline]] = {}
 
+    def release(self) -> None:
+        """Drop the splines made for evaluating it (made again, the same, if it is evaluated later): a
+        long program keeps every move's joint map, and these are a quarter of what a move keeps."""
+        self._starts.clear()
+
     @property
     def straight(self) -> bool:
         """A straight line in joint space (a PTP): a few reference points describe it."""

@@ -202,8 +202,8 @@ def urdf_text(name: str, spec: dict) -> str:
               f"     {spec['display_name']}: kinematics and limits from public sources:"]
     header += [f"       {s}" for s in spec.get("sources", [])]
     header.append("     Masses and inertias are ESTIMATES (solid cylinders); visuals are simple cylinders,")
-    header.append(f"     collision shapes the same cylinders {COLLISION_MARGIN_M * 1e3:g} mm larger all round, none below")
-    header.append("     the base's mounting plane (z = 0 of base_link).")
+    header.append(f"     collision shapes the same cylinders {COLLISION_MARGIN_M * 1e3:g} mm larger all round,")
+    header.append("     none below the base's mounting plane (z = 0 of base_link).")
     if not spec.get("effort_Nm"):
         header.append(f"     Effort limits are placeholders ({EFFORT_DEFAULT_NM:g} N m): no published figure. -->")
     else:

@@ -174,7 +174,8 @@ class FixedContact:
     def advice(self, clearance_m: float) -> str:
         """What the contact is and how to fix it, for messages."""
         top_mm = math.floor((self.lowest_z_m - clearance_m) * 1e5 - 1e-6) / 100  # below it: touching collides
-        return (f"{self.body} and {self.shape} are {describe_distance(self.distance_m)}, closer than the clearance "
+        how = "touching" if abs(self.distance_m) < 5e-6 else describe_distance(self.distance_m)
+        return (f"{self.body} and {self.shape} are {how}, closer than the clearance "
                 f"{clearance_m * 1e3:g} mm, in every configuration: {self.body} never moves, so a cell shape "
                 f"touching it is a collision by design (user guide, \"Collision\"). If {self.shape} is what the "
                 f"robot stands on (a floor, pedestal or table) or is meant to touch it, allow the pair: "

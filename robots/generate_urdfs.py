@@ -9,7 +9,11 @@ no published dynamics, so singplan reports no torques for them and refuses ``lim
 
 Collision geometry: each visual cylinder again, :data:`COLLISION_MARGIN_M` wider and longer at each
 end, so the collision shapes enclose the visuals (tests/test_collision_bundled.py samples the
-visuals' surfaces to show it). The SRDF (MoveIt's format) disables the pairs MoveIt's setup
+visuals' surfaces to show it). Nothing of the base or of link_1 (which joint 1 turns about the
+vertical) reaches below the base's mounting plane, z = 0 of the base frame, where the arm stands on
+its floor, pedestal or table: a joint housing that would is raised to stand on the plane, and a
+collision cylinder's margin stops at it (tests/test_collision_bundled.py puts a floor 1 mm below the
+plane under every arm). The SRDF (MoveIt's format) disables the pairs MoveIt's setup
 assistant would: links one joint apart ("Adjacent"), pairs touching in the zero configuration
 ("Default") and pairs touching in nearly every configuration ("Always": the shapes overlap at the
 joint between them), and the pairs MoveIt's setup assistant found never in contact from the real
@@ -92,17 +96,22 @@ def _rpy_matrix(rpy_rad: list[float]) -> np.ndarray:
 
 
 def _link(index: int, axis: np.ndarray | None, to_next: np.ndarray, radius: float,
-          flange: np.ndarray | None = None) -> ud.Link:
+          flange: np.ndarray | None = None, plane_z: float | None = None) -> ud.Link:
     """A link drawn as a joint housing (along its axis) plus one cylinder per offset leg; the flange's
     link (``flange``: the direction the tool points in) has its housing behind the flange face, where
-    the tool is mounted, not through it."""
+    the tool is mounted, not through it. ``plane_z``: the base's mounting plane in this link's frame
+    (the base and link_1, whose heights no joint changes; None for the others): the housing stands on
+    it where it would reach below, and no collision shape crosses it."""
     name = LINK_NAMES[index]
     material = ud.Material(name=f"{name}_colour", color=ud.Color(rgba=np.array([*COLOURS[index], 1.0])))
     cylinders: list[tuple[str, np.ndarray, float, float]] = []  # (name, origin, radius, length)
     if axis is not None:
         length = 3.0 * radius
         centre = np.zeros(3) if flange is None else -0.5 * length * flange
-        cylinders.append((f"{name}_housing", _frame(_rotation_z_to(axis), centre), 1.3 * radius, length))
+        housing = _frame(_rotation_z_to(axis), centre)
+        if plane_z is not None:  # a housing centred on joint 1 at the plane would sink half into the floor
+            housing[2, 3] += max(0.0, plane_z - _lowest_z(housing, 1.3 * radius, length))
+        cylinders.append((f"{name}_housing", housing, 1.3 * radius, length))
     corner = np.zeros(3)
     legs = [np.array([0.0, 0.0, to_next[2]]), np.array([to_next[0], to_next[1], 0.0])]
     for k, leg in enumerate(legs):
@@ -113,10 +122,32 @@ def _link(index: int, axis: np.ndarray | None, to_next: np.ndarray, radius: floa
         corner = corner + leg
     visuals = [ud.Visual(name=n, origin=origin, geometry=ud.Geometry(cylinder=ud.Cylinder(radius=r, length=length)),
                          material=material) for n, origin, r, length in cylinders]
-    collisions = [ud.Collision(name=n, origin=origin, geometry=ud.Geometry(cylinder=ud.Cylinder(
-                      radius=r + COLLISION_MARGIN_M, length=length + 2 * COLLISION_MARGIN_M)))
-                  for n, origin, r, length in cylinders]
+    collisions = [_collision(n, origin, r, length, plane_z) for n, origin, r, length in cylinders]
     return ud.Link(name=name, inertial=_inertial(to_next, radius), visuals=visuals, collisions=collisions)
+
+
+def _lowest_z(origin: np.ndarray, radius: float, length: float) -> float:
+    """The lowest z a cylinder placed at ``origin`` (its axis the frame's z) reaches."""
+    axis = origin[:3, 2]
+    return float(origin[2, 3] - abs(axis[2]) * length / 2 - radius * math.hypot(axis[0], axis[1]))
+
+
+def _collision(name: str, origin: np.ndarray, radius: float, length: float, plane_z: float | None) -> ud.Collision:
+    """The collision cylinder of a visual one: :data:`COLLISION_MARGIN_M` wider and longer at each end,
+    except below ``plane_z`` (the mounting plane in the link's frame; None: no plane to keep), where
+    the margin of an upright cylinder ends at the plane.
+
+    Raises:
+        ValueError: a visual that itself reaches below the plane, or a tilted one whose margin would.
+    """
+    origin, r, half = origin.copy(), radius + COLLISION_MARGIN_M, length / 2 + COLLISION_MARGIN_M
+    if plane_z is not None and _lowest_z(origin, r, 2 * half) < plane_z - 1e-12:
+        upright = math.hypot(origin[0, 2], origin[1, 2]) < 1e-9
+        if not upright or _lowest_z(origin, radius, length) < plane_z - 1e-12:
+            raise ValueError(f"{name}: reaches below the base's mounting plane")
+        top = origin[2, 3] + half
+        origin[2, 3], half = (top + plane_z) / 2, (top - plane_z) / 2
+    return ud.Collision(name=name, origin=origin, geometry=ud.Geometry(cylinder=ud.Cylinder(radius=r, length=2 * half)))
 
 
 def _inertial(to_next: np.ndarray, radius: float) -> ud.Inertial:
@@ -142,13 +173,16 @@ def build_robot(name: str, spec: dict) -> ud.Robot:
     radius = 0.045 * reach
     tool0 = spec["tool0"]
     offsets = [np.asarray(j["xyz"], dtype=float) for j in chain] + [np.asarray(tool0["xyz"], dtype=float)]
-    links = [_link(0, None, offsets[0], radius * 1.4)]
+    if not np.allclose(np.abs(chain[0]["axis"]), [0, 0, 1]):
+        raise ValueError(f"{name}: joint_1 must turn about the vertical (link_1 keeps its height above the plane)")
+    links = [_link(0, None, offsets[0], radius * 1.4, plane_z=0.0)]
     joints = []
     tool_rotation = _rpy_matrix([math.radians(a) for a in tool0["rpy_deg"]])
     for i, j in enumerate(chain):
         axis = np.asarray(j["axis"], dtype=float)
         shrink = 1.0 if i < 3 else 0.6
-        links.append(_link(i + 1, axis, offsets[i + 1], radius * shrink, tool_rotation[:, 2] if i == 5 else None))
+        links.append(_link(i + 1, axis, offsets[i + 1], radius * shrink, tool_rotation[:, 2] if i == 5 else None,
+                           plane_z=-float(offsets[0][2]) if i == 0 else None))
         joints.append(ud.Joint(name=f"joint_{i + 1}", type="revolute", parent=LINK_NAMES[i],
                                child=LINK_NAMES[i + 1], origin=_frame(np.eye(3), offsets[i]), axis=axis,
                                limit=ud.Limit(effort=float(effort[i]), velocity=velocity[i],
@@ -168,7 +202,8 @@ def urdf_text(name: str, spec: dict) -> str:
               f"     {spec['display_name']}: kinematics and limits from public sources:"]
     header += [f"       {s}" for s in spec.get("sources", [])]
     header.append("     Masses and inertias are ESTIMATES (solid cylinders); visuals are simple cylinders,")
-    header.append(f"     collision shapes the same cylinders {COLLISION_MARGIN_M * 1e3:g} mm larger all round.")
+    header.append(f"     collision shapes the same cylinders {COLLISION_MARGIN_M * 1e3:g} mm larger all round,")
+    header.append("     none below the base's mounting plane (z = 0 of base_link).")
     if not spec.get("effort_Nm"):
         header.append(f"     Effort limits are placeholders ({EFFORT_DEFAULT_NM:g} N m): no published figure. -->")
     else:

@@ -372,6 +372,8 @@ def _write_clearances(found: Sequence[MoveZones], out: TextIO) -> None:
             text += (f"; collides: {c.bodies[0]} and {c.bodies[1]} {describe_distance(c.distance_m)} at "
                      f"{m.where(c.sample, c.fraction)}")
         out.write(f"  move {m.index} ({m.kind}) {text}\n")
+    for contact in checked[0][0].fixed:  # the same in every move: `singplan plan` refuses the task
+        out.write(f"  fixed base: {contact.advice(checked[0][1].clearance_m)}\n")
 
 
 def cmd_demo(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:

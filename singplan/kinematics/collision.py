@@ -21,8 +21,10 @@ deltas alone (conservative advancement, Mirtich 1996; Schwarzer, Saha and Latomb
 from __future__ import annotations
 
 import difflib
+import json
 import logging
 import math
+import re
 import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -146,6 +148,52 @@ class Distance:
     exact: bool = True
 
 
+@dataclass(frozen=True)
+class FixedContact:
+    """A cell shape closer than the clearance to a robot body that no joint moves (the base, and links
+    fixed to it): the same at every configuration, so at every sample of every plan. DESIGN.md
+    ("Collision") counts it as a collision like any other; a shape meant to touch the robot (the floor,
+    pedestal or table it stands on) is allowed by name.
+
+    Attributes:
+        body: the robot body (a URDF link).
+        shape: the cell shape.
+        distance_m: their distance [m] (negative: penetration depth; -inf: meshes intersecting).
+        lowest_z_m: the lowest point of the body's collision shapes in the base frame [m].
+    """
+
+    body: str
+    shape: str
+    distance_m: float
+    lowest_z_m: float
+
+    @property
+    def allow_yaml(self) -> str:
+        """The task's ``collision`` key that leaves the pair out, with the real names."""
+        return f"collision: {{allow: [[{_yaml_name(self.body)}, {_yaml_name(self.shape)}]]}}"
+
+    def advice(self, clearance_m: float) -> str:
+        """What the contact is and how to fix it, for messages."""
+        top_mm = math.floor((self.lowest_z_m - clearance_m) * 1e5 - 1e-6) / 100  # below it: touching collides
+        how = "touching" if abs(self.distance_m) < 5e-6 else describe_distance(self.distance_m)
+        return (f"{self.body} and {self.shape} are {how}, closer than the clearance "
+                f"{clearance_m * 1e3:g} mm, in every configuration: {self.body} never moves, so a cell shape "
+                f"touching it is a collision by design (user guide, \"Collision\"). If {self.shape} is what the "
+                f"robot stands on (a floor, pedestal or table) or is meant to touch it, allow the pair: "
+                f"`{self.allow_yaml}`; "
+                f"else move {self.shape} clear ({self.body} reaches down to z = {self.lowest_z_m * 1e3:.2f} mm: a "
+                f"floor under it needs its top at z <= {top_mm:.2f} mm)")
+
+
+def _yaml_name(name: str) -> str:
+    """A body name as a YAML flow scalar (quoted where a bare word would not read back as itself)."""
+    return name if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.-]*", name) and name.lower() not in _YAML_WORDS \
+        else json.dumps(name)
+
+
+_YAML_WORDS = {"true", "false", "yes", "no", "on", "off", "null", "y", "n"}
+
+
 class CollisionModel:
     """A robot's bodies in its task's cell and the pairs to check.
 
@@ -211,6 +259,24 @@ class CollisionModel:
                     return best
         return best
 
+    @cached_property
+    def fixed_contacts(self) -> tuple[FixedContact, ...]:
+        """The checked pairs of a cell shape and a robot body no joint moves that are closer than the
+        clearance (the same at every configuration), closest first."""
+        fixed = [p for p in self.pairs if "cell" in (p.a.kind, p.b.kind) and not p.weights.any()]
+        if not fixed:
+            return ()
+        R, P = self.robot.joint_frames(np.zeros((1, self.robot.n_joints)))
+        found = []
+        for pair in fixed:
+            body, shape = (pair.a, pair.b) if pair.b.kind == "cell" else (pair.b, pair.a)
+            d = self.pair_distance(pair, R[0], P[0]).distance_m
+            if d >= self.clearance_m and self.inside_mesh(pair, R[0], P[0]):
+                d = -math.inf
+            if d < self.clearance_m:
+                found.append(FixedContact(body.name, shape.name, d, _lowest_z(body, R[0], P[0])))
+        return tuple(sorted(found, key=lambda c: c.distance_m))
+
     def _distance(self, a: coal.CollisionGeometry, Ta: coal.Transform3s, b: coal.CollisionGeometry,
                   Tb: coal.Transform3s) -> float:
         self._result.clear()
@@ -240,6 +306,17 @@ def _placed_once(placed: dict[int, coal.Transform3s], g: Geom, joint: int | None
     if found is None:
         found = placed[id(g)] = _placed(g, joint, rotations, origins)
     return found
+
+
+def _lowest_z(body: Body, rotations: np.ndarray, origins: np.ndarray) -> float:
+    """The lowest z of a body's shapes in the base frame [m] (its joint frames at ``rotations``, ``origins``)."""
+    up = np.array([0.0, 0.0, 1.0])
+    lows = []
+    for g in body.geoms:
+        T = _placed(g, body.joint, rotations, origins)
+        R = np.array(T.getRotation())
+        lows.append(float(T.getTranslation()[2] + support(g, (R.T @ up)[None])[0]))
+    return min(lows)
 
 
 def _placed(g: Geom, joint: int | None, rotations: np.ndarray, origins: np.ndarray) -> coal.Transform3s:

@@ -34,7 +34,7 @@ import numpy as np
 
 from singplan.errors import PlanningError
 from singplan.kinematics.clearance import Clearance, check_clearance
-from singplan.kinematics.collision import CollisionModel
+from singplan.kinematics.collision import CollisionModel, FixedContact
 from singplan.kinematics.robot import Robot
 from singplan.kinematics.stopping import (
     capped_rates,
@@ -84,6 +84,7 @@ class MoveZones:
     stopping: StoppingFigure
     clearance: Clearance | None = None  # along the programmed path in the start branch (None: nothing checked)
     u: tuple[float, ...] = ()  # the path parameters of the samples the clearance was checked at
+    fixed: tuple[FixedContact, ...] = ()  # cell shapes touching the fixed base (every move alike; planning refuses)
 
     def where(self, sample: int, fraction: float = 0.0) -> str:
         """A checked sample (and a fraction of the way to the next) as a point of the move, for messages."""
@@ -158,8 +159,8 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
             T = tracking.piece.T_end
         states.append(move_states)
     qd = _velocities(robot, task, states)
-    return [MoveZones(i, move.kind, found[i][0], found[i][1], _figure(robot, task, states, qd, i), *clear[i])
-            for i, move in enumerate(task.moves)]
+    return [MoveZones(i, move.kind, found[i][0], found[i][1], _figure(robot, task, states, qd, i), *clear[i],
+                      arm.collision.fixed_contacts) for i, move in enumerate(task.moves)]
 
 
 def _clearance(model: CollisionModel, q: np.ndarray, u: np.ndarray, i: int

@@ -64,6 +64,22 @@ def screen(model: CollisionModel, pm: PlannedMove, path: TimingPath | None = Non
                           clearance_m=model.clearance_m)
 
 
+def refuse_fixed_contacts(model: CollisionModel) -> None:
+    """Refuse a task whose cell touches a robot body no joint moves (the base): every sample of every plan
+    would collide, so nothing is planned (DESIGN.md, "Collision": such a pair is allowed by name).
+
+    Raises:
+        CollisionError: the closest such pair, with the ``collision.allow`` that leaves it out.
+    """
+    if not model.fixed_contacts:
+        return
+    first, *more = model.fixed_contacts
+    also = f" ({len(more)} more such pair(s): {', '.join(f'{c.body} / {c.shape}' for c in more)})" if more else ""
+    raise CollisionError(f"the cell touches the robot's fixed base before any move: {first.advice(model.clearance_m)}"
+                         f"{also}", move=0, sample=0, t_s=0.0, bodies=(first.body, first.shape),
+                         distance_m=first.distance_m, clearance_m=model.clearance_m)
+
+
 LINE_STEP_RAD = 0.03  # a straight joint line is checked at samples this far apart (the largest joint's step)
 
 

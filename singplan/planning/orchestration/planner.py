@@ -86,6 +86,7 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     arm = task_arm(task)
     robot, arm_task, q = arm.robot, arm.task, arm.q_start
     allowance = check_task(arm_task, robot, q, STEP_M, STEP_RAD).output_allowance  # before anything large
+    collide.refuse_fixed_contacts(arm.collision)  # no plan can be clear of it
     T = robot.fk(q)
     planned: list[PlannedMove] = []
     timed: list[TimedMove] = []

@@ -345,24 +345,40 @@ def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     task = load_task(args.task)
     found = detect(task)
+    refusal = next((m.no_plan for m in found if m.no_plan is not None), None)
     if args.json:
         from singplan.outputs import documents
 
         out.write(documents.dumps(documents.check_document(str(args.task), found)))
+    else:
+        _write_check(args.task, found, out)
+    if refusal is None:
         return 0
-    out.write(f"{args.task}: {sum(len(m.zones) for m in found)} singular zone(s) along the programmed path\n")
+    err.write(f"singplan: error: {refusal}\n")  # as plan says it (exit 3): the task has no plan
+    return refusal.exit_code
+
+
+def _write_check(task: Path, found: Sequence[MoveZones], out: TextIO) -> None:
+    """``singplan check``'s text: the zones, the stopping bound (or why there is none), the clearances."""
+    out.write(f"{task}: {sum(len(m.zones) for m in found)} singular zone(s) along the programmed path\n")
     for m in found:
         for z in m.zones:
             out.write(f"  move {m.index} ({m.kind}) {z.kind:8s} s {z.u_entry * m.length_m * 1e3:8.1f} .. "
                       f"{z.u_exit * m.length_m * 1e3:8.1f} mm, closest {z.describe_distance()} at "
                       f"s {z.u_closest * m.length_m * 1e3:.1f} mm\n")
-    worst = max(found, key=lambda m: m.stopping.bound_m)
-    where = (f"{worst.stopping.at:.2f} of the joint motion" if worst.kind == "ptp"
-             else f"s {worst.stopping.at * worst.length_m * 1e3:.1f} mm")
-    out.write(f"stopping distance: at most {worst.stopping.bound_m * 1e3:.3f} mm (a bound for every plan of the "
-              f"task), reached in move {worst.index} ({worst.kind}) at {where}\n")
+    unplanned = [f"{m.index} ({m.kind})" for m in found if m.no_plan is not None]
+    bounded = [(m, m.stopping) for m in found if m.stopping is not None]
+    if unplanned:
+        moves = "s" if len(unplanned) > 1 else ""
+        out.write(f"stopping distance: no bound: move{moves} {', '.join(unplanned)} no plan (no method's joint "
+                  f"path stays within the limits and tolerances, clear of collisions; the reason below)\n")
+    elif bounded:
+        worst, figure = max(bounded, key=lambda mf: mf[1].bound_m)
+        where = (f"{figure.at:.2f} of the joint motion" if worst.kind == "ptp"
+                 else f"s {figure.at * worst.length_m * 1e3:.1f} mm")
+        out.write(f"stopping distance: at most {figure.bound_m * 1e3:.3f} mm (a bound for every plan of the "
+                  f"task), reached in move {worst.index} ({worst.kind}) at {where}\n")
     _write_clearances(found, out)
-    return 0
 
 
 def _write_clearances(found: Sequence[MoveZones], out: TextIO) -> None:

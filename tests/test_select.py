@@ -167,7 +167,8 @@ def test_no_plan_names_each_variant_and_gives_each_reason_once() -> None:
 
     wall = "move 0 (lin): following the path with the full pose drives joint_5 to -120.01 deg"
     failures = [Failure(0, "exact", "", PlanningError(wall)),
-                *(Failure(k, "wrist-joint", f"window x{w:g}", PlanningError(wall)) for k, w in ((1, 1), (2, 1.5), (3, 2))),
+                *(Failure(k, "wrist-joint", f"window x{w:g}", PlanningError(wall))
+                  for k, w in ((1, 1), (2, 1.5), (3, 2))),
                 Failure(4, "axis", "", PlanningError(wall)),
                 Failure(5, "null-space", "", PlanningError("move 0 (lin): null-space finds no joint motion"))]
     text = str(no_plan(0, "lin", failures))

@@ -249,12 +249,13 @@ def cmd_ik(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         out.write(documents.dumps(documents.ik_document(full.name, str(full.urdf_path), full.tip, full.joint_names,
                                                         pose, tool, hold, rows)))
         return 0
-    names = " ".join(f"{n[:9]:>9s}" for n in full.joint_names)
+    widths = [max(9, len(n)) for n in full.joint_names]  # full names: panda_joint1..7 were all "panda_joi"
+    names = " ".join(f"{n:>{w}s}" for n, w in zip(full.joint_names, widths, strict=True))
     held_note = f", {held.joint} held at {math.degrees(held.value_rad):g} deg" if held is not None else ""
     out.write(f"{len(sols)} solution(s) of {robot.name} (joint values in deg{held_note})\n")
     out.write(f"{'config':7s} {names}  wrist[deg] shoulder[mm] elbow[deg] sigma_min\n")
     for row in rows:
-        joints = " ".join(f"{v:9.3f}" for v in row["joints_deg"])
+        joints = " ".join(f"{v:{w}.3f}" for v, w in zip(row["joints_deg"], widths, strict=True))
         out.write(f"{row['config']:7s} {joints}  {_column(row['wrist_deg'], 10, 3)} "
                   f"{_column(row['shoulder_mm'], 12, 2)} {_column(row['elbow_deg'], 10, 3)} "
                   f"{row['sigma_min']:9.4f}\n")

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, TextIO, TypedDict
 from singplan import __version__
 from singplan.errors import InputError, SingplanError, UnreachableError
 from singplan.outputs.choices import (
+    CROSSING_METHODS,
     DEFAULT_FILE_NAMES,
     DEFAULT_HOST,
     DEFAULT_TOLERANCE_DEG,
@@ -418,6 +419,9 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         return _serve(args, out, err)
     if args.host is not None:
         raise InputError("replay: --host goes with --serve")
+    if args.speed is not None:  # the page has its own: Open Controls -> Animations
+        raise InputError("replay: --speed goes with --serve (the --html page sets its speed in its own controls: "
+                         "Open Controls -> Animations)")
     if args.html is None:
         raise InputError("replay: give --html FILE (write the page) or --serve (live meshcat server)")
     written = replay(args.trajectory, html=args.html)
@@ -427,13 +431,15 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 def _serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     """Play the trajectory on a live meshcat server until Ctrl-C (or SIGTERM)."""
-    from singplan.outputs.viewer import LiveReplay, is_loopback, replay
+    from singplan.outputs.viewer import LiveReplay, check_host, is_loopback, replay
 
     host = DEFAULT_HOST if args.host is None else args.host
+    check_host(host)  # an address that names nothing is refused before any warning about it
     if not is_loopback(host):
         err.write(f"singplan: warning: --host {host} is not a loopback address: anyone who can reach this "
                   f"machine there can open the replay (the default {DEFAULT_HOST} serves this machine only)\n")
-    live = replay(args.trajectory, serve=True, speed=args.speed, loop=not args.no_loop, host=host)
+    live = replay(args.trajectory, serve=True, speed=1.0 if args.speed is None else args.speed,
+                  loop=not args.no_loop, host=host)
     assert isinstance(live, LiveReplay)
     previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
@@ -582,8 +588,10 @@ def build_parser() -> argparse.ArgumentParser:
     ik.add_argument("--xyz", type=float, nargs=3, required=True, metavar=("X", "Y", "Z"), help="TCP position [m]")
     ik.add_argument("--rpy-deg", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("R", "P", "Y"),
                     help="TCP orientation, URDF fixed-axis roll pitch yaw [deg]")
-    ik.add_argument("--tool-xyz", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("X", "Y", "Z"))
-    ik.add_argument("--tool-rpy-deg", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("R", "P", "Y"))
+    ik.add_argument("--tool-xyz", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("X", "Y", "Z"),
+                    help="tool offset from the tip frame, in the tip's axes [m] (default 0 0 0: the TCP is the tip)")
+    ik.add_argument("--tool-rpy-deg", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("R", "P", "Y"),
+                    help="tool orientation in the tip frame, roll pitch yaw [deg] (default 0 0 0)")
     ik.add_argument("--tip", default=None, help="frame the tool hangs on (default: the robot's)")
     ik.add_argument("--seed-deg", type=float, nargs="+", default=None,
                     help="joint values to stay near: the 2*pi variant nearest them (default all zero)")
@@ -596,7 +604,7 @@ def build_parser() -> argparse.ArgumentParser:
     plan_p = sub.add_parser("plan", help="plan a task YAML into a timed trajectory")
     plan_p.add_argument("task", help="task file (YAML v1)")
     plan_p.add_argument("-o", "--output", default="singplan-out", help="output folder (default: singplan-out)")
-    plan_p.add_argument("--method", default=None, help="crossing method, overriding the task's")
+    plan_p.add_argument("--method", default=None, help=_METHOD_HELP.format("the task's"))
     plan_p.add_argument("--quiet", action="store_true", help="one line instead of the summary")
     plan_p.add_argument("--no-report", action="store_true", help="do not write report.html")
     plan_p.add_argument("--no-replay", action="store_true", help="do not write replay.html")
@@ -614,7 +622,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--serve", action="store_true", help="start a live meshcat server on loopback and play there")
     rep.add_argument("--host", default=None,
                      help=f"--serve: address the server listens on (default {DEFAULT_HOST}, this machine only)")
-    rep.add_argument("--speed", type=float, default=1.0, help="--serve: playback speed, x real time (default 1)")
+    rep.add_argument("--speed", type=float, default=None, help="--serve: playback speed, x real time (default 1)")
     rep.add_argument("--no-loop", action="store_true", help="--serve: play once instead of looping")
     rep.set_defaults(func=cmd_replay)
     demo = sub.add_parser("demo", help="plan the bundled demo task into ./singplan-demo")
@@ -650,7 +658,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="local worker processes (default: the number of CPUs; each task may take 1.5 GB)")
     where.add_argument("--scheduler", default=None,
                        help="a Dask scheduler's address (tcp://host:8786) to plan on instead (needs dask[distributed])")
-    bat.add_argument("--method", default=None, help="crossing method, overriding every task's")
+    bat.add_argument("--method", default=None, help=_METHOD_HELP.format("every task's"))
     bat.add_argument("--quiet", action="store_true", help="no line per finished task")
     bat.add_argument("--no-report", action="store_true", help="do not write report.html")
     bat.add_argument("--no-replay", action="store_true", help="do not write replay.html")
@@ -664,6 +672,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_METHOD_HELP = ("crossing method, overriding {0} singularity.method: " + ", ".join(CROSSING_METHODS)
+                + " (or one registered from Python)")
 _JSON_HELP = "print one JSON document (format singplan.{0}/1; see docs/json-output.md) instead of the text"
 
 

@@ -192,3 +192,14 @@ def test_a_move_whose_every_path_collides_is_exit_3(tmp_path: Path) -> None:
     assert re.search(r"link_\d and wall are [\d.]+ mm into each other at s = [\d.]+ mm", err), err
     code, document, _ = _check_json(mapping, tmp_path)
     assert (code, document["ok"]) == (3, False) and "wall" in document["moves"][0]["no_plan"]
+
+
+def test_a_wrist_lin_no_method_plans_has_no_bound(tmp_path: Path) -> None:
+    """The trial's task (an ABB LIN through a wrist zone, every method past joint_5's limit near the end):
+    check printed 'at most 0.000 mm' and exited 0 while plan exits 3."""
+    mapping = {"robot": "abb_irb2400", "start": {"joints_deg": [0, 10, 20, 0, 30, 0]},
+               "moves": [{"lin": {"to": {"xyz": [1.2, 0, 1.0], "rpy_deg": [0, 0, 0]}}}]}
+    code, out, err = _check(mapping, tmp_path)
+    assert code == 3 and "1 singular zone(s)" in out and "move 0 (lin) wrist" in out
+    assert "no bound" in out and "at most" not in out
+    assert "no method could plan it" in err and "wrist-joint (window x1" in err and "joint_5" in err

@@ -371,9 +371,9 @@ def _write_check(task: Path, found: Sequence[MoveZones], out: TextIO) -> None:
     unplanned = [f"{m.index} ({m.kind})" for m in found if m.no_plan is not None]
     bounded = [(m, m.stopping) for m in found if m.stopping is not None]
     if unplanned:
-        moves = "s" if len(unplanned) > 1 else ""
-        out.write(f"stopping distance: no bound: move{moves} {', '.join(unplanned)} no plan (no method's joint "
-                  f"path stays within the limits and tolerances, clear of collisions; the reason below)\n")
+        which = f"moves {', '.join(unplanned)} have" if len(unplanned) > 1 else f"move {unplanned[0]} has"
+        out.write(f"stopping distance: no bound: {which} no plan (no method's joint path stays within the "
+                  f"limits and tolerances, clear of collisions; the reason below)\n")
     elif bounded:
         worst, figure = max(bounded, key=lambda mf: mf[1].bound_m)
         where = (f"{figure.at:.2f} of the joint motion" if worst.kind == "ptp"

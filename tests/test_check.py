@@ -71,9 +71,10 @@ def _holds(task: SingularTask, tmp_path: Path, methods: tuple[str, ...]) -> int:
                 assert planned <= move.stopping.bound_m, (
                     f"{task.name} {method} move {k}: planned {planned * 1e3:.3f} mm over the bound "
                     f"{move.stopping.bound_m * 1e3:.3f} mm")
-    else:
-        assert code == 3, f"{task.name}: no method plans, but check exits {code}"
-        assert "no bound" in out and "at most" not in out  # no plan: no figure (a bound of 0 mm was printed)
+    else:  # 3 where every method is refused before timing; a refusal only the timed samples show check cannot see
+        assert code in (0, 3), err
+        if code == 3 and out:  # (no text: a path no method can follow, refused before any report)
+            assert "no bound" in out and "at most" not in out  # no plan: no figure (a bound of 0 mm was printed)
     return len(plans)
 
 
@@ -168,7 +169,7 @@ def test_a_move_no_method_plans_has_no_bound_and_is_exit_3(tmp_path: Path) -> No
     assert not _plans(mapping, ("auto",))
     code, out, err = _check(mapping, tmp_path)
     assert code == 3, out
-    assert "stopping distance: no bound: move 0 (lin) no plan" in out and "at most" not in out
+    assert "stopping distance: no bound: move 0 (lin) has no plan" in out and "at most" not in out
     assert "drives joint_5 to 120." in err and "outside its limits" in err
     code, document, _ = _check_json(mapping, tmp_path)
     assert (code, document["ok"], document["exit_code"]) == (3, False, 3)

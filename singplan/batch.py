@@ -197,7 +197,7 @@ def plan_many(tasks: Sequence[str | os.PathLike[str]], out_dir: str | os.PathLik
     if workers is not None and scheduler is not None:
         raise InputError("give either workers (local processes) or scheduler (a Dask cluster), not both")
     if workers is not None and workers < 1:
-        raise InputError(f"workers: {workers} is not a positive number of worker processes")
+        raise InputError(f"--workers: {workers} is not a positive number of worker processes")
     if not tasks:
         raise InputError("no tasks given")
     folder = check_output_dir(out_dir, SUMMARY_FILES)

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, TextIO, TypedDict
 from singplan._version import __version__
 from singplan.errors import InputError, SingplanError, UnreachableError
 from singplan.outputs.choices import (
+    CROSSING_METHODS,
     DEFAULT_FILE_NAMES,
     DEFAULT_HOST,
     DEFAULT_TOLERANCE_DEG,
@@ -236,12 +237,13 @@ def cmd_ik(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         out.write(documents.dumps(documents.ik_document(full.name, str(full.urdf_path), full.tip, full.joint_names,
                                                         pose, tool, hold, rows)))
         return 0
-    names = " ".join(f"{n[:9]:>9s}" for n in full.joint_names)
+    widths = [max(9, len(n)) for n in full.joint_names]  # full names: panda_joint1..7 were all "panda_joi"
+    names = " ".join(f"{n:>{w}s}" for n, w in zip(full.joint_names, widths, strict=True))
     held_note = f", {held.joint} held at {math.degrees(held.value_rad):g} deg" if held is not None else ""
     out.write(f"{len(sols)} solution(s) of {robot.name} (joint values in deg{held_note})\n")
     out.write(f"{'config':7s} {names}  wrist[deg] shoulder[mm] elbow[deg] sigma_min\n")
     for row in rows:
-        joints = " ".join(f"{v:9.3f}" for v in row["joints_deg"])
+        joints = " ".join(f"{v:{w}.3f}" for v, w in zip(row["joints_deg"], widths, strict=True))
         out.write(f"{row['config']:7s} {joints}  {_column(row['wrist_deg'], 10, 3)} "
                   f"{_column(row['shoulder_mm'], 12, 2)} {_column(row['elbow_deg'], 10, 3)} "
                   f"{row['sigma_min']:9.4f}\n")
@@ -334,24 +336,40 @@ def cmd_check(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     task = load_task(args.task)
     found = detect(task)
+    refusal = next((m.no_plan for m in found if m.no_plan is not None), None)
     if args.json:
         from singplan.outputs import documents
 
         out.write(documents.dumps(documents.check_document(str(args.task), found)))
+    else:
+        _write_check(args.task, found, out)
+    if refusal is None:
         return 0
-    out.write(f"{args.task}: {sum(len(m.zones) for m in found)} singular zone(s) along the programmed path\n")
+    err.write(f"singplan: error: {refusal}\n")  # as plan says it (exit 3): the task has no plan
+    return refusal.exit_code
+
+
+def _write_check(task: Path, found: Sequence[MoveZones], out: TextIO) -> None:
+    """``singplan check``'s text: the zones, the stopping bound (or why there is none), the clearances."""
+    out.write(f"{task}: {sum(len(m.zones) for m in found)} singular zone(s) along the programmed path\n")
     for m in found:
         for z in m.zones:
             out.write(f"  move {m.index} ({m.kind}) {z.kind:8s} s {z.u_entry * m.length_m * 1e3:8.1f} .. "
                       f"{z.u_exit * m.length_m * 1e3:8.1f} mm, closest {z.describe_distance()} at "
                       f"s {z.u_closest * m.length_m * 1e3:.1f} mm\n")
-    worst = max(found, key=lambda m: m.stopping.bound_m)
-    where = (f"{worst.stopping.at:.2f} of the joint motion" if worst.kind == "ptp"
-             else f"s {worst.stopping.at * worst.length_m * 1e3:.1f} mm")
-    out.write(f"stopping distance: at most {worst.stopping.bound_m * 1e3:.3f} mm (a bound for every plan of the "
-              f"task), reached in move {worst.index} ({worst.kind}) at {where}\n")
+    unplanned = [f"{m.index} ({m.kind})" for m in found if m.no_plan is not None]
+    bounded = [(m, m.stopping) for m in found if m.stopping is not None]
+    if unplanned:
+        which = f"moves {', '.join(unplanned)} have" if len(unplanned) > 1 else f"move {unplanned[0]} has"
+        out.write(f"stopping distance: no bound: {which} no plan (no method's joint path stays within the "
+                  f"limits and tolerances, clear of collisions; the reason below)\n")
+    elif bounded:
+        worst, figure = max(bounded, key=lambda mf: mf[1].bound_m)
+        where = (f"{figure.at:.2f} of the joint motion" if worst.kind == "ptp"
+                 else f"s {figure.at * worst.length_m * 1e3:.1f} mm")
+        out.write(f"stopping distance: at most {figure.bound_m * 1e3:.3f} mm (a bound for every plan of the "
+                  f"task), reached in move {worst.index} ({worst.kind}) at {where}\n")
     _write_clearances(found, out)
-    return 0
 
 
 def _write_clearances(found: Sequence[MoveZones], out: TextIO) -> None:
@@ -392,6 +410,9 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         return _serve(args, out, err)
     if args.host is not None:
         raise InputError("replay: --host goes with --serve")
+    if args.speed is not None:  # the page has its own: Open Controls -> Animations
+        raise InputError("replay: --speed goes with --serve (the --html page sets its speed in its own controls: "
+                         "Open Controls -> Animations)")
     if args.html is None:
         raise InputError("replay: give --html FILE (write the page) or --serve (live meshcat server)")
     written = replay(args.trajectory, html=args.html)
@@ -401,13 +422,15 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 def _serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     """Play the trajectory on a live meshcat server until Ctrl-C (or SIGTERM)."""
-    from singplan.outputs.viewer import LiveReplay, is_loopback, replay
+    from singplan.outputs.viewer import LiveReplay, check_host, is_loopback, replay
 
     host = DEFAULT_HOST if args.host is None else args.host
+    check_host(host)  # an address that names nothing is refused before any warning about it
     if not is_loopback(host):
         err.write(f"singplan: warning: --host {host} is not a loopback address: anyone who can reach this "
                   f"machine there can open the replay (the default {DEFAULT_HOST} serves this machine only)\n")
-    live = replay(args.trajectory, serve=True, speed=args.speed, loop=not args.no_loop, host=host)
+    live = replay(args.trajectory, serve=True, speed=1.0 if args.speed is None else args.speed,
+                  loop=not args.no_loop, host=host)
     assert isinstance(live, LiveReplay)
     previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
@@ -556,8 +579,10 @@ def build_parser() -> argparse.ArgumentParser:
     ik.add_argument("--xyz", type=float, nargs=3, required=True, metavar=("X", "Y", "Z"), help="TCP position [m]")
     ik.add_argument("--rpy-deg", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("R", "P", "Y"),
                     help="TCP orientation, URDF fixed-axis roll pitch yaw [deg]")
-    ik.add_argument("--tool-xyz", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("X", "Y", "Z"))
-    ik.add_argument("--tool-rpy-deg", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("R", "P", "Y"))
+    ik.add_argument("--tool-xyz", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("X", "Y", "Z"),
+                    help="tool offset from the tip frame, in the tip's axes [m] (default 0 0 0: the TCP is the tip)")
+    ik.add_argument("--tool-rpy-deg", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("R", "P", "Y"),
+                    help="tool orientation in the tip frame, roll pitch yaw [deg] (default 0 0 0)")
     ik.add_argument("--tip", default=None, help="frame the tool hangs on (default: the robot's)")
     ik.add_argument("--seed-deg", type=float, nargs="+", default=None,
                     help="joint values to stay near: the 2*pi variant nearest them (default all zero)")
@@ -570,7 +595,7 @@ def build_parser() -> argparse.ArgumentParser:
     plan_p = sub.add_parser("plan", help="plan a task YAML into a timed trajectory")
     plan_p.add_argument("task", help="task file (YAML v1)")
     plan_p.add_argument("-o", "--output", default="singplan-out", help="output folder (default: singplan-out)")
-    plan_p.add_argument("--method", default=None, help="crossing method, overriding the task's")
+    plan_p.add_argument("--method", default=None, help=_METHOD_HELP.format("the task's"))
     plan_p.add_argument("--quiet", action="store_true", help="one line instead of the summary")
     plan_p.add_argument("--no-report", action="store_true", help="do not write report.html")
     plan_p.add_argument("--no-replay", action="store_true", help="do not write replay.html")
@@ -588,7 +613,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--serve", action="store_true", help="start a live meshcat server on loopback and play there")
     rep.add_argument("--host", default=None,
                      help=f"--serve: address the server listens on (default {DEFAULT_HOST}, this machine only)")
-    rep.add_argument("--speed", type=float, default=1.0, help="--serve: playback speed, x real time (default 1)")
+    rep.add_argument("--speed", type=float, default=None, help="--serve: playback speed, x real time (default 1)")
     rep.add_argument("--no-loop", action="store_true", help="--serve: play once instead of looping")
     rep.set_defaults(func=cmd_replay)
     demo = sub.add_parser("demo", help="plan the bundled demo task into ./singplan-demo")
@@ -624,7 +649,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="local worker processes (default: the number of CPUs; each task may take 1.5 GB)")
     where.add_argument("--scheduler", default=None,
                        help="a Dask scheduler's address (tcp://host:8786) to plan on instead (needs dask[distributed])")
-    bat.add_argument("--method", default=None, help="crossing method, overriding every task's")
+    bat.add_argument("--method", default=None, help=_METHOD_HELP.format("every task's"))
     bat.add_argument("--quiet", action="store_true", help="no line per finished task")
     bat.add_argument("--no-report", action="store_true", help="do not write report.html")
     bat.add_argument("--no-replay", action="store_true", help="do not write replay.html")
@@ -638,6 +663,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_METHOD_HELP = ("crossing method, overriding {0} singularity.method: " + ", ".join(CROSSING_METHODS)
+                + " (or one registered from Python)")
 _JSON_HELP = "print one JSON document (format singplan.{0}/1; see docs/json-output.md) instead of the text"
 
 

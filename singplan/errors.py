@@ -8,6 +8,7 @@ and a message a user can act on. The CLI maps :class:`InputError` to exit code 2
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Sequence
 
 
@@ -32,7 +33,19 @@ class UnknownNameError(InputError):
         self.choices = tuple(choices)
         prefix = f"{where}: " if where else ""
         shown = ", ".join(self.choices[:40]) + (" ..." if len(self.choices) > 40 else "")
-        super().__init__(f"{prefix}unknown {what} {name!r}; valid: {shown}")
+        near = nearest(name, self.choices)
+        hint = f" (did you mean {near!r}?)" if near is not None else ""
+        super().__init__(f"{prefix}unknown {what} {name!r}{hint}; valid: {shown}")
+
+
+def nearest(name: str, choices: Sequence[str]) -> str | None:
+    """The choice ``name`` most likely meant: the same but for case, else the closest by difflib's ratio
+    (0.6 or more), else None."""
+    same = [c for c in choices if c.lower() == name.lower()]
+    if same:
+        return same[0]
+    found = difflib.get_close_matches(name.lower(), [c.lower() for c in choices], n=1)
+    return next((c for c in choices if found and c.lower() == found[0]), None)
 
 
 class RobotModelError(InputError):

@@ -9,15 +9,21 @@ determinant, on bundled arms and on example-robot-data's UR5 and UR10, as LINs a
 from __future__ import annotations
 
 import io
+import json
+import re
 from pathlib import Path
 from typing import Any
 
+import jsonschema
 import numpy as np
+import pinocchio as pin
 import pytest
 import yaml
 
 from singplan.cli import main
 from singplan.errors import SingplanError
+from singplan.kinematics.robot import load_robot
+from singplan.outputs import documents
 from singplan.results.detect import MoveZones, detect
 from singplan.results.plan import plan
 from singplan.results.trajectory import Trajectory
@@ -65,8 +71,10 @@ def _holds(task: SingularTask, tmp_path: Path, methods: tuple[str, ...]) -> int:
                 assert planned <= move.stopping.bound_m, (
                     f"{task.name} {method} move {k}: planned {planned * 1e3:.3f} mm over the bound "
                     f"{move.stopping.bound_m * 1e3:.3f} mm")
-    else:
+    else:  # 3 where every method is refused before timing; a refusal only the timed samples show check cannot see
         assert code in (0, 3), err
+        if code == 3 and out:  # (no text: a path no method can follow, refused before any report)
+            assert "no bound" in out and "at most" not in out  # no plan: no figure (a bound of 0 mm was printed)
     return len(plans)
 
 
@@ -131,3 +139,68 @@ def test_the_bound_holds_for_a_flown_program(tmp_path: Path) -> None:
     planned = _per_move_stopping_m(traj)
     assert all(p <= m.stopping.bound_m for p, m in zip(planned, found, strict=True))
     assert np.max(planned) > 0.05  # a real figure, not a trivial one
+
+
+def _check_json(mapping: dict[str, Any], tmp_path: Path) -> tuple[int, dict[str, Any], str]:
+    path = tmp_path / "task.yaml"
+    path.write_text(yaml.safe_dump(mapping))
+    out, err = io.StringIO(), io.StringIO()
+    code = main(["check", str(path), "--json"], out=out, err=err)
+    document = json.loads(out.getvalue())
+    jsonschema.validate(document, documents.schema("check"))
+    return code, document, err.getvalue()
+
+
+def _past_joint_5() -> dict[str, Any]:
+    """An ABB LIN no method plans, without a singular zone: the tool tilts 20 deg about its y axis
+    from joint_5 at 110 deg, so the full pose drives joint_5 past its 120 deg limit."""
+    robot = load_robot("abb_irb2400")
+    q = [0.0, 10.0, 20.0, 0.0, 110.0, 0.0]
+    T = robot.fk(np.radians(q))
+    R = T.rotation @ pin.exp3(np.array([0.0, np.radians(20.0), 0.0]))
+    to = {"xyz": [float(v) for v in T.translation + np.array([0.0, 0.0, -0.05])],
+          "rpy_deg": [float(v) for v in np.degrees(pin.rpy.matrixToRpy(R))]}
+    return {"robot": "abb_irb2400", "start": {"joints_deg": q}, "moves": [{"lin": {"to": to}}]}
+
+
+def test_a_move_no_method_plans_has_no_bound_and_is_exit_3(tmp_path: Path) -> None:
+    """No joint path of any method stays in the limits: no plan, so no bound (0 mm was printed, exit 0)."""
+    mapping = _past_joint_5()
+    assert not _plans(mapping, ("auto",))
+    code, out, err = _check(mapping, tmp_path)
+    assert code == 3, out
+    assert "stopping distance: no bound: move 0 (lin) has no plan" in out and "at most" not in out
+    assert "drives joint_5 to 120." in err and "outside its limits" in err
+    code, document, _ = _check_json(mapping, tmp_path)
+    assert (code, document["ok"], document["exit_code"]) == (3, False, 3)
+    (move,) = document["moves"]
+    assert move["stopping_distance_bound_mm"] is None and "joint_5" in move["no_plan"]
+    assert document["error"] == move["no_plan"]
+
+
+def test_a_move_whose_every_path_collides_is_exit_3(tmp_path: Path) -> None:
+    """A wall across an ABB LIN: plan refuses it (exit 3); check said ok with a bound."""
+    mapping = {"robot": "abb_irb2400", "tool": {"xyz": [0, 0, 0.15]},
+               "start": {"pose": {"xyz": [1.0, 0.2, 0.8], "rpy_deg": [180, 10, 0]}, "config": "F U N"},
+               "moves": [{"lin": {"to": {"xyz": [1.0, -0.2, 0.8]}, "speed": 0.5}}],
+               "cell": [{"name": "wall", "box": {"size": [0.1, 0.1, 0.6]}, "xyz": [1.0, 0.0, 0.8]}],
+               "collision": {"clearance_mm": 5}}
+    with pytest.raises(SingplanError, match="wall") as planned:
+        plan(parse_task(mapping))
+    assert planned.value.exit_code == 3
+    code, out, err = _check(mapping, tmp_path)
+    assert code == 3 and "collides: link_4 and wall" in out and "no bound" in out
+    assert re.search(r"link_\d and wall are [\d.]+ mm into each other at s = [\d.]+ mm", err), err
+    code, document, _ = _check_json(mapping, tmp_path)
+    assert (code, document["ok"]) == (3, False) and "wall" in document["moves"][0]["no_plan"]
+
+
+def test_a_wrist_lin_no_method_plans_has_no_bound(tmp_path: Path) -> None:
+    """The trial's task (an ABB LIN through a wrist zone, every method past joint_5's limit near the end):
+    check printed 'at most 0.000 mm' and exited 0 while plan exits 3."""
+    mapping = {"robot": "abb_irb2400", "start": {"joints_deg": [0, 10, 20, 0, 30, 0]},
+               "moves": [{"lin": {"to": {"xyz": [1.2, 0, 1.0], "rpy_deg": [0, 0, 0]}}}]}
+    code, out, err = _check(mapping, tmp_path)
+    assert code == 3 and "1 singular zone(s)" in out and "move 0 (lin) wrist" in out
+    assert "no bound" in out and "at most" not in out
+    assert "no method could plan it" in err and "wrist-joint (window x1" in err and "joint_5" in err

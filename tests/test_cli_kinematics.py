@@ -37,6 +37,21 @@ def test_ik_prints_one_solution_per_branch_with_labels() -> None:
     assert int(out.split()[0]) > 4  # joints 4 and 6 have +-270 deg ranges: more variants
 
 
+def test_ik_columns_are_headed_by_the_full_joint_names() -> None:
+    """panda's seven columns were all headed panda_joi, ur5's first two shoulder_ (names cut to 9)."""
+    for robot, target, joints in (("panda", ["0.4", "0", "0.4"], [f"panda_joint{i}" for i in range(1, 8)]),
+                                  ("ur5", ["0.4", "0.1", "0.4"], ["shoulder_pan_joint", "shoulder_lift_joint",
+                                                                  "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+                                                                  "wrist_3_joint"])):
+        code, out, _ = run(["ik", robot, "--xyz", *target, "--rpy-deg", "180", "0", "0"])
+        assert code == 0
+        header, first = out.splitlines()[1:3]
+        assert header.split()[1:1 + len(joints)] == joints
+        for name in joints:  # each value ends under its name's last letter
+            end = header.index(name) + len(name)
+            assert first[end - 1] != " " and (end == len(first) or first[end] == " "), (name, header, first)
+
+
 def test_ik_errors_exit_2_and_unreachable_exit_3() -> None:
     code, _, err = run(["ik", "no_such_robot", "--xyz", "1", "0", "1"])
     assert code == 2 and "abb_irb2400" in err

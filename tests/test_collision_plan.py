@@ -184,10 +184,11 @@ def test_check_reports_the_least_clearance_along_each_move(tmp_path: Path) -> No
     moves = lines[start + 1:start + 4]
     assert [x.split(")")[0].strip() for x in moves] == ["move 0 (lin", "move 1 (circ", "move 2 (ptp"]
     assert all(" mm apart at " in x and "collides" not in x for x in moves)
-    pillar = KINDS / "fanuc_m10ia__c.yaml"
-    out = io.StringIO()
-    assert main(["check", str(pillar)], out=out) == 0
-    assert "collides: " in out.getvalue() and "pillar" in out.getvalue()
+    pillar = KINDS / "fanuc_m10ia__c.yaml"  # a PTP's joint line through a pillar: no plan (plan exits 3 too)
+    out, err = io.StringIO(), io.StringIO()
+    assert main(["check", str(pillar)], out=out, err=err) == 3
+    assert "collides: " in out.getvalue() and "pillar" in out.getvalue() and "no bound" in out.getvalue()
+    assert "move 0 (ptp): link_" in err.getvalue() and "and pillar are " in err.getvalue()
 
 
 @pytest.mark.slow

@@ -206,8 +206,9 @@ def test_cb3_program_is_resampled(planned_kuka: Path) -> None:
 
 
 @pytest.mark.parametrize(("option", "value", "field"), [
-    ("--lookahead-time", "0.01", "lookahead_time"), ("--lookahead-time", "0.5", "lookahead_time"),
-    ("--gain", "50", "gain"), ("--gain", "3000", "gain")])
+    ("--lookahead-time", "0.01", "--lookahead-time: expected"),
+    ("--lookahead-time", "0.5", "--lookahead-time: expected"),
+    ("--gain", "50", "--gain: expected"), ("--gain", "3000", "--gain: expected")])
 def test_servoj_parameters_out_of_range(planned_kuka: Path, option: str, value: str, field: str) -> None:
     err = io.StringIO()
     assert main(["export", str(planned_kuka), "--format", "urscript", option, value,

@@ -58,6 +58,31 @@ def test_bundled_arms_are_recognised_as_the_registry_says(name: str) -> None:
     assert rec.opw == entry.opw  # the registry's published parameters: the same conventions, the same numbers
 
 
+def test_a_ur_urdf_rounding_pi_over_2_to_9_decimals_is_ur_and_to_6_is_not(tmp_path: Path, rng) -> None:
+    """example-robot-data's ur5_gripper.urdf writes pi/2 as 1.570796325: the closed form misses its FK by
+    1.8e-9 m / 7.2e-9 rad, and it was refused at 1e-9. It is ur now, its branches reproduce random poses
+    within the tolerance; the same file with pi/2 to 6 decimals (3.3e-7 rad short) is still refused."""
+    urdf = Path(erd_urdf("ur5")).with_name("ur5_gripper.urdf")
+    assert "1.570796325" in urdf.read_text()
+    robot = load_robot(str(urdf))
+    rec = robot.recognition
+    assert rec.family == "ur", rec
+    assert 1e-9 < rec.residual_rad <= VERIFY_TOL_RAD and rec.residual_m <= VERIFY_TOL_M
+    for q in rng.uniform(-np.pi, np.pi, size=(10, 6)):
+        target = robot.fk(q)
+        sols = solve_all(robot, target, seed=q)
+        assert any(np.allclose(s, q, atol=1e-6) for s in sols.q)
+        for s in sols.q:
+            error = target.actInv(robot.fk(s))
+            assert np.linalg.norm(error.translation) <= VERIFY_TOL_M
+            assert np.linalg.norm(pin.log3(error.rotation)) <= VERIFY_TOL_RAD
+    coarse = tmp_path / "ur5_gripper_6_decimals.urdf"
+    coarse.write_text(urdf.read_text().replace("1.570796325", "1.570796"))
+    coarse_rec = load_robot(str(coarse)).recognition
+    assert coarse_rec.family == "general6"
+    assert dict(coarse_rec.rejected)["ur"].startswith("the closed form misses the URDF's FK"), coarse_rec.rejected
+
+
 def test_recognition_is_cached_per_chain_and_costs_a_few_ms() -> None:
     import time
 

@@ -461,6 +461,30 @@ def test_a_looser_tolerance_takes_fewer_points(kuka_folder: Path, tmp_path: Path
     assert counts[0] > counts[1] > counts[2] >= 3
 
 
+def _short_segments(traj: Trajectory, **tolerance: float) -> tuple[int, int]:
+    """How many of a KRL program's segments are shorter than 12 ms, of how many."""
+    motions = programs.build_program(traj, "krl", ProgramOptions(**tolerance)).model.motions()[1:]
+    return sum(m.duration_s < 0.012 for m in motions), len(motions)
+
+
+def test_the_short_segment_note_names_the_tolerance_that_binds(tmp_path: Path) -> None:
+    """On the fly-by example the orientation tolerance (0.005 deg) ends the short segments: the note said
+    a larger --tolerance-mm helps (2 mm still left 96 of 111 short); it names the one that binds and
+    what ten times it gives, as an export with that value counts it."""
+    traj = plan(load_task(Path(__file__).resolve().parents[1] / "examples" / "flyby_pick_place.yaml"))
+    export = write_program(traj, "krl", tmp_path / "a" / "prog.src")
+    (note,) = [n for n in export.notes if "shorter than 12 ms" in n]
+    short, total = _short_segments(traj)
+    assert note.startswith(f"{short} of {total} segments are shorter than 12 ms")
+    assert "the orientation tolerance (0.005 deg) is what ends" in note and "--tolerance-mm" not in note
+    short, total = _short_segments(traj, tolerance_deg=0.05)
+    assert note.endswith(f"--tolerance-deg 0.05 gives {short} of {total} segments shorter")
+    assert short < total / 3
+    wider = write_program(traj, "krl", tmp_path / "b" / "prog.src", ProgramOptions(tolerance_deg=0.05))
+    (note,) = [n for n in wider.notes if "shorter than 12 ms" in n]
+    assert "the position tolerance (0.1 mm) is what ends" in note and "--tolerance-mm 1 gives" in note
+
+
 # --- the output file rules ----------------------------------------------------------------------
 
 def test_an_unusable_path_is_bad_input_and_nothing_is_written(kuka_folder: Path, tmp_path: Path) -> None:

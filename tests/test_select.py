@@ -158,3 +158,25 @@ def test_axis_warm_started_solves_equal_cold_ones(dense: bool) -> None:
     cold = np.array([axis_solve(robot, blend[k], T[k], part.axis, part.exact)[0] for k in range(len(u))])  # one by one
     assert np.max(np.abs(warm - cold)) < 1e-11  # the same solutions, to the solve's own tolerance
     assert np.max(np.abs(warm - blend)) > 1e-4  # and not the blend itself: the solve moved the joints
+
+
+def test_no_plan_names_each_variant_and_gives_each_reason_once() -> None:
+    """The refusal of a move no method plans: a reason several methods (or wrist-joint windows) met is
+    written once after their names, the move not repeated inside it (it was ~2 KB on an ABB wrist LIN)."""
+    from singplan.planning.orchestration.select import Failure, no_plan
+
+    wall = "move 0 (lin): following the path with the full pose drives joint_5 to -120.01 deg"
+    failures = [Failure(0, "exact", "", PlanningError(wall)),
+                *(Failure(k, "wrist-joint", f"window x{w:g}", PlanningError(wall))
+                  for k, w in ((1, 1), (2, 1.5), (3, 2))),
+                Failure(4, "axis", "", PlanningError(wall)),
+                Failure(5, "null-space", "", PlanningError("move 0 (lin): null-space finds no joint motion"))]
+    text = str(no_plan(0, "lin", failures))
+    assert text == ("move 0 (lin): no method could plan it: exact, wrist-joint (window x1, window x1.5, window x2), "
+                    "axis: following the path with the full pose drives joint_5 to -120.01 deg; "
+                    "null-space: null-space finds no joint motion")
+    apart = [Failure(0, "wrist-joint", "window x1", PlanningError(wall)),
+             Failure(1, "wrist-joint", "window x1.5", PlanningError("move 0 (lin): over the tolerance"))]
+    assert str(no_plan(0, "lin", apart)) == ("move 0 (lin): no method could plan it: wrist-joint (window x1): "
+                                            "following the path with the full pose drives joint_5 to -120.01 deg; "
+                                            "wrist-joint (window x1.5): over the tolerance")

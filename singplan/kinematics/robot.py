@@ -177,6 +177,11 @@ class Robot:
         p = self.opw
         if p is not None:
             return p.a1 + p.c2 + math.hypot(p.a2, p.c3) + p.c4
+        return self._offsets_m()
+
+    def _offsets_m(self) -> float:
+        """The summed lengths of the chain's fixed offsets after joint 1 up to the flange [m]: each
+        joint only turns them, so no flange point is farther from joint 1's origin."""
         placements = self.model.jointPlacements
         lengths = [np.linalg.norm(placements[i].translation) for i in range(2, self.model.njoints)]
         return float(sum(lengths) + np.linalg.norm(self.model.frames[self.tip_frame_id].placement.translation))
@@ -313,6 +318,26 @@ class Robot:
                            np.array([axis for _, axis, _ in steps]).reshape(-1, 3),
                            np.array([pin.skew(axis) for _, axis, _ in steps]).reshape(-1, 3, 3),
                            [iq for _, _, iq in steps], tool.translation, tool.rotation)
+
+    def beyond_reach(self, xyz: np.ndarray) -> str:
+        """Why a TCP position [m] (3,) in the base frame is certainly out of reach, or "" when it may not be.
+
+        No TCP position is farther from joint 1's origin than the sum of the lengths of the chain's
+        fixed offsets (joint placements 2..n, the tip frame's, the tool's): each joint only turns them.
+        A target past that is named with its distance; one more than ten times past it, with the reading
+        in centimetres or millimetres that would be within it (a task's positions are in metres)."""
+        centre = np.asarray(self.model.jointPlacements[1].translation, dtype=float)
+        reach = self._offsets_m() + float(np.linalg.norm(self.T_tip_tcp.translation))
+        xyz = np.asarray(xyz, dtype=float)
+        distance = float(np.linalg.norm(xyz - centre))
+        if not distance > reach:
+            return ""
+        note = f"the target is {distance:.3g} m from the base, beyond the arm's reach of {reach:.3g} m"
+        for unit, scale in (("centimetres", 1e-2), ("millimetres", 1e-3)):
+            if distance > 10.0 * reach and float(np.linalg.norm(xyz * scale - centre)) <= reach:
+                shown = ", ".join(f"{v:g}" for v in np.round(xyz * scale, 6))
+                return f"{note} (positions are in metres: read as {unit} it would be [{shown}] m)"
+        return f"{note} (positions are in metres)"
 
     def fk_tip(self, q: np.ndarray) -> pin.SE3:
         """Tip-frame pose in the base frame (no tool)."""
@@ -560,7 +585,8 @@ def _check_chain(model: pin.Model, chain: list[int], tip: str, urdf_path: Path) 
     if len(chain) not in SUPPORTED_JOINT_COUNTS:
         counts = ", ".join(str(n) for n in SUPPORTED_JOINT_COUNTS[:-1]) + f" or {SUPPORTED_JOINT_COUNTS[-1]}"
         raise RobotModelError(str(urdf_path), f"{len(chain)} revolute joints from {_root_link(model)} to {tip}; "
-                                              f"singplan plans arms with {counts}")
+                                              f"singplan plans arms with {counts} between the base and the tip "
+                                              f"(`tip`, the frame the tool hangs on)")
 
 
 def _root_link(model: pin.Model) -> str:

@@ -18,4 +18,8 @@ DEFAULT_FILE_NAMES: dict[str, str] = {"ros2": "trajectory.ros2.yaml", "ros2-json
 DEFAULT_TOLERANCE_MM = 0.1  # controller programs: TCP position between program points and the plan
 DEFAULT_TOLERANCE_DEG = 0.005  # ... and TCP orientation (the checker holds 0.01 deg outside crossings)
 UR_STEP_S = {"e-series": 0.002, "cb3": 0.008}  # servo loop of the controller generations
+# the built-in crossing method names for the options' help, without importing the registry (numpy,
+# Pinocchio): a copy for --help only; names are checked against singplan.planning.crossing.registry
+# (tests/test_messages.py: the same)
+CROSSING_METHODS = ("auto", "wrist-joint", "axis", "null-space", "exact", "dls", "average", "ptp", "stop")
 DEFAULT_HOST = "127.0.0.1"  # the live server is for this machine unless asked otherwise

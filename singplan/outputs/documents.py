@@ -72,17 +72,26 @@ def plan_document(task: str, done: PlannedFolder) -> dict[str, Any]:
 
 def check_document(task: str, found: Sequence[MoveZones]) -> dict[str, Any]:
     """``singplan check --json``: the zones of every move along the programmed path and the
-    stopping distance estimate."""
+    stopping distance bound. A move no method plans makes it a failure (exit code 3, ``error`` the
+    first such move's refusal) that still carries the zones, each move's ``no_plan`` reason and no
+    bound (``stopping_distance_bound_mm`` null: there is no plan to bound)."""
     moves = []
     for m in found:
         scale_mm = m.length_m * 1e3  # path parameter u in [0, 1] -> arc length [mm]
         zones = [{"singularity": z.kind, "s_entry_mm": z.u_entry * scale_mm, "s_exit_mm": z.u_exit * scale_mm,
                   "s_closest_mm": z.u_closest * scale_mm, "min_distance": z.min_distance,
                   "min_distance_unit": z.unit, "threshold": z.threshold} for z in m.zones]
-        where = {"at_fraction": m.stopping.at} if m.kind == "ptp" else {"at_s_mm": m.stopping.at * scale_mm}
-        moves.append({"move": m.index, "kind": m.kind, "length_mm": scale_mm, "zones": zones,
-                      "stopping_distance_bound_mm": m.stopping.bound_m * 1e3, **where})
-    return {**_success("check"), "task": task, "zones": sum(len(m.zones) for m in found), "moves": moves}
+        record: dict[str, Any] = {"move": m.index, "kind": m.kind, "length_mm": scale_mm, "zones": zones,
+                                  "stopping_distance_bound_mm": None}
+        if m.stopping is not None:
+            record["stopping_distance_bound_mm"] = m.stopping.bound_m * 1e3
+            record.update({"at_fraction": m.stopping.at} if m.kind == "ptp" else {"at_s_mm": m.stopping.at * scale_mm})
+        if m.no_plan is not None:
+            record["no_plan"] = str(m.no_plan)
+        moves.append(record)
+    refusal = next((m.no_plan for m in found if m.no_plan is not None), None)
+    head = _success("check") if refusal is None else failure("check", refusal.exit_code, str(refusal))
+    return {**head, "task": task, "zones": sum(len(m.zones) for m in found), "moves": moves}
 
 
 def ik_document(robot: str, urdf: str, tip: str, joint_names: Sequence[str], target: dict[str, list[float]],

@@ -177,13 +177,13 @@ def resample(traj: Trajectory, period_s: float) -> tuple[np.ndarray, np.ndarray]
 
 def _check_ur_options(opts: UrScriptOptions) -> None:
     if opts.controller not in UR_STEP_S:
-        raise InputError(f"controller: expected one of {', '.join(UR_STEP_S)}, got {opts.controller!r}")
+        raise InputError(f"--ur-controller: expected one of {', '.join(UR_STEP_S)}, got {opts.controller!r}")
     lo, hi = LOOKAHEAD_RANGE_S
     if not lo <= opts.lookahead_time_s <= hi:
-        raise InputError(f"lookahead_time: expected {lo} to {hi} s, got {opts.lookahead_time_s!r}")
+        raise InputError(f"--lookahead-time: expected {lo} to {hi} s, got {opts.lookahead_time_s!r}")
     lo, hi = GAIN_RANGE
     if not lo <= opts.gain <= hi:
-        raise InputError(f"gain: expected {lo:g} to {hi:g}, got {opts.gain!r}")
+        raise InputError(f"--gain: expected {lo:g} to {hi:g}, got {opts.gain!r}")
     for name, v in (("movej speed", opts.movej_speed_rad_s), ("movej acceleration", opts.movej_accel_rad_s2)):
         if not (math.isfinite(v) and v > 0):
             raise InputError(f"{name}: expected a positive number, got {v!r}")
@@ -192,6 +192,15 @@ def _check_ur_options(opts: UrScriptOptions) -> None:
 def _short(x: float, decimals: int = 9) -> str:
     """Fixed-point text (URScript number literals: no exponent)."""
     return f"{x:.{decimals}f}".rstrip("0").rstrip(".")
+
+
+_ZERO = re.compile(r"(?<![\d.])-?0\.0{12}(?!\d)")  # a joint value that prints as zero, "-0.000000000000" too
+
+
+def _zeros(text: str) -> str:
+    """URScript text with every joint value that prints as zero written ``0`` (a value a rounding below
+    zero printed ``-0.000000000000``)."""
+    return _ZERO.sub("0", text)
 
 
 def write_urscript(stream: TextIO, traj: Trajectory, options: UrScriptOptions | None = None) -> None:
@@ -218,12 +227,12 @@ def write_urscript(stream: TextIO, traj: Trajectory, options: UrScriptOptions | 
     if not is_ur_robot(traj):
         stream.write(f"  # WARNING: {name} is not a Universal Robots arm; check joint order and signs\n")
     row = "[" + ", ".join(["%.12f"] * 6) + "]"  # 1e-12 rad: far below any encoder's resolution
-    stream.write(f"  movej({row % tuple(q[0])}, a={_short(opts.movej_accel_rad_s2)}, "
-                 f"v={_short(opts.movej_speed_rad_s)})\n")
+    stream.write(_zeros(f"  movej({row % tuple(q[0])}, a={_short(opts.movej_accel_rad_s2)}, "
+                        f"v={_short(opts.movej_speed_rad_s)})\n"))
     tail = (f", 0, 0, t={_short(period)}, lookahead_time={_short(opts.lookahead_time_s)}, "
             f"gain={_short(opts.gain)})\n")
     for start in range(0, len(q), _CHUNK):
-        stream.write("".join("  servoj(" + row % tuple(v) + tail for v in q[start:start + _CHUNK].tolist()))
+        stream.write(_zeros("".join("  servoj(" + row % tuple(v) + tail for v in q[start:start + _CHUNK].tolist())))
     stream.write("  stopj(2.0)\nend\n")
 
 

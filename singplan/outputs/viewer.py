@@ -456,12 +456,17 @@ def is_loopback(host: str) -> bool:
     return bool(addresses) and all(ipaddress.ip_address(a.split("%")[0]).is_loopback for a in addresses)
 
 
-def _start_server(host: str) -> tuple[subprocess.Popen[str], str]:
-    """Start :mod:`singplan.outputs.meshcat_server` listening on ``host``; return it and its command address."""
+def check_host(host: str) -> None:
+    """Refuse (InputError) a ``--host`` that names no address."""
     try:
         socket.getaddrinfo(host, None)
     except (OSError, UnicodeError, ValueError) as exc:
         raise InputError(f"replay --host {host!r}: not an address of this machine ({exc})") from None
+
+
+def _start_server(host: str) -> tuple[subprocess.Popen[str], str]:
+    """Start :mod:`singplan.outputs.meshcat_server` listening on ``host``; return it and its command address."""
+    check_host(host)
     script = Path(__file__).with_name("meshcat_server.py")
     # stdin: a pipe this process holds and never writes; the server exits when it closes (this process ended)
     server = subprocess.Popen([sys.executable, "-u", str(script), host], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
@@ -511,7 +516,7 @@ def replay(traj: Trajectory | str | Path, html: str | Path | None = None, serve:
     if (html is None) == (not serve):
         raise InputError("replay: give exactly one of html=PATH or serve=True")
     if not (math.isfinite(speed) and 0.01 <= speed <= 100.0):
-        raise InputError(f"replay: speed must be a number in [0.01, 100], got {speed}")
+        raise InputError(f"replay --speed: expected a number in [0.01, 100] (x real time), got {speed}")
     if html is None:
         trajectory = traj if isinstance(traj, Trajectory) else load(traj)
         return serve_replay(trajectory, robot_of(trajectory), speed=speed, loop=loop, host=host)

@@ -8,14 +8,17 @@ path leaves the workspace, or the IK jumps outside any singular zone.
 
 The stopping bound covers every plan a crossing method can make: each built-in (and registered)
 method's joint map of the move is made as the planner makes it (no timing; the maps the planner
-refuses before timing left out), and each sample gets the fastest joint velocity any timing can
+refuses before timing left out: a joint limit, the configuration it ends in, a crossing over the
+tolerances, a collision), and each sample gets the fastest joint velocity any timing can
 give it: along the path's slope, at the most the joint limits and the programmed TCP speed allow
 (:func:`~singplan.kinematics.stopping.path_rates`), no joint faster than it can get from the nearest
 point at rest (:func:`~singplan.kinematics.stopping.rest_speed_bounds`). Those states become
 distances by the two bounds of :mod:`singplan.kinematics.stopping` (the smaller holds); a fly-by
 corner, where the blend adds the two moves' speeds, by the joint-by-joint one. The next move starts
 in each branch a method may end in (a few at most), so the bound of a later move covers the
-planner's choice too.
+planner's choice too. A move none of whose joint maps is left (from any of those branches) has no
+plan, so the task has no bound: its :attr:`MoveZones.no_plan` says why (the planner's own
+refusal, :func:`~singplan.planning.orchestration.select.no_plan`), and ``check`` exits 3.
 
 With collision checking on, each move also gets its least clearance along the programmed path in
 the branch the start leads to (the tracked path of a LIN / CIRC, the straight joint line of a PTP;
@@ -32,7 +35,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from singplan.errors import PlanningError
+from singplan.errors import PlanningError, SingplanError
 from singplan.kinematics.clearance import Clearance, check_clearance
 from singplan.kinematics.collision import CollisionModel, FixedContact
 from singplan.kinematics.robot import Robot
@@ -49,9 +52,11 @@ from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import Exact, Stop
 from singplan.planning.orchestration.budget import check_task
 from singplan.planning.orchestration.checks import screen
-from singplan.planning.orchestration.collide import line_samples
+from singplan.planning.orchestration.collide import line_samples, screen_line
+from singplan.planning.orchestration.collide import screen as screen_collision
 from singplan.planning.orchestration.move_plan import MoveTracking, plan_cartesian
 from singplan.planning.orchestration.records import PlannedMove
+from singplan.planning.orchestration.select import Failure, no_plan
 from singplan.planning.orchestration.targets import ptp_target, task_arm
 from singplan.planning.path.cartesian import STEP_M, STEP_RAD
 from singplan.planning.path.zones import Zone
@@ -75,16 +80,18 @@ class StoppingFigure(NamedTuple):
 @dataclass(frozen=True)
 class MoveZones:
     """One move as ``singplan check`` reports it: its singular zones along the programmed path (in
-    the branch the start configuration leads to) and its stopping-distance bound."""
+    the branch the start configuration leads to) and its stopping-distance bound (None when the
+    move has no plan: ``no_plan`` says why)."""
 
     index: int
     kind: str
     length_m: float
     zones: tuple[Zone, ...]
-    stopping: StoppingFigure
+    stopping: StoppingFigure | None
     clearance: Clearance | None = None  # along the programmed path in the start branch (None: nothing checked)
     u: tuple[float, ...] = ()  # the path parameters of the samples the clearance was checked at
     fixed: tuple[FixedContact, ...] = ()  # cell shapes touching the fixed base (every move alike; planning refuses)
+    no_plan: SingplanError | None = None  # why no method's joint map of the move is left (None: some is)
 
     def where(self, sample: int, fraction: float = 0.0) -> str:
         """A checked sample (and a fraction of the way to the next) as a point of the move, for messages."""
@@ -121,6 +128,9 @@ class _States:
 def detect(task: Task | str | Path) -> list[MoveZones]:
     """Zones and stopping bounds of every move (a :class:`Task`, or the path of a YAML file).
 
+    A move whose every joint map the planner would refuse before timing (a joint limit, a tolerance,
+    a collision) is returned with ``no_plan`` set and no stopping figure, as is every move when one is.
+
     Raises:
         InputError: the task is malformed or contradicts the robot (exit code 2).
         PlanningError: a move no method can plan: its path leaves the workspace, the IK jumps
@@ -137,9 +147,11 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
     found: list[tuple[float, tuple[Zone, ...]]] = []  # each move's length [m] and zones
     clear: list[tuple[Clearance | None, tuple[float, ...]]] = []  # each move's clearance and where it was checked
     states: list[list[_States]] = []
+    refused: list[SingplanError | None] = []  # why each move has no plan (None: it has one)
     for i, move in enumerate(task.moves):
+        failures: list[Failure] = []  # why each method's joint map from the first start is refused
         if move.kind == "ptp":
-            move_states, ends = _ptp_states(robot, task, i, move, starts)
+            move_states, ends, failures = _ptp_states(robot, task, i, move, starts, arm.collision)
             found.append((0.0, ()))
             u = np.linspace(0.0, 1.0, line_samples(starts[0], ends[0]))
             clear.append(_clearance(arm.collision, starts[0] + np.outer(u, ends[0] - starts[0]), u, i))
@@ -149,18 +161,23 @@ def detect(task: Task | str | Path) -> list[MoveZones]:
             tracking = MoveTracking(robot, task, i, move, T)
             stage = tracking.stage(tracking.grid, 0.0, starts[0], False, None)  # raises: no method plans
             move_states, ends = [], []
-            for q in starts:
-                s, e = _path_states(robot, task, i, move, tracking, q)
+            for k, q in enumerate(starts):
+                s, e, f = _path_states(robot, task, i, move, tracking, q, arm.collision)
                 move_states += s
                 ends += e
+                failures += f if k == 0 else []
             found.append((tracking.piece.length_m, stage.found))
             clear.append(_clearance(arm.collision, stage.ctx.tracked.q, stage.ctx.tracked.u, i))
             starts = _distinct(ends) or [stage.ctx.tracked.q[-1]]  # no method plans it: on as tracked
             T = tracking.piece.T_end
         states.append(move_states)
+        refused.append(None if move_states else no_plan(i, move.kind, failures))
     qd = _velocities(robot, task, states)
-    return [MoveZones(i, move.kind, found[i][0], found[i][1], _figure(robot, task, states, qd, i), *clear[i],
-                      arm.collision.fixed_contacts) for i, move in enumerate(task.moves)]
+    bounded = not any(refused)  # a bound for every plan of the task: none without a plan
+    return [MoveZones(i, move.kind, found[i][0], found[i][1],
+                      _figure(robot, task, states, qd, i) if bounded else None, *clear[i],
+                      arm.collision.fixed_contacts, no_plan=refused[i])
+            for i, move in enumerate(task.moves)]
 
 
 def _clearance(model: CollisionModel, q: np.ndarray, u: np.ndarray, i: int
@@ -178,24 +195,27 @@ def _methods(move: Move) -> Iterator[CrossingMethod]:
             yield from registry.candidates(name, move)
 
 
-def _path_states(robot: Robot, task: Task, i: int, move: Move, tracking: MoveTracking,
-                 q_start: np.ndarray) -> tuple[list[_States], list[np.ndarray]]:
+def _path_states(robot: Robot, task: Task, i: int, move: Move, tracking: MoveTracking, q_start: np.ndarray,
+                 model: CollisionModel) -> tuple[list[_States], list[np.ndarray], list[Failure]]:
     """The states of each method's joint map of a LIN / CIRC from ``q_start`` that the planner
-    would time (its refusals left out), and where each ends. Without a singular zone every method
-    keeps the tracked path: one of them stands for all."""
+    would time, where each ends, and why each other one is refused (as the planner refuses it before
+    timing: planned, screened, collision-checked). Without a singular zone every method keeps the
+    tracked path: one of them stands for all."""
     zones = tracking.stage(tracking.grid, 0.0, q_start, False, None).found
     methods = list(_methods(move)) if zones else registry.candidates(Exact.name, move)
-    states, ends = [], []
-    for method in methods:
+    states, ends, failures = [], [], []
+    for order, method in enumerate(methods):
         try:
             pm = plan_cartesian(robot, task, i, move, tracking, q_start, method)
-        except PlanningError:
-            continue
-        if screen(robot, task, move, pm)[0] is not None:  # the planner drops it before timing: no plan of it
+            refusal = screen(robot, task, move, pm)[0] or (screen_collision(model, pm) if model.active else None)
+        except PlanningError as exc:
+            refusal = exc
+        if refusal is not None:  # the planner drops it before timing: no plan of it
+            failures.append(Failure(order, method.name, method.variant, refusal))
             continue
         states += list(_jmap_states(robot, task, move, pm))
         ends.append(pm.jmap.evaluate(np.array([1.0]))[0])
-    return states, ends
+    return states, ends, failures
 
 
 def _jmap_states(robot: Robot, task: Task, move: Move, pm: PlannedMove) -> Iterator[_States]:
@@ -214,11 +234,12 @@ def _jmap_states(robot: Robot, task: Task, move: Move, pm: PlannedMove) -> Itera
             yield _States.along(robot, np.arange(float(len(p.q))), p.q, velocity, np.full(len(p.q), p.u), paused=True)
 
 
-def _ptp_states(robot: Robot, task: Task, i: int, move: Move, starts: list[np.ndarray]
-                ) -> tuple[list[_States], list[np.ndarray]]:
-    """A PTP's joint line from each start (the first's target must exist: exit 3 otherwise), synchronised
-    at its speed scale, and the targets."""
-    states, ends = [], []
+def _ptp_states(robot: Robot, task: Task, i: int, move: Move, starts: list[np.ndarray], model: CollisionModel
+                ) -> tuple[list[_States], list[np.ndarray], list[Failure]]:
+    """A PTP's joint line from each start that stays clear (the first's target must exist: exit 3
+    otherwise), synchronised at its speed scale, the targets (of every start, clear or not), and why the
+    first start's line is refused."""
+    states, ends, failures = [], [], []
     s = np.linspace(0.0, 1.0, _PTP_SAMPLES)
     velocity = robot.velocity_rad_s * task.joint_speed_scale(move)
     for k, q_from in enumerate(starts):
@@ -228,9 +249,13 @@ def _ptp_states(robot: Robot, task: Task, i: int, move: Move, starts: list[np.nd
             if k == 0:
                 raise
             continue
+        ends.append(q_to)  # the next move goes on from here, clear or not (a collision is reported)
+        collision = screen_line(model, q_from, q_to, i) if model.active else None
+        if collision is not None:
+            failures += [Failure(0, "ptp", "", collision)] if k == 0 else []
+            continue
         states.append(_States.along(robot, s, q_from + s[:, None] * (q_to - q_from), velocity, s))
-        ends.append(q_to)
-    return states, ends
+    return states, ends, failures
 
 
 def _velocities(robot: Robot, task: Task, states: list[list[_States]]) -> list[list[np.ndarray]]:

@@ -22,7 +22,7 @@ from typing import Any, Literal, TextIO
 import numpy as np
 
 from singplan.kinematics.continuous import continuous_joint_names, portable_urdf
-from singplan.kinematics.files import FileRefusedError, display_path, read_bounded_text, read_json
+from singplan.kinematics.files import FileFieldError, FileRefusedError, display_path, read_bounded_text, read_json
 from singplan.kinematics.robot import MAX_URDF_BYTES
 from singplan.results.files import Writer, text_writer, write_files
 from singplan.results.metrics import CrossingFigures, Metrics, NoFigures, SegmentFigures, figures_from_json
@@ -398,7 +398,14 @@ def load(path: str | Path) -> Trajectory:
     p = Path(path)
     if p.is_dir():
         p = p / JSON_FILE
-    doc = read_json(p, MAX_TRAJECTORY_BYTES, "trajectory.json")
+    try:
+        doc = read_json(p, MAX_TRAJECTORY_BYTES, "trajectory.json")
+    except FileFieldError as exc:
+        if exc.field or p.suffix.lower() == ".json":
+            raise
+        # another file of the output folder (trajectory.csv, report.html): say what is read
+        raise FileFieldError(exc.path, "", f"{exc.reason}; this is not a trajectory.json: give the output "
+                                          f"folder of `singplan plan` ({p.parent}) or its {JSON_FILE}") from None
     f = check_document(doc, display_path(p), FORMAT)  # in place: the fields below are checked
     segments = tuple(f.record(f"segments[{i}]", partial(_segment, s)) for i, s in enumerate(doc["segments"]))
     events = tuple(f.record(f"events[{i}]", partial(Event.from_json, e)) for i, e in enumerate(doc["events"]))

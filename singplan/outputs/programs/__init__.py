@@ -25,8 +25,11 @@ from __future__ import annotations
 import io
 import math
 import os
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
+
+import numpy as np
 
 from singplan.errors import InputError
 from singplan.kinematics.vendor_config import require_convention
@@ -34,8 +37,8 @@ from singplan.outputs.checks import check_trajectory
 from singplan.outputs.choices import DEFAULT_PROGRAM_NAME, DEFAULT_TOLERANCE_DEG, DEFAULT_TOLERANCE_MM, PROGRAM_FORMATS
 from singplan.outputs.programs.fanuc import FanucLs
 from singplan.outputs.programs.krl import Krl
-from singplan.outputs.programs.model import Dialect, Motion, Part, ProgramModel, build_model
-from singplan.outputs.programs.points import PointTolerance, ProgramPoints, choose_points
+from singplan.outputs.programs.model import Dialect, Motion, Part, ProgramModel, build_model, printed_times
+from singplan.outputs.programs.points import ORIENTATION, POSITION, PointTolerance, ProgramPoints, choose_points
 from singplan.outputs.programs.rapid import Rapid
 from singplan.outputs.timeline import robot_of
 from singplan.results.files import Writer, check_output_file, write_files
@@ -161,7 +164,9 @@ def build_program(traj: Trajectory, fmt: str, options: ProgramOptions | None = N
                                 lambda s: dialect.write_main(s, model)}
     for part in model.parts if model.split else ():
         files[part.name + dialect.extension] = _part_writer(dialect, model, part)
-    return Program(fmt, model, points, files, tuple(dialect.notes(model) + _short_segment_note(model)))
+    note = _short_segment_note(lambda index: _short(traj, index, dialect.time_step_s), points, tolerance,
+                               lambda tol: choose_points(traj, robot, tol).index)
+    return Program(fmt, model, points, files, tuple(dialect.notes(model) + note))
 
 
 def program_texts(traj: Trajectory, fmt: str, options: ProgramOptions | None = None) -> dict[str, str]:
@@ -202,14 +207,38 @@ def _shortest(motions: list[Motion]) -> float:
     return min((m.duration_s for m in motions[1:]), default=0.0)
 
 
-def _short_segment_note(model: ProgramModel) -> list[str]:
-    motions = model.motions()
-    short = sum(m.duration_s < SHORT_SEGMENT_S for m in motions[1:])
-    if not short:
+def _short_segment_note(shorter: Callable[[np.ndarray], np.ndarray], points: ProgramPoints, tolerance: PointTolerance,
+                        choose: Callable[[PointTolerance], np.ndarray]) -> list[str]:
+    """The note on segments shorter than a controller's interpolation cycle (``shorter``: which segments
+    between points (sample indices) are), naming the tolerance that ended most of them (measured:
+    :attr:`ProgramPoints.ended_by`) and what ten times it gives (the points chosen again: ``choose``)."""
+    short = shorter(points.index)
+    if not short.any():
         return []
-    return [f"{short} of {len(motions) - 1} segments are shorter than {SHORT_SEGMENT_S * 1e3:g} ms (a controller's "
-            "interpolation cycle): the controller may not keep their planned times; a larger --tolerance-mm "
-            "gives fewer, longer segments"]
+    ended = points.ended_by[short]
+    by_position = int(np.count_nonzero(ended & POSITION))
+    by_orientation = int(np.count_nonzero(ended & ORIENTATION))
+    text = (f"{np.count_nonzero(short)} of {len(short)} segments are shorter than {SHORT_SEGMENT_S * 1e3:g} ms "
+            "(a controller's interpolation cycle): the controller may not keep their planned times")
+    if not by_position and not by_orientation:  # forced points (segment boundaries, stops) only
+        return [text + "; they lie between points the plan forces (its segment ends and stops)"]
+    if by_orientation > by_position:
+        option, now = "--tolerance-deg", math.degrees(tolerance.orientation_rad)
+        wider = replace(tolerance, orientation_rad=tolerance.orientation_rad * 10.0)
+    else:
+        option, now = "--tolerance-mm", tolerance.position_m * 1e3
+        wider = replace(tolerance, position_m=tolerance.position_m * 10.0)
+    tried = shorter(choose(wider))
+    which, unit = ("orientation", "deg") if option == "--tolerance-deg" else ("position", "mm")
+    return [f"{text}; the {which} tolerance ({now:g} {unit}) is what ends {max(by_position, by_orientation)} of them "
+            f"(the position tolerance {by_position}, the orientation tolerance {by_orientation}): {option} "
+            f"{now * 10:g} gives {np.count_nonzero(tried)} of {len(tried)} segments shorter"]
+
+
+def _short(traj: Trajectory, index: np.ndarray, step_s: float) -> np.ndarray:
+    """(P - 1,): which segments between the program points (sample indices (P,)) are shorter than
+    :data:`SHORT_SEGMENT_S` in the program's printed times (resolution ``step_s``)."""
+    return np.diff(printed_times(np.asarray(traj.t)[index], step_s)) < SHORT_SEGMENT_S
 
 
 def _part_writer(dialect: Dialect, model: ProgramModel, part: Part) -> Writer:

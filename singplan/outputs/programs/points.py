@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -94,6 +94,9 @@ class ProgramPoints:
             from the plan's samples (the criterion's left side, over every segment).
         max_orientation_error_rad: the same for orientation [rad].
         pauses: the null-space pauses, each (first, last) sample at which the TCP stands still.
+        ended_by: (P - 1,) what ended each segment's reach: :data:`FORCED` (the next forced point,
+            or the format's longest segment), or the tolerance a longer segment broke,
+            :data:`POSITION`, :data:`ORIENTATION` or both (their sum).
     """
 
     index: np.ndarray
@@ -101,6 +104,10 @@ class ProgramPoints:
     max_position_error_m: float
     max_orientation_error_rad: float
     pauses: tuple[tuple[int, int], ...] = ()
+    ended_by: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+
+
+FORCED, POSITION, ORIENTATION = 0, 1, 2  # what ended a segment: ProgramPoints.ended_by
 
 
 @dataclass(frozen=True)
@@ -151,17 +158,23 @@ def choose_points(traj: Trajectory, robot: Robot, tolerance: PointTolerance) -> 
     forced = np.union1d(boundary_samples(traj), stops)
     chosen = [0]
     errors: list[tuple[float, float, float]] = []
+    ended: list[int] = []
     for a, b in zip(forced[:-1].tolist(), forced[1:].tolist(), strict=True):
-        stretch, stretch_errors = _stretch(plan, a, b, tolerance)
+        stretch, stretch_errors, stretch_ended = _stretch(plan, a, b, tolerance)
         chosen += stretch[1:]
         errors += stretch_errors
+        ended += stretch_ended
     index = np.array(chosen, dtype=int)
     worst = np.max(np.array(errors), axis=0) if errors else np.zeros(3)
-    return ProgramPoints(index, np.isin(index, stops), float(worst[0]), float(worst[1]), pauses)
+    return ProgramPoints(index, np.isin(index, stops), float(worst[0]), float(worst[1]), pauses,
+                         np.array(ended, dtype=int))
 
 
-def _stretch(plan: _Plan, a: int, b: int, tol: PointTolerance) -> tuple[list[int], list[tuple[float, float, float]]]:
-    """The points from forced point a to forced point b, and each segment's deviations.
+def _stretch(plan: _Plan, a: int, b: int, tol: PointTolerance
+             ) -> tuple[list[int], list[tuple[float, float, float]], list[int]]:
+    """The points from forced point a to forced point b, each segment's deviations, and what ended
+    each forward reach (``ProgramPoints.ended_by``; kept for the evened-out set, whose points lie
+    between the forward and backward reaches).
 
     Greedy reach forward gives the fewest points, each as late as it can be (f_k); greedy reach
     backward from b gives, for the same count, each as early as it can be (g_k). Forward alone leaves
@@ -170,29 +183,31 @@ def _stretch(plan: _Plan, a: int, b: int, tol: PointTolerance) -> tuple[list[int
     between g_k and f_k, and that set is kept when the criterion accepts all its segments (it does
     where acceptance is monotone), else the forward one.
     """
-    forward, errors = [a], []
+    forward, errors, ended = [a], [], []
     while forward[-1] < b:
-        j, err = _reach(plan, forward[-1], b, tol, +1)
+        j, err, why = _reach(plan, forward[-1], b, tol, +1)
         forward.append(j)
         errors.append(err)
+        ended.append(why)
     if (b - forward[-2]) * (len(forward) - 1) >= (b - a) / 2:  # the last segment is not short: keep them
-        return forward, errors
+        return forward, errors, ended
     backward = [b]
     while backward[-1] > a and len(backward) <= len(forward):
         backward.append(_reach(plan, backward[-1], a, tol, -1)[0])
     if len(forward) < 3 or len(backward) != len(forward) or backward[-1] != a:
-        return forward, errors
+        return forward, errors, ended
     middle = [a] + [(f + g + 1) // 2 for f, g in zip(forward[1:-1], backward[::-1][1:-1], strict=True)] + [b]
     middle_errors = [_deviation(plan, i, j) for i, j in itertools.pairwise(middle)]
     if all(i < j for i, j in itertools.pairwise(middle)) and all(_accepts(e, tol) for e in middle_errors):
-        return middle, middle_errors
-    return forward, errors
+        return middle, middle_errors, ended
+    return forward, errors, ended
 
 
 def _reach(plan: _Plan, i: int, end: int, tol: PointTolerance,
-           direction: int) -> tuple[int, tuple[float, float, float]]:
+           direction: int) -> tuple[int, tuple[float, float, float], int]:
     """The sample j farthest from i towards ``end`` (``direction`` +1: later, -1: earlier) whose
-    segment with i is accepted, with its deviations: the length doubled until refused, then bisected."""
+    segment with i is accepted, with its deviations: the length doubled until refused, then bisected;
+    and what stopped it (``ProgramPoints.ended_by``: the tolerances the shortest refused segment broke)."""
     def deviation(j: int) -> tuple[float, float, float]:
         return _deviation(plan, min(i, j), max(i, j))
 
@@ -203,27 +218,33 @@ def _reach(plan: _Plan, i: int, end: int, tol: PointTolerance,
         last = int(np.searchsorted(plan.t, plan.t[i] - longest, side="left"))
     span = max(1, min(abs(end - i), abs(last - i)))
     best, best_err, refused = 1, deviation(i + direction), span + 1  # a neighbour: always accepted
+    broken = FORCED  # the tolerances the shortest refused segment broke
     step = 2
     while step < span:
         err = deviation(i + direction * step)
         if not _accepts(err, tol):
-            refused = step
+            refused, broken = step, _broken(err, tol)
             break
         best, best_err, step = step, err, step * 2
     else:
         if best < span:
             err = deviation(i + direction * span)
             if _accepts(err, tol):
-                return i + direction * span, err
-            refused = span
+                return i + direction * span, err, FORCED
+            refused, broken = span, _broken(err, tol)
     while refused - best > 1:  # best accepted, refused not: bisect between them
         mid = (best + refused) // 2
         err = deviation(i + direction * mid)
         if _accepts(err, tol):
             best, best_err = mid, err
         else:
-            refused = mid
-    return i + direction * best, best_err
+            refused, broken = mid, _broken(err, tol)
+    return i + direction * best, best_err, broken
+
+
+def _broken(err: tuple[float, float, float], tol: PointTolerance) -> int:
+    """The tolerances a refused segment's deviations break (:data:`POSITION`, :data:`ORIENTATION`, or both)."""
+    return POSITION * (err[2] > 1.0) + ORIENTATION * (err[1] > tol.orientation_rad)
 
 
 def _accepts(err: tuple[float, float, float], tol: PointTolerance) -> bool:

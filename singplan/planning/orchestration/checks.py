@@ -160,8 +160,9 @@ def check_tracked(robot: Robot, i: int, move: Move, piece: CartesianPiece, track
                 "orientation to the target's, so a target rotated about its z axis against the start turns it "
                 "too: give the target the start's rotation about z)" if robot.n_joints == 5 else
                 "no inverse kinematics solution there")
+        far = robot.beyond_reach(piece.T_end.translation)
         raise UnreachableError(f"move {i} ({move.kind}): the path leaves the workspace at {piece.describe(u)}: "
-                               f"{what}", move=i)
+                               f"{what}" + (f"; {far}" if far else ""), move=i)
     raise PlanningError(f"move {i} ({move.kind}): no continuous joint motion follows the path at "
                         f"{piece.describe(u)} (the inverse kinematics jumps by "
                         f"{math.degrees(tracked.max_step_rad):.1f} deg)")

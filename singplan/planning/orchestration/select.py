@@ -15,7 +15,7 @@ durations are replaced by their bounds.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
 from typing import NamedTuple, TypeVar
@@ -80,7 +80,9 @@ class _Result(NamedTuple):
     candidate: Candidate
 
 
-class _Failure(NamedTuple):
+class Failure(NamedTuple):
+    """Why one method (variant) could not plan a move."""
+
     order: int
     method: str
     variant: str
@@ -118,10 +120,10 @@ def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prep
     if not serving and results and results[0].pm.zones:
         raise _refusal(robot, results[0].pm, refused)
     failures = sorted(failures + timing_failures, key=lambda f: f.order)
-    failures += [_Failure(len(methods), name, "", PlanningError(f"{name} {why} (this arm is {robot.family})"))
+    failures += [Failure(len(methods), name, "", PlanningError(f"{name} {why} (this arm is {robot.family})"))
                  for name, why in refused.items()]
     if not results:
-        raise _no_plan(i, kind, failures)
+        raise no_plan(i, kind, failures)
     results.sort(key=lambda r: r.candidate.rank(r.tm.duration_s, cost))
     best = results[0]
     best_rank = best.candidate.rank(best.tm.duration_s, cost)
@@ -136,15 +138,15 @@ def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prep
 
 
 def _prepared(i: int, kind: str, methods: list[CrossingMethod], prepare: Prepare
-              ) -> tuple[list[Candidate], list[_Failure]]:
+              ) -> tuple[list[Candidate], list[Failure]]:
     """Each method's candidate, or why it could not plan the joint map."""
     candidates: list[Candidate] = []
-    failures: list[_Failure] = []
+    failures: list[Failure] = []
     for order, method in enumerate(methods):
         try:
             candidate = isolated(i, kind, method, partial(prepare, method, order))
         except (PlanningError, BudgetError) as exc:  # a slow method over the allowance: another may fit
-            failures.append(_Failure(order, method.name, method.variant, exc))
+            failures.append(Failure(order, method.name, method.variant, exc))
             continue
         candidates.append(candidate)
         if not candidate.pm.zones:
@@ -153,11 +155,11 @@ def _prepared(i: int, kind: str, methods: list[CrossingMethod], prepare: Prepare
 
 
 def _timed_best_first(i: int, kind: str, candidates: list[Candidate], finish: Finish, cost: float
-                      ) -> tuple[list[_Result], list[Candidate], list[_Failure]]:
+                      ) -> tuple[list[_Result], list[Candidate], list[Failure]]:
     """Time and check the candidates best bound first (deviation counted), skipping those that cannot win."""
     results: list[_Result] = []
     skipped: list[Candidate] = []
-    failures: list[_Failure] = []
+    failures: list[Failure] = []
     deferred: list[Candidate] = []  # refused before timing (Refused): timed only if nothing else plans
     best: Rank | None = None
     order = sorted(candidates, key=lambda c: (c.refusal is not None, c.rank(c.bound_s, cost)))
@@ -174,7 +176,7 @@ def _timed_best_first(i: int, kind: str, candidates: list[Candidate], finish: Fi
                 order, deferred = deferred, []
             continue
         except (PlanningError, BudgetError) as exc:
-            failures.append(_Failure(c.order, c.method.name, c.method.variant, exc))
+            failures.append(Failure(c.order, c.method.name, c.method.variant, exc))
             continue
         if isinstance(done, Outrun):  # a timing pass tightened its limits past what could win
             skipped.append(replace(c, bound_s=done.at_least_s, outrun=True))
@@ -218,15 +220,29 @@ def _untimed(c: Candidate, best_s: float, best: Rank, cost: float) -> Alternativ
                        position_mm=c.deviation.position_mm, orientation_deg=c.deviation.orientation_deg)
 
 
-def _no_plan(i: int, kind: str, failures: list[_Failure]) -> PlanningError | BudgetError:
+def no_plan(i: int, kind: str, failures: Sequence[Failure]) -> PlanningError | BudgetError:
     """The error when no method plans the move: the path's own or the task's size when that is why,
-    or the one wall every method met, else each method's reason."""
+    or the one wall every method met, else each distinct reason once, after the methods (and
+    variants: ``wrist-joint (window x1.5)``) that met it."""
     decisive: list[PlanningError | BudgetError] = [
         f.error for f in failures if isinstance(f.error, (UnreachableError, BudgetError))]
     if len(failures) == 1 or decisive or len({str(f.error) for f in failures}) == 1:
         return (decisive or [failures[0].error])[0]
-    return PlanningError(f"move {i} ({kind}): no method could plan it: "
-                         + "; ".join(f"{f.method}: {f.error}" for f in failures))
+    prefix = f"move {i} ({kind}): "
+    met: dict[str, list[Failure]] = {}  # each reason, without the move named again, and who met it
+    for f in failures:
+        met.setdefault(str(f.error).removeprefix(prefix), []).append(f)
+    return PlanningError(prefix + "no method could plan it: "
+                         + "; ".join(f"{_named(who)}: {reason}" for reason, who in met.items()))
+
+
+def _named(failures: list[Failure]) -> str:
+    """The methods of some failures, in order, each once with its variants: ``exact, wrist-joint (window x1,
+    window x1.5)``."""
+    variants: dict[str, list[str]] = {}
+    for f in failures:
+        variants.setdefault(f.method, []).extend([f.variant] if f.variant else [])
+    return ", ".join(f"{name} ({', '.join(v)})" if v else name for name, v in variants.items())
 
 
 def _serving(robot: Robot, methods: list[CrossingMethod]) -> tuple[list[CrossingMethod], dict[str, str]]:

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from singplan.errors import UnreachableError
+from singplan.errors import TaskError, UnknownNameError, UnreachableError
 from singplan.kinematics.collision import CollisionModel, collision_model
 from singplan.kinematics.configuration import classify
 from singplan.kinematics.dynamics import TorqueLimit, effort_limits_nm, require_dynamics
@@ -29,7 +29,12 @@ def load_task_robot(task: Task) -> Robot:
     """The task's robot: its URDF with the task's tip and tool, checked against the task (with
     dynamics, when the task limits torques)."""
     tool = pin.SE3(rpy_deg_to_rotation(task.tool_rpy_deg), np.asarray(task.tool_xyz, dtype=float))
-    robot = load_robot(task.robot, tip=task.tip, tool=tool)
+    try:
+        robot = load_robot(task.robot, tip=task.tip, tool=tool)
+    except UnknownNameError as exc:
+        if exc.what != "robot":
+            raise TaskError("tip", str(exc)) from None
+        raise UnknownNameError("robot", exc.name, exc.choices, where="robot") from None
     check_against_robot(task, robot)
     convention_for(robot)  # a URDF's controller sidecar is read (or refused) before planning, not after it
     if task.limits.torque_scale is not None:
@@ -104,9 +109,10 @@ def ptp_targets(robot: Robot, i: int, move: Move, q_start: np.ndarray) -> list[n
     if move.config == "keep":
         keep = [k for k in keep if sols.labels[k] == classify(robot, q_start).label]
     if not keep:
+        far = robot.beyond_reach(target.translation)
         raise UnreachableError(f"move {i} (ptp): no IK solution for xyz {target.translation.tolist()} inside the joint "
                                f"limits in the requested configuration ({move.config}); available: "
-                               f"{sorted(set(sols.labels)) or 'none'}", move=i)
+                               f"{sorted(set(sols.labels)) or 'none'}" + (f"; {far}" if far else ""), move=i)
     keep.sort(key=lambda k: float(np.max(np.abs(sols.q[k] - q_start))))  # stable: ties keep the solver's order
     return [np.array(sols.q[k]) for k in keep]
 

@@ -69,13 +69,14 @@ class Exact:
     variant = ""
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
-        if zone.min_distance >= _exact_limit(ctx, zone):
+        if zone.min_distance >= met_below(ctx, zone):
             return None  # a near miss: stay in the branch, the timing slows the swing
         return through(ctx, zone, self.name)
 
 
-def _exact_limit(ctx: MoveContext, zone: Zone) -> float:
-    """The singular distance under which exact goes through the zone (above it: a near miss it follows)."""
+def met_below(ctx: MoveContext, zone: Zone) -> float:
+    """The singular distance under which a zone's singularity counts as met: exact goes through it
+    (above it: a near miss it follows), null-space may pause on it."""
     return ctx.position_tolerance_m if zone.kind == "shoulder" else EXACT_ORIENTATION_TOL_RAD
 
 
@@ -290,7 +291,7 @@ class Ptp:
         after = np.nonzero(clear & (u > zone.u_closest))[0]
         a = int(before[-1]) if before.size else a
         b = int(after[0]) if after.size else b
-        if zone.min_distance >= _exact_limit(ctx, zone) and ctx.tracked.coarse_from_u <= u[b]:
+        if zone.min_distance >= met_below(ctx, zone) and ctx.tracked.coarse_from_u <= u[b]:
             return None  # a near miss the tracking left coarse: the planner tracks the swing in full and asks again
         options = exit_candidates(ctx, float(u[b]))
         if not options:

@@ -42,6 +42,7 @@ from singplan.planning.crossing.methods import (
     EXACT_ORIENTATION_TOL_RAD,
     Exact,
     exit_candidates,
+    met_below,
     path_slope,
     rest_of_move,
     sample_densely,
@@ -85,7 +86,7 @@ class NullSpace:
         self.only_when_needed = only_when_needed
 
     def cross(self, ctx: MoveContext, zone: Zone) -> Crossing | None:
-        met = ctx.position_tolerance_m if zone.kind == "shoulder" else EXACT_ORIENTATION_TOL_RAD
+        met = met_below(ctx, zone)
         # under auto, a zone that needs no pause refuses (auto has exact's plan already) unless a
         # later zone on the move may need one
         refuse = self.only_when_needed and not _zone_after(ctx, zone)

@@ -206,7 +206,6 @@ class CollisionModel:
         srdf: the SRDF whose pairs were skipped, or None.
         skipped: how many pairs each rule left out (same_group, adjacent, srdf, allow).
         notes: what is not checked and why (e.g. a URDF without ``<collision>`` elements).
-        geometry: every shape as a Pinocchio ``GeometryModel`` (the cell's on the universe joint).
     """
 
     def __init__(self, robot: Robot, bodies: list[Body], pairs: list[Pair], clearance_m: float, self_collision: bool,
@@ -219,7 +218,6 @@ class CollisionModel:
         self.srdf = srdf
         self.skipped = skipped
         self.notes = notes
-        self.geometry = _geometry_model(robot, bodies)
         self._request = coal.DistanceRequest()
         self._result = coal.DistanceResult()
         self.distance_calls = 0
@@ -228,6 +226,12 @@ class CollisionModel:
     def active(self) -> bool:
         """Whether anything is checked."""
         return bool(self.pairs)
+
+    @cached_property
+    def geometry(self) -> pin.GeometryModel:
+        """Every shape as a Pinocchio ``GeometryModel`` (the cell's on the universe joint), made when
+        asked for: the distances themselves are coal's on the placed shapes."""
+        return _geometry_model(self.robot, list(self.bodies))
 
     def pair_distance(self, pair: Pair, rotations: np.ndarray, origins: np.ndarray,
                       enough: float = math.inf, placed: dict[int, coal.Transform3s] | None = None) -> Distance:

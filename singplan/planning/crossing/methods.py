@@ -323,8 +323,7 @@ def _rest_followed(ctx: MoveContext, u_from: float, q_from: np.ndarray) -> bool:
     rest = rest_of_move(ctx, u_from, q_from)
     if rest is None:
         return True
-    inside = np.all((rest.q >= ctx.robot.lower_rad - 1e-9) & (rest.q <= ctx.robot.upper_rad + 1e-9))
-    return bool(rest.gap_index < 0 and inside)
+    return rest.gap_index < 0 and ctx.robot.within_limits(rest.q)
 
 
 class Average:

@@ -267,7 +267,7 @@ def _violation(robot: Robot, q: np.ndarray, T: np.ndarray, T_corner: pin.SE3, ra
     """What the blend's samples q (N, n), at poses T (N, 4, 4), break: the joint limits, the sphere
     or the orientation bound (no further from the corner's orientation than at the blend's ends);
     "" for none."""
-    if np.any(q < robot.lower_rad - 1e-9) or np.any(q > robot.upper_rad + 1e-9):
+    if not robot.within_limits(q):
         return "it leaves the joint limits"
     far = float(np.max(np.linalg.norm(T[1:-1, :3, 3] - T_corner.translation, axis=1), initial=0.0))
     if far > radius_m * _SPHERE_MARGIN + 1e-9:

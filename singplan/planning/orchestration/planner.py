@@ -275,8 +275,10 @@ def _best_end(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nd
     limits = move_limits(robot, task, move, 0.0)
     refused: list[tuple[np.ndarray, PlanningError | BudgetError]] = []
     best: tuple[PlannedMove, TimedMove] | None = None
-    for target in sorted(targets[1:], key=lambda target: ptp_duration_bound_s(q, target, limits)):
-        if best is not None and ptp_duration_bound_s(q, target, limits) >= best[1].duration_s:
+    bounded = sorted(((ptp_duration_bound_s(q, target, limits), k) for k, target in enumerate(targets[1:], 1)))
+    for bound_s, k in bounded:  # (a tie in the bound: the target listed first, as a stable sort did)
+        target = targets[k]
+        if best is not None and bound_s >= best[1].duration_s:
             break  # neither this nor a later one can be faster (a tie: the nearer end, tried first)
         error: PlanningError | BudgetError | None = collide.screen_line(place.collision, q, target, i)
         if error is None:

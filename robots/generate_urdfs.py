@@ -8,11 +8,11 @@ Each file's header says so in a line singplan reads (:data:`NO_DYNAMICS_MARK`): 
 no published dynamics, so singplan reports no torques for them and refuses ``limits.torque_scale``.
 
 Collision geometry: each visual cylinder again, :data:`COLLISION_MARGIN_M` wider and longer at each
-end, so the collision shapes enclose the visuals (tests/test_collision_bundled.py samples the
+end, so the collision shapes enclose the visuals (tests/test_collision_floor.py samples the
 visuals' surfaces to show it). Nothing of the base or of link_1 (which joint 1 turns about the
 vertical) reaches below the base's mounting plane, z = 0 of the base frame, where the arm stands on
 its floor, pedestal or table: a joint housing that would is raised to stand on the plane, and a
-collision cylinder's margin stops at it (tests/test_collision_bundled.py puts a floor 1 mm below the
+collision cylinder's margin stops at it (tests/test_collision_floor.py puts a floor 1 mm below the
 plane under every arm). The SRDF (MoveIt's format) disables the pairs MoveIt's setup
 assistant would: links one joint apart ("Adjacent"), pairs touching in the zero configuration
 ("Default") and pairs touching in nearly every configuration ("Always": the shapes overlap at the

@@ -104,9 +104,10 @@ def plan_into(task: Task, out_dir: str | os.PathLike[str], *, method: str | None
             before_planning()
         traj, robot = planned_trajectory(task, method=method, progress=progress)
         pages, skipped = build_pages(traj, robot, report=report, replay=replay)  # the robot the plan loaded
-        written = save(traj, folder, extra_files=pages)
-    files = (*TRAJECTORY_FILES, *robot_files(traj), *pages)
-    return PlannedFolder(traj, written, files, skipped, _stale(written, files))
+        copies = robot_files(traj)  # the URDF read and converted once, for the files and their names
+        folder = save(traj, folder, extra_files=pages, robot_copies=copies)
+    files = (*TRAJECTORY_FILES, *copies, *pages)
+    return PlannedFolder(traj, folder, files, skipped, _stale(folder, files))
 
 
 def _stale(folder: Path, written: tuple[str, ...]) -> tuple[str, ...]:

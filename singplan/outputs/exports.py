@@ -40,7 +40,7 @@ from singplan.kinematics.vendor_config import format_vendor_config, vendor_confi
 from singplan.outputs.checks import check_trajectory
 from singplan.outputs.choices import DEFAULT_FILE_NAMES, FORMATS, PROGRAM_FORMATS, UR_STEP_S
 from singplan.outputs.programs import ProgramOptions, write_program
-from singplan.results.files import Writer, check_output_file, hold_output_folder, write_file
+from singplan.results.files import Writer, check_output_file, write_file
 from singplan.results.trajectory import Trajectory, csv_line, csv_rows
 
 log = logging.getLogger(__name__)
@@ -319,11 +319,10 @@ def export(traj: Trajectory, fmt: str, path: str | os.PathLike[str], urscript: U
     check_trajectory(traj)  # before the file is touched: bad input never leaves a file behind
     if fmt in ("ros2", "ros2-json"):
         check_durations(traj)
-    target = check_output_file(path)
+    check_output_file(path)  # an unusable path is bad input before the file is touched
     if fmt == "urscript" and not is_ur_robot(traj):
         log.warning("%s is not a Universal Robots arm: the URScript program needs checking", traj.robot)
-    with hold_output_folder(target.parent, (target.name,)):  # one run per folder
-        return write_file(path, write)
+    return write_file(path, write)  # holds the folder (one run per folder) while it writes
 
 
 def default_path(out_dir: str | os.PathLike[str], fmt: str) -> Path:

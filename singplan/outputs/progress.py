@@ -11,14 +11,12 @@ pipe, a file, a CI log) nothing is drawn: the bar is for people watching.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, TextIO
 
 if TYPE_CHECKING:
     from tqdm import tqdm
 
-Progress = Callable[[int, int], None]  # (moves planned, moves in all): the planner's callback
-Start = Callable[[], None]  # planning starts (the output folder was found usable)
 
 FINISHING = "corners, checks, files"
 

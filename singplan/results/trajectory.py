@@ -338,16 +338,17 @@ def _holds_array(value: dict[str, Any]) -> bool:
     return any(isinstance(v, np.ndarray) or (isinstance(v, dict) and _holds_array(v)) for v in value.values())
 
 
-def save(traj: Trajectory, out_dir: str | Path, extra_files: Mapping[str, str] | None = None) -> Path:
+def save(traj: Trajectory, out_dir: str | Path, extra_files: Mapping[str, str] | None = None,
+         robot_copies: Mapping[str, str] | None = None) -> Path:
     """Write trajectory.csv, trajectory.json (:func:`robot_files` for a URDF with continuous joints,
-    and extra text files) into ``out_dir``.
+    or ``robot_copies`` when the caller made them already, and extra text files) into ``out_dir``.
 
     Only these files are written; the rest of the folder is left alone. All are renamed into
     place together once written; on any failure the folder is as it was (see
     :mod:`singplan.results.files`). An unusable ``out_dir`` raises OutputPathError.
     """
     folder = Path(os.path.abspath(out_dir))  # absolute, but a symbolic link stays as named
-    copies = robot_files(traj)
+    copies = robot_files(traj) if robot_copies is None else robot_copies
     # tools that need one coordinate per joint read the copy; singplan the URDF planned (load())
     urdf_copy = str(folder / URDF_FILE) if copies else None
     writers: dict[str, Writer] = {CSV_FILE: lambda stream: write_csv(stream, traj),

@@ -43,7 +43,7 @@ import numpy as np
 from singplan.kinematics.geometry import rotation_angles
 from singplan.kinematics.robot import Robot
 from singplan.outputs.timeline import pause_window, sample_range
-from singplan.results.path import programmed_path
+from singplan.results.path import programmed_path, woven_moves
 from singplan.results.trajectory import Trajectory
 
 
@@ -73,6 +73,8 @@ def weave_scale(traj: Trajectory, robot: Robot) -> np.ndarray:
     f' = cos for a sine, 2 / pi for the triangle).
     """
     scale = np.ones(len(traj.t))
+    if not woven_moves(traj.task):
+        return scale  # no move weaves: no programmed path to build
     by_move = traj.segments_by_move()
     for i, programmed in enumerate(programmed_path(traj.task, robot, traj.q[0])):
         segs = by_move.get(i)

@@ -21,8 +21,6 @@ their URDF, as a user would give it); no tool, a straight one, or one offset and
 
 from __future__ import annotations
 
-import contextlib
-import io
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -36,6 +34,8 @@ import pinocchio as pin
 from singplan import load_robot
 from singplan.kinematics.configuration import distances_batch
 from singplan.kinematics.robot import Robot
+
+from .conftest import erd_urdf
 
 BUNDLED = ("abb_irb2400", "kuka_kr6_r900_2", "fanuc_lrmate200id", "staubli_tx2_60", "kuka_kr120_r2500_pro")
 ERD = ("ur5", "ur10")
@@ -71,11 +71,8 @@ class EdgeTask:
 @cache
 def arm_robot(arm: str) -> tuple[str, Robot]:
     """The task's ``robot`` value and the loaded robot for an arm label (``erd:NAME``: example-robot-data)."""
-    if arm.startswith("erd:"):
-        import example_robot_data as erd  # test-only: the UR arms as a user's URDF files
-
-        with contextlib.redirect_stdout(io.StringIO()):
-            path = str(Path(erd.load(arm[4:]).urdf).resolve())
+    if arm.startswith("erd:"):  # test-only: the UR arms as a user's URDF files
+        path = str(Path(erd_urdf(arm[4:])).resolve())
         return path, load_robot(path)
     return arm, load_robot(arm)
 

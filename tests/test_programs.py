@@ -355,13 +355,6 @@ def run_cli(*args: str) -> tuple[int, str, str]:
 
 
 @pytest.fixture(scope="module")
-def kuka_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A planned KUKA LIN through a wrist singularity (the demo task), saved."""
-    task = Path(__file__).resolve().parents[1] / "singplan" / "demo_task.yaml"
-    return save(plan(load_task(task)), tmp_path_factory.mktemp("kuka"))
-
-
-@pytest.fixture(scope="module")
 def ur5_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     task = Path(__file__).resolve().parents[1] / "examples" / "ur5_wrist_auto.yaml"
     return save(plan(load_task(task)), tmp_path_factory.mktemp("ur5"))
@@ -376,8 +369,8 @@ def test_a_robot_without_a_vendor_convention_is_refused_by_name(fmt: str, ur5_fo
     assert sorted(p.name for p in ur5_folder.iterdir()) == before
 
 
-def test_a_robot_of_another_vendor_is_refused_with_its_format(kuka_folder: Path) -> None:
-    code, _, err = run_cli("export", str(kuka_folder), "--format", "rapid")
+def test_a_robot_of_another_vendor_is_refused_with_its_format(planned_kuka: Path) -> None:
+    code, _, err = run_cli("export", str(planned_kuka), "--format", "rapid")
     assert code == 2 and "controller convention of KUKA, not ABB (use --format krl)" in err
 
 
@@ -390,10 +383,10 @@ def _user_copy(traj: Trajectory, folder: Path) -> Trajectory:
     return replace(traj, robot="my_arm", urdf=str(urdf))
 
 
-def test_a_user_urdf_needs_its_sidecar_and_then_writes_the_same_program(kuka_folder: Path, tmp_path: Path) -> None:
+def test_a_user_urdf_needs_its_sidecar_and_then_writes_the_same_program(planned_kuka: Path, tmp_path: Path) -> None:
     from singplan.results.trajectory import load
 
-    traj = load(kuka_folder)
+    traj = load(planned_kuka)
     user = _user_copy(traj, tmp_path)
     with pytest.raises(InputError, match=r"robot 'my_arm' has no controller convention.*add .*my_arm.controller.yaml"):
         program_texts(user, "krl")
@@ -404,11 +397,11 @@ def test_a_user_urdf_needs_its_sidecar_and_then_writes_the_same_program(kuka_fol
     assert body == [line for line in bundled.splitlines() if "robot:" not in line]
 
 
-def test_a_sidecar_convention_is_undone_by_the_reader(kuka_folder: Path, tmp_path: Path) -> None:
+def test_a_sidecar_convention_is_undone_by_the_reader(planned_kuka: Path, tmp_path: Path) -> None:
     """A made-up convention (offsets, a flipped sign, a coupling) round-trips through the reader."""
     from singplan.results.trajectory import load
 
-    traj = _user_copy(load(kuka_folder), tmp_path)
+    traj = _user_copy(load(planned_kuka), tmp_path)
     convention_spec = {"vendor": "kuka", "axis_signs": [1, -1, 1, 1, -1, 1],
                        "axis_offsets_deg": [0, 90, -90, 0, 0, 180], "couplings": [{"axis": 3, "joint": 2, "factor": 1}]}
     (tmp_path / "my_arm.controller.yaml").write_text(yaml.safe_dump({"controller": convention_spec}))
@@ -429,34 +422,34 @@ def test_a_sidecar_convention_is_undone_by_the_reader(kuka_folder: Path, tmp_pat
     (("--tolerance-deg", "nan"), "--tolerance-deg: expected a positive number"),
     (("--vendor-config",), "--vendor-config: only the csv-deg format"),
 ])
-def test_bad_program_options_exit_2_naming_the_option(args: tuple[str, ...], message: str, kuka_folder: Path) -> None:
-    before = sorted(p.name for p in kuka_folder.iterdir())
-    code, _, err = run_cli("export", str(kuka_folder), "--format", "krl", *(a.format(out=kuka_folder) for a in args))
+def test_bad_program_options_exit_2_naming_the_option(args: tuple[str, ...], message: str, planned_kuka: Path) -> None:
+    before = sorted(p.name for p in planned_kuka.iterdir())
+    code, _, err = run_cli("export", str(planned_kuka), "--format", "krl", *(a.format(out=planned_kuka) for a in args))
     assert code == 2 and message in err
-    assert sorted(p.name for p in kuka_folder.iterdir()) == before
+    assert sorted(p.name for p in planned_kuka.iterdir()) == before
 
 
-def test_program_options_are_refused_for_other_formats(kuka_folder: Path) -> None:
-    code, _, err = run_cli("export", str(kuka_folder), "--format", "ros2", "--tolerance-mm", "0.5")
+def test_program_options_are_refused_for_other_formats(planned_kuka: Path) -> None:
+    code, _, err = run_cli("export", str(planned_kuka), "--format", "ros2", "--tolerance-mm", "0.5")
     assert code == 2 and "--tolerance-mm: only for the controller programs" in err
 
 
-def test_the_cli_names_the_file_after_the_program_and_prints_the_figures(kuka_folder: Path, tmp_path: Path) -> None:
-    code, out, _ = run_cli("export", str(kuka_folder), "--format", "krl", "--name", "Seam_1")
-    assert code == 0 and (kuka_folder / "Seam_1.src").is_file()
-    assert "DEF Seam_1( )" in (kuka_folder / "Seam_1.src").read_text()
+def test_the_cli_names_the_file_after_the_program_and_prints_the_figures(planned_kuka: Path, tmp_path: Path) -> None:
+    code, out, _ = run_cli("export", str(planned_kuka), "--format", "krl", "--name", "Seam_1")
+    assert code == 0 and (planned_kuka / "Seam_1.src").is_file()
+    assert "DEF Seam_1( )" in (planned_kuka / "Seam_1.src").read_text()
     # two moves, neither blended: three exact stops
     assert re.search(r"wrote .*Seam_1.src: KUKA KRL program Seam_1, \d+ points \(3 exact stops\)", out)
     assert re.search(r"the TCP keeps within 0\.\d{4} mm / 0\.\d{4} deg of the plan \(tolerance 0\.1 mm", out)
-    code, out, _ = run_cli("export", str(kuka_folder / "trajectory.json"), "--format", "krl", "-o",
+    code, out, _ = run_cli("export", str(planned_kuka / "trajectory.json"), "--format", "krl", "-o",
                            str(tmp_path / "other" / "prog.src"), "--tolerance-mm", "0.5")
     assert code == 0 and "DEF prog( )" in (tmp_path / "other" / "prog.src").read_text()
 
 
-def test_a_looser_tolerance_takes_fewer_points(kuka_folder: Path, tmp_path: Path) -> None:
+def test_a_looser_tolerance_takes_fewer_points(planned_kuka: Path, tmp_path: Path) -> None:
     from singplan.results.trajectory import load
 
-    traj = load(kuka_folder)
+    traj = load(planned_kuka)
     counts = [export(traj, tmp_path / str(t), tolerance_mm=t).points for t in (0.01, 0.1, 1.0)]
     assert counts[0] > counts[1] > counts[2] >= 3
 
@@ -487,16 +480,16 @@ def test_the_short_segment_note_names_the_tolerance_that_binds(tmp_path: Path) -
 
 # --- the output file rules ----------------------------------------------------------------------
 
-def test_an_unusable_path_is_bad_input_and_nothing_is_written(kuka_folder: Path, tmp_path: Path) -> None:
+def test_an_unusable_path_is_bad_input_and_nothing_is_written(planned_kuka: Path, tmp_path: Path) -> None:
     (tmp_path / "a_folder.src").mkdir()
     (tmp_path / "a_file").write_text("x")
     for target in (tmp_path / "a_folder.src", tmp_path / "a_file" / "prog.src"):
-        code, _, err = run_cli("export", str(kuka_folder), "--format", "krl", "-o", str(target))
+        code, _, err = run_cli("export", str(planned_kuka), "--format", "krl", "-o", str(target))
         assert code == 2 and str(target) in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file", "a_folder.src"]
 
 
-def test_a_failure_while_writing_parts_leaves_nothing(kuka_folder: Path, tmp_path: Path,
+def test_a_failure_while_writing_parts_leaves_nothing(planned_kuka: Path, tmp_path: Path,
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
     from singplan.results.trajectory import load
 
@@ -511,7 +504,7 @@ def test_a_failure_while_writing_parts_leaves_nothing(kuka_folder: Path, tmp_pat
     monkeypatch.setattr(dialect, "write_part", broken)
     (tmp_path / "keep.txt").write_text("mine")
     with pytest.raises(RuntimeError, match="disk gone"):
-        write_program(load(kuka_folder), "krl", tmp_path / "prog.src")
+        write_program(load(planned_kuka), "krl", tmp_path / "prog.src")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.txt"]
 
 
@@ -612,10 +605,10 @@ def test_a_woven_move_takes_the_slope_share_of_the_tolerance() -> None:
     assert np.all(weave_scale(flyby, robot_of(flyby)) == 1.0)
 
 
-def test_the_points_keep_every_segment_boundary_and_stop(kuka_folder: Path) -> None:
+def test_the_points_keep_every_segment_boundary_and_stop(planned_kuka: Path) -> None:
     from singplan.results.trajectory import load
 
-    traj = load(kuka_folder)
+    traj = load(planned_kuka)
     points = choose_points(traj, robot_of(traj), PointTolerance(1e-4, math.radians(0.005)))
     k = set(points.index.tolist())
     assert {round(x / traj.period) for s in traj.segments for x in (s.t0, s.t1)} <= k
@@ -624,13 +617,13 @@ def test_the_points_keep_every_segment_boundary_and_stop(kuka_folder: Path) -> N
     assert points.max_position_error_m <= 1e-4 and points.max_orientation_error_rad <= math.radians(0.005)
 
 
-def test_errors_are_input_errors(kuka_folder: Path) -> None:
+def test_errors_are_input_errors(planned_kuka: Path) -> None:
     from singplan.results.trajectory import load
 
     with pytest.raises(InputError, match="not a controller program format"):
-        program_texts(load(kuka_folder), "urscript")
+        program_texts(load(planned_kuka), "urscript")
     with pytest.raises(OutputPathError):
-        write_program(load(kuka_folder), "krl", kuka_folder / "trajectory.json" / "prog.src")
+        write_program(load(planned_kuka), "krl", planned_kuka / "trajectory.json" / "prog.src")
 
 
 def test_an_arm_without_six_axes_is_refused() -> None:

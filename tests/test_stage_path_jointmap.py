@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -51,8 +51,7 @@ def test_linear_parts_are_numpys_interpolation_and_constant_outside(ref: tuple[l
                                                                    u: np.ndarray) -> None:
     order = np.argsort(ref[0])
     u_ref, q_ref = np.array(ref[0])[order], ref[1][order]
-    if np.min(np.diff(u_ref)) < 1e-6:
-        return
+    assume(np.min(np.diff(u_ref)) >= 1e-6)
     got = interpolate(JointPart("ptp", u_ref, q_ref), u)
     for j in range(2):
         np.testing.assert_allclose(got[:, j], np.interp(u, u_ref, q_ref[:, j]), atol=1e-12)

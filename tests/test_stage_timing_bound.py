@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, reject, settings
 from hypothesis import strategies as st
 
 from singplan.kinematics.robot import load_robot
@@ -56,14 +56,13 @@ def test_no_profile_toppra_finds_at_tightened_limits_rises_above_the_caps(points
     p0, p1, bulge = np.reshape(points, (3, 6))
     limits = MoveLimits(np.full(6, v) * np.linspace(0.5, 1.0, 6), np.full(6, a), 0.0, None)
     path = timing_path(_curve(p0, p1, bulge), limits, 0)
-    if path.spline is None:
-        return
+    assume(path.spline is not None)
     tau, vmax_1, amax_1 = path.scaled_limits(limits, UNSCALED)
     caps = speed_caps(path, vmax_1, amax_1)
     for scale in (UNSCALED, LimitScale(velocity=scale_v, acceleration=scale_a)):
         try:
             profile = toppra_profile(path, limits, scale, 0)
         except TimingError:  # no timing at all: nothing to bound
-            return
+            reject()
         x = (profile.sd * tau) ** 2  # the squared path speed in the unscaled dimensionless time
         assert np.all(x <= caps * (1.0 + 1e-6) + 1e-12)

@@ -51,16 +51,30 @@ def screen(model: CollisionModel, pm: PlannedMove, path: TimingPath | None = Non
         q = pm.jmap.evaluate(u)
     else:
         u, q = (path.u, path.q) if path is not None else pm.jmap.reference()
+    first = _first_contact(model, q, u)
+    if first is None:
+        return None
+    contact, at = first
+    return _untimed(model, contact, pm.index, pm.kind, pm.describe(at))
+
+
+def _first_contact(model: CollisionModel, q: np.ndarray, u: np.ndarray) -> tuple[Contact, float] | None:
+    """The first contact along joint samples q (N, n) at path parameters u (N,) and its path parameter
+    (between two samples: interpolated), or None when the motion is clear."""
     found = check_clearance(model, q, exact=False)
     if found.clear:
         return None
     contact = found.contacts[0]
-    a, b = contact.bodies
     k = contact.sample
-    at = float(u[k] + contact.fraction * (u[min(k + 1, len(u) - 1)] - u[k]))
-    return CollisionError(f"move {pm.index} ({pm.kind}): {a} and {b} are {describe_distance(contact.distance_m)} "
-                          f"at {pm.describe(at)}, closer than the clearance {model.clearance_m * 1e3:g} mm",
-                          move=pm.index, sample=-1, t_s=math.nan, bodies=(a, b), distance_m=contact.distance_m,
+    return contact, float(u[k] + contact.fraction * (u[min(k + 1, len(u) - 1)] - u[k]))
+
+
+def _untimed(model: CollisionModel, contact: Contact, move: int, kind: str, where: str) -> CollisionError:
+    """A contact found before timing (no sample or time yet), named at ``where`` on the move."""
+    a, b = contact.bodies
+    return CollisionError(f"move {move} ({kind}): {a} and {b} are {describe_distance(contact.distance_m)} "
+                          f"at {where}, closer than the clearance {model.clearance_m * 1e3:g} mm",
+                          move=move, sample=-1, t_s=math.nan, bodies=(a, b), distance_m=contact.distance_m,
                           clearance_m=model.clearance_m)
 
 
@@ -92,16 +106,11 @@ def line_samples(q_from: np.ndarray, q_to: np.ndarray) -> int:
 def screen_line(model: CollisionModel, q_from: np.ndarray, q_to: np.ndarray, move: int) -> CollisionError | None:
     """A PTP's straight joint line checked before it is timed (every timing keeps to that line)."""
     n = line_samples(q_from, q_to)
-    found = check_clearance(model, np.linspace(q_from, q_to, n), exact=False)
-    if found.clear:
+    first = _first_contact(model, np.linspace(q_from, q_to, n), np.linspace(0.0, 1.0, n))
+    if first is None:
         return None
-    contact = found.contacts[0]
-    a, b = contact.bodies
-    at = (contact.sample + contact.fraction) / (n - 1)
-    return CollisionError(f"move {move} (ptp): {a} and {b} are {describe_distance(contact.distance_m)} at "
-                          f"{at:.3f} of the joint motion, closer than the clearance "
-                          f"{model.clearance_m * 1e3:g} mm", move=move, sample=-1, t_s=math.nan, bodies=(a, b),
-                          distance_m=contact.distance_m, clearance_m=model.clearance_m)
+    contact, at = first
+    return _untimed(model, contact, move, "ptp", f"{at:.3f} of the joint motion")
 
 
 def check_trajectory(model: CollisionModel, q: np.ndarray, spans: Sequence[tuple[int, int]], kinds: Sequence[str],

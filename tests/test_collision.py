@@ -72,6 +72,38 @@ def test_least_clearance_per_span_is_the_brute_force_least_within_its_tolerance(
         assert found.clear == bool(brute.min() >= model.clearance_m)
 
 
+def test_separating_planes_bound_every_shape_pair_and_are_exact_where_measured() -> None:
+    """The planes of one measurement, a shape pair each (link_1 and link_4 of the KR 6 have two
+    cylinders each), never exceed the brute-force distance near it and equal it where measured; so
+    a long slow motion whose closest pair barely changes needs a few measurements, not one a sample."""
+    from singplan.kinematics.clearance import _PLANE_REACH, _Relative
+    from singplan.kinematics.collision import ShapeGap
+
+    kuka = load_robot("kuka_kr6_r900_2")
+    model = collision_model(kuka, settings=CollisionSettings(0.0))
+    pair = next(p for p in model.pairs if set(p.names) == {"link_1", "link_4"})
+    assert len(pair.a.geoms) * len(pair.b.geoms) > 1
+    a = np.radians([30.0, -70.0, 100.0, 60.0, -15.0, -10.0])
+    q = np.linspace(a, a + np.radians([0.0, 8.0, -9.0, 20.0, 5.0, 1.0]), 400)
+    brute = _brute(model, kuka, q)[:, model.pairs.index(pair)]
+    R, P = kuka.joint_frames(q)
+    relative = _Relative(pair, R, P)
+    for i in (0, 150, 399):
+        gaps: list[ShapeGap] = []
+        found = model.pair_distance(pair, R[i], P[i], gaps=gaps)
+        planes = relative.plane_bounds(i, gaps)
+        assert planes is not None
+        lo, bounds = planes
+        assert lo == max(i - _PLANE_REACH, 0) and len(bounds) == min(len(q), i + _PLANE_REACH + 1) - lo
+        assert np.all(bounds <= brute[lo:lo + len(bounds)] + 1e-12)
+        assert bounds[i - lo] == pytest.approx(found.distance_m, abs=1e-9)
+        assert np.max(brute[lo:lo + len(bounds)] - bounds) < 5e-3  # second order in the turn (8 deg of A2 here)
+    checked = check_clearance(model, q)
+    assert checked.least[0] is not None
+    assert brute.min() - 1e-9 <= checked.closest.distance_m <= brute.min() + EXACT_M
+    assert checked.distance_calls < 40 * len(model.pairs)  # not the 400 samples a pair
+
+
 def test_a_collision_between_two_clear_samples_is_found(ur5: Robot) -> None:
     """A post between two samples far apart: both samples clear, the motion through it is not."""
     q0 = UR5_START.copy()

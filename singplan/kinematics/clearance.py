@@ -31,14 +31,16 @@ from dataclasses import dataclass
 import coal
 import numpy as np
 
-from singplan.kinematics.collision import CollisionModel, Distance, Pair, support
+from singplan.kinematics.collision import CollisionModel, Distance, Geom, Pair, ShapeGap, support
 from singplan.kinematics.geometry import rotation_angles
 
 BETWEEN_TOLERANCE_M = 2e-4  # between samples a pair may come this much closer than the clearance
 EXACT_M = 4e-4  # the least clearance reported is at most this above the true least sample distance
 BLOCK = 4096  # samples whose frames and bounds are formed at once (~1 kB each)
-_PLANES = 8  # separating planes a pair's bounds take per block ...
-_PLANE_GAIN_M = 1e-3  # ... each from a measurement this far above the bound there
+_PLANES = 8  # separating planes a pair's bounds take per block, and one more per _PLANE_SPAN samples ...
+_PLANE_GAIN_M = 1e-3  # ... each from a measurement this far above the bound there (EXACT_M / 2 for the least)
+_PLANE_SPAN = 32
+_PLANE_REACH = 512  # samples either side of its measurement a plane bounds (further the motion's cones carry it)
 
 
 @dataclass(frozen=True)
@@ -304,32 +306,36 @@ class _Block:
 
     # -- measurements ------------------------------------------------------------------------------------
 
-    def sample(self, st: _PairState, i: int, enough: float) -> float:
+    def sample(self, st: _PairState, i: int, enough: float, gain: float = _PLANE_GAIN_M) -> float:
         """The pair's distance at local sample i (``enough``: a bound past this will do), measured once;
-        a measurement well above its bound adds the separating plane it found to the pair's bounds."""
+        a measurement more than ``gain`` above its bound adds its separating planes to the pair's bounds."""
         seen = st.found.get(i)
         if seen is None or (not seen.exact and seen.distance_m < enough):
             walk, k = self.walk, self.s + i
-            found = walk.model.pair_distance(st.pair, self.R[i], self.P[i], enough, self.placed.setdefault(i, {}))
+            gaps: list[ShapeGap] = []
+            found = walk.model.pair_distance(st.pair, self.R[i], self.P[i], enough, self.placed.setdefault(i, {}),
+                                             gaps)
             if k == 0 and walk.start and found.distance_m > 0 and walk.model.inside_mesh(st.pair, self.R[i],
                                                                                          self.P[i]):
                 found = Distance(-math.inf, found.point_a, found.point_b)
             st.measure(i, found)
             walk.record(st.pair, k, found)
-            self._tighten(st, i, found)
+            if found.exact and found.distance_m - st.lower[i] > gain:
+                self._tighten(st, i, gaps)
         return st.found[i].distance_m
 
-    def _tighten(self, st: _PairState, i: int, found: Distance) -> None:
-        """Raise the pair's lower bounds by the separating plane of a measurement (when its bound there was
-        poor and the pair has not used up its planes)."""
-        if not found.exact or found.distance_m - st.lower[i] <= _PLANE_GAIN_M:
-            return
+    def _tighten(self, st: _PairState, i: int, gaps: list[ShapeGap]) -> None:
+        """Raise the pair's lower bounds near sample i by the separating planes of a measurement there
+        (unless the pair has used up its planes)."""
         self._relative(st)
         assert st.relative is not None
-        if st.relative.planes < _PLANES:
-            plane = st.relative.plane_bounds(i, found)
-            if plane is not None:
-                st.lower = np.maximum(st.lower, plane)
+        if st.relative.planes < _PLANES + len(st.lower) // _PLANE_SPAN:
+            planes = st.relative.plane_bounds(i, gaps)
+            if planes is not None:
+                lo, bounds = planes
+                st.lower = st.lower.copy()
+                window = st.lower[lo:lo + len(bounds)]
+                np.maximum(window, bounds, out=window)
                 st.tightened()
 
     def _relative(self, st: _PairState) -> None:
@@ -465,7 +471,7 @@ class _Block:
                 elif i in st.found and st.found[i].exact:
                     break  # measured exactly: its bound is its distance (round-off)
                 else:
-                    self.sample(st, i, walk.best[span] - EXACT_M)
+                    self.sample(st, i, walk.best[span] - EXACT_M, gain=EXACT_M / 2)
                 lows[key] = _span_low(st, local)
 
 
@@ -480,9 +486,11 @@ class _Relative:
     """One pair over a block: the body on the later joint (``b``) placed in the other's joint frame (``a``:
     the cell, or the body nearer the base) at every sample, for separating-plane bounds.
 
-    A measurement's closest points give a plane between the bodies; at every other sample the least of
-    ``n . x`` over b less the most over a (each a support function, :func:`support`) is a lower bound of
-    their distance, exact while b slides along the plane (a tool over a table).
+    A measurement's closest points of each pair of shapes give a plane between them; at the samples
+    near it the least of ``n . x`` over b's shape less the most over a's (each a support function,
+    :func:`support`) bounds that pair's distance from below (for any unit n), exactly at the sample
+    measured and to second order in the turn beside it (a tool over a table: exactly while it
+    slides). The least over the shape pairs bounds the bodies'.
     """
 
     def __init__(self, pair: Pair, rotations: np.ndarray, origins: np.ndarray) -> None:
@@ -506,22 +514,32 @@ class _Relative:
         turn = rotation_angles(self.R[:-1], self.R[1:])
         return np.linalg.norm(np.diff(self.t, axis=0), axis=1) + turn * self.b.extent_m
 
-    def plane_bounds(self, i: int, found: Distance) -> np.ndarray | None:
-        """Lower bounds (N,) from the plane through a measurement's closest points at sample i (None when
-        they coincide: touching bodies give no plane)."""
-        point_a, point_b = (found.point_b, found.point_a) if self.swapped else (found.point_a, found.point_b)
-        normal = self.Ra[i].T @ (point_b - point_a)  # from a towards b, in a's frame
-        length = float(np.linalg.norm(normal))
-        if found.distance_m <= 0.0 or length < 1e-9:
+    def plane_bounds(self, i: int, gaps: list[ShapeGap]) -> tuple[int, np.ndarray] | None:
+        """Lower bounds of the bodies' distance at the samples lo .. lo + len - 1 within
+        :data:`_PLANE_REACH` of sample i, from the planes of a measurement's shape pairs there: (lo,
+        bounds); None where a shape pair gave no plane (touching shapes, or not all measured)."""
+        if len(gaps) != len(self.a.geoms) * len(self.b.geoms):
             return None
+        lo, hi = max(i - _PLANE_REACH, 0), min(i + _PLANE_REACH + 1, len(self.R))
+        bounds = None
+        for gap in gaps:
+            ia, ib, point_a, point_b = gap.a, gap.b, gap.point_a, gap.point_b
+            if self.swapped:
+                ia, ib, point_a, point_b = ib, ia, point_b, point_a
+            normal = self.Ra[i].T @ (point_b - point_a)  # from a towards b, in a's frame
+            length = float(np.linalg.norm(normal))
+            if gap.distance_m <= 0.0 or length < 1e-9:
+                return None
+            plane = self._bounds(normal / length, self.a.geoms[ia], self.b.geoms[ib], slice(lo, hi))
+            bounds = plane if bounds is None else np.minimum(bounds, plane)
         self.planes += 1
-        return self._bounds(normal / length)
+        assert bounds is not None
+        return lo, bounds
 
-    def _bounds(self, n: np.ndarray) -> np.ndarray:
-        nb = n @ self.R  # (N, 3): n in b's frame (R^T n per sample)
-        base = self.t @ n
-        low_b = np.min([base + nb @ g.translation + support(g, nb @ g.rotation) for g in self.b.geoms], axis=0)
-        high_a = max(float(n @ g.translation - support(g, -(g.rotation.T @ n)[None])[0]) for g in self.a.geoms)
+    def _bounds(self, n: np.ndarray, ga: Geom, gb: Geom, at: slice) -> np.ndarray:
+        nb = n @ self.R[at]  # (M, 3): n in b's frame (R^T n per sample)
+        low_b = self.t[at] @ n + nb @ gb.translation + support(gb, nb @ gb.rotation)
+        high_a = float(n @ ga.translation - support(ga, -(ga.rotation.T @ n)[None])[0])
         return low_b - high_a
 
 

@@ -30,7 +30,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from pathlib import Path
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import coal
 import numpy as np
@@ -148,6 +148,22 @@ class Distance:
     exact: bool = True
 
 
+class ShapeGap(NamedTuple):
+    """One shape pair's part of a measurement (:meth:`CollisionModel.pair_distance`'s ``gaps``).
+
+    Attributes:
+        a, b: the shapes' indices in the bodies' ``geoms``.
+        distance_m: their distance [m] (a mesh's convex hull's where only a bound was asked for).
+        point_a, point_b: the closest points, in the base frame [m] (3,).
+    """
+
+    a: int
+    b: int
+    distance_m: float
+    point_a: np.ndarray
+    point_b: np.ndarray
+
+
 @dataclass(frozen=True)
 class FixedContact:
     """A cell shape closer than the clearance to a robot body that no joint moves (the base, and links
@@ -234,19 +250,22 @@ class CollisionModel:
         return _geometry_model(self.robot, list(self.bodies))
 
     def pair_distance(self, pair: Pair, rotations: np.ndarray, origins: np.ndarray,
-                      enough: float = math.inf, placed: dict[int, coal.Transform3s] | None = None) -> Distance:
+                      enough: float = math.inf, placed: dict[int, coal.Transform3s] | None = None,
+                      gaps: list[ShapeGap] | None = None) -> Distance:
         """The least distance of a pair with the joint frames at ``rotations`` (J, 3, 3), ``origins`` (J, 3).
 
         ``enough``: a distance that need not be known more exactly: where the convex hulls of the
         meshes are that far apart, their distance is returned as a lower bound (``exact`` False).
         ``placed``: the shapes already placed at these frames, by ``id`` of their geom (filled in as
         they are placed: a body measured against several others at one sample is placed once).
+        ``gaps``: filled in with every shape pair's distance and closest points (each a separating
+        plane of that pair, :mod:`~singplan.kinematics.clearance`), up to a contact between meshes.
         """
         placed = placed if placed is not None else {}
         best = Distance(math.inf, np.zeros(3), np.zeros(3))
-        for ga in pair.a.geoms:
+        for ia, ga in enumerate(pair.a.geoms):
             Ta = _placed_once(placed, ga, pair.a.joint, rotations, origins)
-            for gb in pair.b.geoms:
+            for ib, gb in enumerate(pair.b.geoms):
                 Tb = _placed_once(placed, gb, pair.b.joint, rotations, origins)
                 exact = True
                 if ga.hull is not None or gb.hull is not None:
@@ -256,6 +275,9 @@ class CollisionModel:
                     d = self._distance(ga.geometry, Ta, gb.geometry, Tb)
                     if d <= 0.0 and (ga.is_mesh or gb.is_mesh):
                         d = -math.inf  # a mesh has no inside for coal: touching or crossing, no depth
+                if gaps is not None:
+                    gaps.append(ShapeGap(ia, ib, d, np.array(self._result.getNearestPoint1()),
+                                         np.array(self._result.getNearestPoint2())))
                 if d < best.distance_m:
                     best = Distance(d, np.array(self._result.getNearestPoint1()),
                                     np.array(self._result.getNearestPoint2()), exact)

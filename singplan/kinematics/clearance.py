@@ -40,7 +40,8 @@ BLOCK = 4096  # samples whose frames and bounds are formed at once (~1 kB each)
 _PLANES = 8  # separating planes a pair's bounds take per block, and one more per _PLANE_SPAN samples ...
 _PLANE_GAIN_M = 1e-3  # ... each from a measurement this far above the bound there (EXACT_M / 2 for the least)
 _PLANE_SPAN = 32
-_PLANE_REACH = 512  # samples either side of its measurement a plane bounds (further the motion's cones carry it)
+_PLANE_REACH = 160  # samples either side of its measurement a plane bounds (further the motion's cones carry it)
+_REFINE = 8  # measurements a span's least takes past EXACT_M, where its bounds are least
 
 
 @dataclass(frozen=True)
@@ -448,7 +449,9 @@ class _Block:
 
     def _least(self) -> None:
         """Each span's least distance: measure where the least bound of any pair is, tightening that pair,
-        until no pair's bound anywhere in the span is below the least measured less EXACT_M."""
+        until no pair's bound anywhere in the span is below the least measured less EXACT_M; then up to
+        :data:`_REFINE` more where the least bound is, each adding its planes: tight near their
+        measurement, they lead to the least sample distance itself."""
         walk = self.walk
         first, last = walk.first[self.k], walk.last[self.k]
         for span in np.unique(np.concatenate([first, last])):
@@ -458,10 +461,12 @@ class _Block:
             local = slice(int(inside[0]), int(inside[-1]) + 1)  # a span's samples are consecutive
             lows = {id(st): _span_low(st, local) for st in self.states}  # each pair's least bound, and where
             states = {id(st): st for st in self.states}
+            refine = _REFINE
             while True:
                 key = min(lows, key=lambda s: lows[s][0])
                 low, j = lows[key]
-                if low >= walk.best[span] - EXACT_M:
+                within = low >= walk.best[span] - EXACT_M
+                if within and refine == 0:
                     break
                 st, i = states[key], local.start + j
                 if not st.capsules:
@@ -471,7 +476,8 @@ class _Block:
                 elif i in st.found and st.found[i].exact:
                     break  # measured exactly: its bound is its distance (round-off)
                 else:
-                    self.sample(st, i, walk.best[span] - EXACT_M, gain=EXACT_M / 2)
+                    refine -= within
+                    self.sample(st, i, walk.best[span] - EXACT_M, gain=0.0 if within else EXACT_M / 2)
                 lows[key] = _span_low(st, local)
 
 

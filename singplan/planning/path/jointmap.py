@@ -30,6 +30,7 @@ from singplan.kinematics.geometry import relative_rotations, rotation_log_jacobi
 from singplan.kinematics.ik.numeric import damped_solve_rows
 from singplan.kinematics.ik.solve import closed_form_branches, opw_arm_for_point, solve_newton, ur_arm_for_point
 from singplan.kinematics.robot import Robot
+from singplan.planning.path.spline import not_a_knot
 from singplan.planning.path.tracking import PoseFunction
 
 _DAMPING = 1e-6  # Levenberg-Marquardt lambda^2 of the position re-solve [m^2]
@@ -187,7 +188,7 @@ class JointMap:
     def _start(self, part: JointPart, free: np.ndarray) -> CubicSpline:
         """The spline through an axis part's solutions (its free joints), made once per part of this map."""
         if id(part) not in self._starts:
-            self._starts[id(part)] = (part, CubicSpline(part.u, part.q[:, free], axis=0))
+            self._starts[id(part)] = (part, not_a_knot(part.u, part.q[:, free]))
         return self._starts[id(part)][1]
 
     def _spline(self, part: JointPart) -> CubicSpline:

@@ -11,10 +11,10 @@ from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from singplan.kinematics.dynamics import move_torque_ratio
 from singplan.planning.path.jointmap import JointMap
+from singplan.planning.path.spline import not_a_knot
 from singplan.planning.timing.laws import QuinticLaw, SCurveLaw, SmoothedLaw, quintic_duration
 from singplan.planning.timing.profile import Profile
 from singplan.planning.timing.ratios import (
@@ -95,7 +95,7 @@ def _surrogate(optimal: TimedMove) -> Callable[[np.ndarray], np.ndarray]:
     keep = np.concatenate([[True], np.diff(optimal.u) > 0])
     if np.count_nonzero(keep) < 4:
         return lambda u: np.array([np.interp(u, optimal.u[keep], qj) for qj in optimal.q[keep].T]).T
-    spline = CubicSpline(optimal.u[keep], optimal.q[keep], axis=0)
+    spline = not_a_knot(optimal.u[keep], optimal.q[keep])
     return lambda u: np.asarray(spline(u))
 
 

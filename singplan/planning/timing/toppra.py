@@ -26,6 +26,7 @@ import toppra.constraint as ta_constraint
 
 from singplan.kinematics.dynamics import PathDynamics, TorqueLimit
 from singplan.planning.path.jointmap import JointMap
+from singplan.planning.path.spline import not_a_knot
 from singplan.planning.timing import reachability
 from singplan.planning.timing.profile import Profile
 from singplan.planning.timing.records import LimitScale, MoveLimits, TimingError
@@ -146,8 +147,22 @@ def timing_path(jmap: JointMap, limits: MoveLimits, move_index: int) -> TimingPa
     clock = limits.tcp_clock(u) if limits.clock is None else None
     tcp_speed_m_s = limits.tcp_speed_m_s if clock is not None else None
     extra = clock * tcp_speed_m_s if clock is not None and tcp_speed_m_s else u * length  # no cap: the move's size
-    spline = ta.SplineInterpolator(u, np.hstack([q - q[0], extra[:, None]]) / length)  # from 0: no digits lost
+    spline = _Spline(u, np.hstack([q - q[0], extra[:, None]]) / length)  # from 0: no digits lost
     return TimingPath(u, q, length, spline, _grid(u), tcp_speed_m_s)
+
+
+class _Spline(ta.SplineInterpolator):
+    """toppra's ``SplineInterpolator(u, waypoints)`` (not-a-knot ends) with its spline made by
+    :func:`~singplan.planning.path.spline.not_a_knot`: the same curve and derivatives, bit for bit,
+    without scipy's input checks (a few of these a move)."""
+
+    def __init__(self, u: np.ndarray, waypoints: np.ndarray) -> None:
+        ta.interpolator.AbstractGeometricPath.__init__(self)
+        self.ss_waypoints = np.array(u)
+        self._q_waypoints = np.array(waypoints)
+        self.cspl = not_a_knot(self.ss_waypoints, self._q_waypoints)
+        self.cspld = self.cspl.derivative()
+        self.cspldd = self.cspld.derivative()
 
 
 def toppra_profile(path: TimingPath, limits: MoveLimits, scale: LimitScale,

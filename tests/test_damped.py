@@ -52,6 +52,20 @@ def test_a_batch_drops_the_small_singular_values_one_step_drops() -> None:
         damped_step(J[None], err[None], 1e-3, stacked=True)
 
 
+def test_a_batch_of_tall_least_squares_steps_is_the_pseudo_inverses_rank_deficient_rows_included() -> None:
+    """The batch's QR steps (tall J of full rank, condition up to ~1e6 as the axis method's weighted
+    rows have) equal the pseudo-inverse's; rows a column short of full rank, in the same batch, get
+    the pseudo-inverse's minimum-norm step rather than a step blown up by a vanishing pivot."""
+    rng = np.random.default_rng(7)
+    J = rng.normal(size=(60, 6, 5)) * np.array([1e4, 1e4, 1e4, 1.0, 1.0, 0.01])[None, :, None]
+    J[::7, :, 4] = J[::7, :, 2]  # rank 4
+    err = rng.normal(size=(60, 6))
+    pinv = np.einsum("kij,kj->ki", np.linalg.pinv(J, rcond=np.finfo(float).eps * 6), err)
+    steps = damped_step(J, err, 0.0)
+    np.testing.assert_allclose(steps, pinv, rtol=1e-9, atol=1e-12 * float(np.max(np.abs(pinv))))
+    assert float(np.max(np.abs(steps[::7]))) < 1e3
+
+
 def test_damped_solve_rows_drops_each_row_when_it_is_done() -> None:
     """Rows of a diagonal linear system: each row's error leaves the batch below ``tol``, and each
     row's result is what damped_solve gives it alone."""

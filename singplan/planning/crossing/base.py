@@ -10,7 +10,7 @@ import numpy as np
 from singplan.kinematics.robot import Robot
 from singplan.planning.path.cartesian import CartesianPiece
 from singplan.planning.path.jointmap import JointPart
-from singplan.planning.path.tracking import TrackedPath
+from singplan.planning.path.tracking import BranchCandidates, TrackedPath
 from singplan.planning.path.zones import Zone
 
 
@@ -31,6 +31,9 @@ class MoveContext:
     position_tolerance_m: float  # the task's tolerances, the most a crossing may deviate
     orientation_tolerance_rad: float
     thresholds: np.ndarray  # (3,) zone detection thresholds: wrist [rad], shoulder [m], elbow [rad]
+    # the IK branches of the move's poses solved so far (shared with the tracking: a re-track of the
+    # rest of the move after a crossing solves only the parameters not solved yet); None: its own
+    branches: BranchCandidates | None = None
 
 
 @dataclass(frozen=True)

@@ -315,7 +315,7 @@ def rest_of_move(ctx: MoveContext, u_from: float, q_from: np.ndarray) -> Tracked
         return None
     grid = ctx.tracked.u
     inner = grid[(grid > u_from + 1e-12) & (grid < 1.0 - 1e-12)]
-    return track(ctx.robot, ctx.piece.poses, np.concatenate([[u_from], inner, [1.0]]), q_from)
+    return track(ctx.robot, ctx.piece.poses, np.concatenate([[u_from], inner, [1.0]]), q_from, cands=ctx.branches)
 
 
 def _rest_followed(ctx: MoveContext, u_from: float, q_from: np.ndarray) -> bool:

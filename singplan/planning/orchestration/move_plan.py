@@ -124,7 +124,7 @@ class MoveTracking:
         found = find_zones(tracked.u, dist, self.thresholds, refiner(robot, ref), continued=continued)
         ctx = MoveContext(robot, self.index, self.move.kind, piece, tracked, dist,
                           task.singularity.position_tolerance_mm / 1e3,
-                          math.radians(task.singularity.orientation_tolerance_deg), self.thresholds)
+                          math.radians(task.singularity.orientation_tolerance_deg), self.thresholds, self._cands)
         return _Stage(ctx, tuple(found))
 
 

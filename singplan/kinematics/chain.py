@@ -159,10 +159,40 @@ class ChainArrays:
             joints.extend((iq, origins[j], axes[j]) for j, iq in enumerate(self.iqs))
         return position, rotation
 
+    def kinematics(self, q: np.ndarray, rows: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """TCP positions (N, 3), rotations (N, 3, 3) and the Jacobian's first ``rows`` rows (N, rows, n) of
+        samples q (N, n), as ``Robot.tcp_kinematics`` forms them in numpy (each column ``axis x arm``
+        with the same roundings: no fused products)."""
+        sin, cos = self.angles(q)
+        position, rotation, origins, axes = _tcp_chain(sin, cos, self.translations, self.rotations, self.ks, self.kks,
+                                                       self.axes, self.tool_t, self.tool_R, True)
+        return position, rotation, _jacobian(position, origins, axes, np.array(self.iqs, dtype=np.int64), rows, n)
+
     def frames(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rotations (N, J + 1, 3, 3) and origins (N, J + 1, 3) of the base and the joint frames."""
         sin, cos = self.angles(q)
         return _joint_chain(sin, cos, self.translations, self.rotations, self.ks, self.kks)
+
+
+@jit
+def _jacobian(position: np.ndarray, origins: np.ndarray, axes: np.ndarray, iqs: np.ndarray, rows: int,
+              n: int) -> np.ndarray:
+    """Jacobian rows (N, rows, n): column iq of each chain joint ``(axis x (p_tcp - origin), axis)``."""
+    samples = position.shape[0]
+    out = np.zeros((samples, rows, n))
+    for j in range(len(iqs)):
+        iq = iqs[j]
+        for s in range(samples):
+            a0 = position[s, 0] - origins[j, s, 0]
+            a1 = position[s, 1] - origins[j, s, 1]
+            a2 = position[s, 2] - origins[j, s, 2]
+            x0, x1, x2 = axes[j, s, 0], axes[j, s, 1], axes[j, s, 2]
+            out[s, 0, iq] = x1 * a2 - x2 * a1
+            out[s, 1, iq] = x2 * a0 - x0 * a2
+            out[s, 2, iq] = x0 * a1 - x1 * a0
+            for r in range(rows - 3):
+                out[s, 3 + r, iq] = axes[j, s, r]
+    return out
 
 
 @cache

@@ -238,6 +238,10 @@ class Robot:
         position, rotation = np.empty((len(q), 3)), np.empty((len(q), 3, 3))
         jacobian = np.zeros((len(q), rows, self.n_joints))
         for c in range(0, len(q), _FK_CHUNK):
+            if rows and self._compiled_chain is not None:  # the same numbers, compiled
+                position[c:c + _FK_CHUNK], rotation[c:c + _FK_CHUNK], jacobian[c:c + _FK_CHUNK] = \
+                    self._compiled_chain.kinematics(q[c:c + _FK_CHUNK], rows, self.n_joints)
+                continue
             joints: list[tuple[int, np.ndarray, np.ndarray]] | None = [] if rows else None
             position[c:c + _FK_CHUNK], rotation[c:c + _FK_CHUNK] = self._tcp_chunk(q[c:c + _FK_CHUNK], joints)
             for iq, origin, axis_base in joints or ():

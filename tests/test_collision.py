@@ -9,6 +9,7 @@ from pathlib import Path
 
 import coal
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from singplan.errors import RobotModelError, TaskError
@@ -102,6 +103,30 @@ def test_separating_planes_bound_every_shape_pair_and_are_exact_where_measured()
     assert checked.least[0] is not None
     assert brute.min() - 1e-9 <= checked.closest.distance_m <= brute.min() + EXACT_M
     assert checked.distance_calls < 40 * len(model.pairs)  # not the 400 samples a pair
+
+
+def test_the_compiled_support_of_each_shape_kind_is_the_support_function(tmp_path: Path) -> None:
+    """The planes' compiled least of n . x over a shape of b (sphere, box, cylinder, a mesh's hull) at
+    many placements equals collision.support applied as numpy would."""
+    from singplan.kinematics.clearance import _low_b, _support_form
+    from singplan.kinematics.collision import _shape_geom, support
+
+    rng = np.random.default_rng(11)
+    mesh = str(_stl_cube(tmp_path / "cube.stl", 0.05))
+    shapes = [Shape("sphere", (0.07,), (0.1, 0.0, 0.2), (10.0, 20.0, 30.0)),
+              Shape("box", (0.1, 0.2, 0.3), (0.0, 0.1, 0.0), (0.0, 45.0, 10.0)),
+              Shape("cylinder", (0.04, 0.5), (0.2, 0.0, 0.1), (90.0, 0.0, 0.0)),
+              Shape("mesh", (), (0.0, 0.0, 0.3), (5.0, 5.0, 5.0), mesh_file=mesh, mesh_scale=(1.0, 2.0, 3.0))]
+    R = np.array([pin.rpy.rpyToMatrix(*rng.uniform(-3.0, 3.0, 3)) for _ in range(40)])
+    t = rng.normal(size=(40, 3))
+    n = rng.normal(size=3)
+    n /= np.linalg.norm(n)
+    for shape in shapes:
+        g = _shape_geom(shape, pin.SE3.Identity())
+        nb = n @ R
+        expected = t @ n + nb @ g.translation + support(g, nb @ g.rotation)
+        np.testing.assert_allclose(_low_b(R, t, n, g.translation, g.rotation, *_support_form(g)), expected,
+                                   rtol=0.0, atol=1e-14)
 
 
 def test_a_collision_between_two_clear_samples_is_found(ur5: Robot) -> None:

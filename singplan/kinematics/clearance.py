@@ -32,6 +32,7 @@ import coal
 import numpy as np
 
 from singplan.kinematics.collision import CollisionModel, Distance, Geom, Pair, ShapeGap, support
+from singplan.kinematics.compiled import jit
 from singplan.kinematics.geometry import rotation_angles
 
 BETWEEN_TOLERANCE_M = 2e-4  # between samples a pair may come this much closer than the clearance
@@ -543,10 +544,55 @@ class _Relative:
         return lo, bounds
 
     def _bounds(self, n: np.ndarray, ga: Geom, gb: Geom, at: slice) -> np.ndarray:
-        nb = n @ self.R[at]  # (M, 3): n in b's frame (R^T n per sample)
-        low_b = self.t[at] @ n + nb @ gb.translation + support(gb, nb @ gb.rotation)
         high_a = float(n @ ga.translation - support(ga, -(ga.rotation.T @ n)[None])[0])
-        return low_b - high_a
+        kind, sizes, corners = _support_form(gb)
+        return _low_b(self.R[at], self.t[at], n, gb.translation, gb.rotation, kind, sizes, corners) - high_a
+
+
+_SPHERE, _BOX, _CYLINDER, _CORNERS = 0, 1, 2, 3
+_NO_CORNERS = np.zeros((0, 3))
+
+
+def _support_form(g: Geom) -> tuple[int, np.ndarray, np.ndarray]:
+    """A shape's support function as :func:`_low_b` takes it: a kind, its sizes and (meshes) the hull's corners."""
+    shape = g.geometry
+    if isinstance(shape, coal.Sphere):
+        return _SPHERE, np.array([float(shape.radius), 0.0, 0.0]), _NO_CORNERS
+    if isinstance(shape, coal.Box):
+        return _BOX, np.array(shape.halfSide, dtype=float), _NO_CORNERS
+    if isinstance(shape, coal.Cylinder):
+        return _CYLINDER, np.array([float(shape.halfLength), float(shape.radius), 0.0]), _NO_CORNERS
+    assert g.corners is not None
+    return _CORNERS, np.zeros(3), np.ascontiguousarray(g.corners, dtype=float)
+
+
+@jit
+def _low_b(R: np.ndarray, t: np.ndarray, n: np.ndarray, translation: np.ndarray, rotation: np.ndarray, kind: int,
+           sizes: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """The least of ``n . x`` (M,) over a shape of b at each sample, in a's frame: b's frame at (R (M, 3, 3),
+    t (M, 3)), the shape at (``rotation``, ``translation``) in it; :func:`~singplan.kinematics.collision.support`
+    of the direction in the shape's frame."""
+    out = np.empty(len(t))
+    nb = np.empty(3)
+    d = np.empty(3)
+    for s in range(len(t)):
+        for j in range(3):
+            nb[j] = n[0] * R[s, 0, j] + n[1] * R[s, 1, j] + n[2] * R[s, 2, j]
+        for j in range(3):
+            d[j] = nb[0] * rotation[0, j] + nb[1] * rotation[1, j] + nb[2] * rotation[2, j]
+        if kind == _SPHERE:
+            low = -sizes[0] * math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        elif kind == _BOX:
+            low = -(abs(d[0]) * sizes[0] + abs(d[1]) * sizes[1] + abs(d[2]) * sizes[2])
+        elif kind == _CYLINDER:
+            low = -sizes[0] * abs(d[2]) - sizes[1] * math.hypot(d[0], d[1])
+        else:
+            low = math.inf
+            for v in range(len(corners)):
+                low = min(low, d[0] * corners[v, 0] + d[1] * corners[v, 1] + d[2] * corners[v, 2])
+        out[s] = (t[s, 0] * n[0] + t[s, 1] * n[1] + t[s, 2] * n[2]
+                  + nb[0] * translation[0] + nb[1] * translation[1] + nb[2] * translation[2] + low)
+    return out
 
 
 def sagittas(dq: np.ndarray, arms: np.ndarray) -> np.ndarray:

@@ -75,6 +75,30 @@ def test_a_mistyped_export_format_gets_the_nearest_one(planned_kuka: Path) -> No
     assert code == 2 and "--format: unknown format 'ros3' (did you mean ros2?); valid formats: ros2" in err
 
 
+def test_the_command_line_suggests_as_before_with_the_one_helper() -> None:
+    """errors.nearest, now the CLI's did-you-mean as well, names for every lower-case typo (a letter
+    dropped or two swapped) of every command and option what the CLI's own difflib call did."""
+    import argparse
+    import difflib
+
+    from singplan.errors import nearest
+
+    parser = build_parser()
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+    groups = [list(commands)] + [[o for o in p._option_string_actions if o.startswith("--")]
+                                 for p in commands.values()]
+    checked = 0
+    for names in groups:
+        for name in names:
+            typos = {name[:i] + name[i + 1:] for i in range(len(name))} | {
+                name[:i] + name[i + 1] + name[i] + name[i + 2:] for i in range(len(name) - 1)}
+            for typo in typos - set(names):
+                before = difflib.get_close_matches(typo, names, n=1, cutoff=0.6)
+                assert nearest(typo, names) == (before[0] if before else None), (typo, names)
+                checked += 1
+    assert checked > 500
+
+
 def test_valid_spellings_still_parse(planned_kuka: Path, tmp_path: Path) -> None:
     parser = build_parser()
     assert parser.parse_args(["plan", "t.yaml", "-oDIR"]).output == "DIR"  # a short option's value attached

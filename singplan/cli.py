@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TextIO, TypedDict
 
 from singplan._version import __version__
-from singplan.errors import InputError, SingplanError, UnreachableError
+from singplan.errors import InputError, SingplanError, UnreachableError, nearest
 from singplan.outputs.choices import (
     CROSSING_METHODS,
     DEFAULT_FILE_NAMES,
@@ -41,7 +41,7 @@ from singplan.outputs.choices import (
     UR_STEP_S,
 )
 from singplan.outputs.completion import SHELLS
-from singplan.outputs.suggest import SuggestingParser, closest
+from singplan.outputs.suggest import SuggestingParser
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -488,7 +488,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     fmt = args.format
     if fmt not in FORMATS:
-        near = closest(fmt, FORMATS)
+        near = nearest(fmt, FORMATS)
         raise InputError(f"--format: unknown format {fmt!r}{f' (did you mean {near}?)' if near else ''}; "
                          f"valid formats: {', '.join(FORMATS)}")
     folder = Path(args.out).parent if Path(args.out).is_file() else Path(args.out)  # a trajectory.json: its folder

@@ -29,6 +29,7 @@ from singplan import batch
 from singplan.batch import TaskJob, TaskRecord, folder_names, make_jobs, plan_many, plan_task
 from singplan.cli import main
 from singplan.planning.orchestration import targets
+from tests.cli_helpers import run_cli
 
 START_DEG = [10, -80, 95, 20, 40, 0]
 TARGET = {"xyz": [0.55, -0.08, 0.66], "rpy_deg": [-157.09, 31.93, -172.02]}  # ~40 mm from the start
@@ -46,12 +47,6 @@ def _task(folder: Path, name: str, **lin: object) -> Path:
     path = folder / name
     path.write_text(yaml.safe_dump(doc))
     return path
-
-
-def _batch(*argv: str | Path) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    code = main(["batch", *map(str, argv)], out=out, err=err)
-    return code, out.getvalue(), err.getvalue()
 
 
 def _summary(folder: Path) -> tuple[list[dict[str, str]], dict]:
@@ -106,7 +101,7 @@ def test_a_batch_plans_every_task_and_a_failing_one_stops_none(tmp_path: Path) -
     (out / "notes.txt").write_text("keep\n")
     (out / "lin1" / "mine.txt").write_text("keep too\n")
     tasks = [good[0], bad, good[1], far, good[2], same_name]
-    code, stdout, stderr = _batch(*tasks, "-o", out, "--workers", "2", "--no-replay")
+    code, stdout, stderr = run_cli("batch", *tasks, "-o", out, "--workers", "2", "--no-replay")
     assert code == 3, stderr  # the largest task exit code: 3 (no plan) over 2 (bad input)
     rows, doc = _summary(out)
     assert [r["task"] for r in rows] == [str(t) for t in tasks]  # the order given, whatever order they finished in
@@ -135,8 +130,8 @@ def test_a_batch_plans_every_task_and_a_failing_one_stops_none(tmp_path: Path) -
 @pytest.mark.slow
 def test_quiet_prints_no_progress_and_all_planned_exits_0(tmp_path: Path) -> None:
     task = _task(tmp_path, "one.yaml")
-    code, stdout, stderr = _batch(task, "-o", tmp_path / "out", "--workers", "1", "--quiet", "--no-report",
-                                  "--no-replay")
+    code, stdout, stderr = run_cli("batch", task, "-o", tmp_path / "out", "--workers", "1", "--quiet", "--no-report",
+                                   "--no-replay")
     assert code == 0 and stderr == "" and stdout.startswith("batch done: 1 task(s) (1 exit 0)")
 
 
@@ -224,17 +219,17 @@ def _group_alive(pgid: int) -> bool:
 def test_batch_level_bad_input_exits_2_and_creates_nothing(tmp_path: Path, monkeypatch) -> None:
     task = _task(tmp_path / "tasks", "a.yaml")
     out = tmp_path / "out"
-    code, _, err = _batch(task, str(task), "-o", out)
+    code, _, err = run_cli("batch", task, str(task), "-o", out)
     assert code == 2 and "given twice" in err
-    code, _, err = _batch(task, "-o", out, "--workers", "0")
+    code, _, err = run_cli("batch", task, "-o", out, "--workers", "0")
     assert code == 2 and "workers" in err
-    code, _, err = _batch(task, "-o", out, "--workers", "2", "--scheduler", "tcp://127.0.0.1:1")
+    code, _, err = run_cli("batch", task, "-o", out, "--workers", "2", "--scheduler", "tcp://127.0.0.1:1")
     assert code == 2 and "not allowed with" in err  # argparse's own message, on main's err as every other
     (tmp_path / "file").write_text("x")
-    code, _, err = _batch(task, "-o", tmp_path / "file")
+    code, _, err = run_cli("batch", task, "-o", tmp_path / "file")
     assert code == 2 and "is not a folder" in err
     monkeypatch.setitem(sys.modules, "distributed", None)  # as if Dask were not installed
-    code, _, err = _batch(task, "-o", out, "--scheduler", "tcp://127.0.0.1:8786")
+    code, _, err = run_cli("batch", task, "-o", out, "--scheduler", "tcp://127.0.0.1:8786")
     assert code == 2 and "pip install 'dask[distributed]'" in err and err.count("\n") == 1, err
     assert not out.exists()
 
@@ -346,8 +341,8 @@ def test_two_local_workers_give_the_same_results_as_one_at_a_time(scenarios: lis
 @pytest.mark.slow
 def test_a_dask_cluster_gives_the_same_results_as_one_at_a_time(scenarios: list[Path], one_at_a_time,
                                                                 dask_cluster: str, tmp_path: Path) -> None:
-    code, _, err = _batch(*scenarios, "-o", tmp_path / "out", "--scheduler", dask_cluster, "--no-report",
-                          "--no-replay")
+    code, _, err = run_cli("batch", *scenarios, "-o", tmp_path / "out", "--scheduler", dask_cluster, "--no-report",
+                           "--no-replay")
     assert code == 3, err
     _, doc = _summary(tmp_path / "out")
     records = tuple(TaskRecord(**entry) for entry in doc["tasks"])
@@ -367,7 +362,7 @@ def test_a_dask_worker_that_dies_loses_only_its_task(dask_cluster: str, tmp_path
 def test_an_unreachable_scheduler_is_bad_input(tmp_path: Path, monkeypatch) -> None:
     pytest.importorskip("distributed")
     monkeypatch.setattr(batch, "CONNECT_TIMEOUT_S", 1.0)
-    code, _, err = _batch(_task(tmp_path, "a.yaml"), "-o", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9")
+    code, _, err = run_cli("batch", _task(tmp_path, "a.yaml"), "-o", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9")
     assert code == 2 and "cannot connect" in err, err
     assert not (tmp_path / "out").exists()
 

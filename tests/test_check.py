@@ -8,7 +8,6 @@ determinant, on bundled arms and on example-robot-data's UR5 and UR10, as LINs a
 
 from __future__ import annotations
 
-import io
 import json
 import re
 from pathlib import Path
@@ -20,7 +19,6 @@ import pinocchio as pin
 import pytest
 import yaml
 
-from singplan.cli import main
 from singplan.errors import SingplanError
 from singplan.kinematics.robot import load_robot
 from singplan.outputs import documents
@@ -28,6 +26,7 @@ from singplan.results.detect import MoveZones, detect
 from singplan.results.plan import plan
 from singplan.results.trajectory import Trajectory
 from singplan.task.load import parse_task
+from tests.cli_helpers import run_cli
 
 from .singular_battery import SingularTask, battery
 
@@ -37,8 +36,7 @@ METHODS = ("auto", "exact", "wrist-joint", "axis", "null-space", "dls", "average
 def _check(mapping: dict[str, Any], tmp_path: Path) -> tuple[int, str, str]:
     path = tmp_path / "task.yaml"
     path.write_text(yaml.safe_dump(mapping))
-    out, err = io.StringIO(), io.StringIO()
-    return main(["check", str(path)], out=out, err=err), out.getvalue(), err.getvalue()
+    return run_cli("check", path)
 
 
 def _plans(mapping: dict[str, Any], methods: tuple[str, ...]) -> dict[str, Trajectory]:
@@ -84,7 +82,9 @@ _QUICK = battery(3, arms=("abb_irb2400", "erd:ur5"), kinds=("wrist", "shoulder")
 @pytest.mark.parametrize("task", _QUICK, ids=[t.name for t in _QUICK])
 def test_check_exits_0_wherever_a_method_plans_and_bounds_the_stopping_distance(task: SingularTask,
                                                                                  tmp_path: Path) -> None:
-    _holds(task, tmp_path, ("auto", "dls"))
+    # a method plans every one of these hits (auto or dls: 1 of the 2 each, measured), so check's exit 0
+    # is what is tested, not only its refusals
+    assert _holds(task, tmp_path, ("auto", "dls")) >= 1
 
 
 _ISSUE = battery(1, arms=("abb_irb2400",), kinds=("shoulder",), misses_deg=(0.0,))
@@ -144,11 +144,10 @@ def test_the_bound_holds_for_a_flown_program(tmp_path: Path) -> None:
 def _check_json(mapping: dict[str, Any], tmp_path: Path) -> tuple[int, dict[str, Any], str]:
     path = tmp_path / "task.yaml"
     path.write_text(yaml.safe_dump(mapping))
-    out, err = io.StringIO(), io.StringIO()
-    code = main(["check", str(path), "--json"], out=out, err=err)
-    document = json.loads(out.getvalue())
+    code, out, err = run_cli("check", path, "--json")
+    document = json.loads(out)
     jsonschema.validate(document, documents.schema("check"))
-    return code, document, err.getvalue()
+    return code, document, err
 
 
 def _past_joint_5() -> dict[str, Any]:

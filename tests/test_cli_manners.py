@@ -20,14 +20,9 @@ from singplan.outputs.summary import LISTED_MOVES, NOTABLE_SHOWN, summary
 from singplan.results.plan import plan
 from singplan.results.trajectory import load
 from singplan.task.load import load_task
+from tests.cli_helpers import run_cli
 
 DEMO = Path(__file__).resolve().parent.parent / "singplan" / "demo_task.yaml"
-
-
-def run(*argv: str) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    code = main(list(argv), out=out, err=err)
-    return code, out.getvalue(), err.getvalue()
 
 
 class Terminal(io.StringIO):
@@ -40,7 +35,7 @@ class Terminal(io.StringIO):
 # --- --version -------------------------------------------------------------------------------------
 
 def test_version_names_singplan_python_and_the_planning_libraries() -> None:
-    code, out, err = run("--version")
+    code, out, err = run_cli("--version")
     assert code == 0 and err == ""
     first, second = out.splitlines()
     assert first == f"singplan {singplan.__version__}"
@@ -52,27 +47,51 @@ def test_version_names_singplan_python_and_the_planning_libraries() -> None:
 # --- did you mean ------------------------------------------------------------------------------------
 
 def test_a_mistyped_command_gets_the_nearest_one() -> None:
-    code, out, err = run("plna", "task.yaml")
+    code, out, err = run_cli("plna", "task.yaml")
     assert code == 2 and out == ""
     assert "unknown command 'plna' (did you mean plan?)" in err
-    code, _, err = run("frobnicate")
+    code, _, err = run_cli("frobnicate")
     assert code == 2 and "did you mean" not in err and "commands: robots, info, ik, plan" in err
 
 
 def test_a_mistyped_option_is_named_before_a_missing_one() -> None:
-    code, _, err = run("export", "out", "--fromat", "ros2")
+    code, _, err = run_cli("export", "out", "--fromat", "ros2")
     assert code == 2
     assert "unrecognized option '--fromat' (did you mean --format?)" in err
     assert "required" not in err  # argparse alone said: the following arguments are required: --format
-    code, _, err = run("plan", "task.yaml", "--quite")
+    code, _, err = run_cli("plan", "task.yaml", "--quite")
     assert code == 2 and "'--quite' (did you mean --quiet?)" in err
-    code, _, err = run("ik", "ur5", "--xyz", "1", "0", "0", "--banana")
+    code, _, err = run_cli("ik", "ur5", "--xyz", "1", "0", "0", "--banana")
     assert code == 2 and "unrecognized option '--banana'" in err and "did you mean" not in err
 
 
 def test_a_mistyped_export_format_gets_the_nearest_one(planned_kuka: Path) -> None:
-    code, _, err = run("export", str(planned_kuka), "--format", "ros3")
+    code, _, err = run_cli("export", str(planned_kuka), "--format", "ros3")
     assert code == 2 and "--format: unknown format 'ros3' (did you mean ros2?); valid formats: ros2" in err
+
+
+def test_the_command_line_suggests_as_before_with_the_one_helper() -> None:
+    """errors.nearest, now the CLI's did-you-mean as well, names for every lower-case typo (a letter
+    dropped or two swapped) of every command and option what the CLI's own difflib call did."""
+    import argparse
+    import difflib
+
+    from singplan.errors import nearest
+
+    parser = build_parser()
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+    groups = [list(commands)] + [[o for o in p._option_string_actions if o.startswith("--")]
+                                 for p in commands.values()]
+    checked = 0
+    for names in groups:
+        for name in names:
+            typos = {name[:i] + name[i + 1:] for i in range(len(name))} | {
+                name[:i] + name[i + 1] + name[i] + name[i + 2:] for i in range(len(name) - 1)}
+            for typo in typos - set(names):
+                before = difflib.get_close_matches(typo, names, n=1, cutoff=0.6)
+                assert nearest(typo, names) == (before[0] if before else None), (typo, names)
+                checked += 1
+    assert checked > 500
 
 
 def test_valid_spellings_still_parse(planned_kuka: Path, tmp_path: Path) -> None:
@@ -81,7 +100,7 @@ def test_valid_spellings_still_parse(planned_kuka: Path, tmp_path: Path) -> None
     assert parser.parse_args(["plan", "t.yaml", "--out=DIR"]).output == "DIR"  # an abbreviation, with =
     assert parser.parse_args(["ik", "ur5", "--xyz", "0.4", "-0.2", "-.5"]).xyz == [0.4, -0.2, -0.5]
     assert parser.parse_args(["batch", "-o", "x", "--", "-odd-name.yaml"]).tasks == ["-odd-name.yaml"]
-    code, _, _ = run("export", str(planned_kuka), "--form", "ros2", "-o", str(tmp_path / "t.yaml"))
+    code, _, _ = run_cli("export", str(planned_kuka), "--form", "ros2", "-o", str(tmp_path / "t.yaml"))
     assert code == 0 and (tmp_path / "t.yaml").is_file()
 
 
@@ -89,7 +108,7 @@ def test_valid_spellings_still_parse(planned_kuka: Path, tmp_path: Path) -> None
 
 @pytest.mark.parametrize("shell", SHELLS)
 def test_every_shell_gets_a_script_naming_every_command(shell: str) -> None:
-    code, out, err = run("completion", shell)
+    code, out, err = run_cli("completion", shell)
     assert code == 0 and err == ""
     for command in ("robots", "info", "ik", "plan", "check", "replay", "demo", "export", "batch", "completion"):
         assert command in out
@@ -111,7 +130,7 @@ def _bash_complete(script: Path, words: list[str]) -> list[str]:
 @pytest.mark.skipif(shutil.which("bash") is None, reason="no bash on this machine")
 def test_bash_completes_commands_options_robots_and_task_files(tmp_path: Path) -> None:
     script = tmp_path / "singplan.bash"
-    code, out, _ = run("completion", "bash")
+    code, out, _ = run_cli("completion", "bash")
     assert code == 0
     script.write_text(out)
     assert _bash_complete(script, ["singplan", "pl"]) == ["plan"]

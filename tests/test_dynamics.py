@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import io
 import subprocess
 from pathlib import Path
 from typing import Any
@@ -12,7 +11,6 @@ import pinocchio as pin
 import pytest
 import yaml
 
-from singplan.cli import main
 from singplan.errors import TaskError
 from singplan.kinematics import dynamics
 from singplan.kinematics.dynamics import (
@@ -26,6 +24,7 @@ from singplan.kinematics.dynamics import (
 from singplan.kinematics.robot import bundled_robots, load_robot
 from singplan.results.plan import plan
 from singplan.task.load import parse_task
+from tests.cli_helpers import run_cli
 
 from .shared import run_checker
 
@@ -160,10 +159,9 @@ def test_only_urdfs_with_real_inertias_have_dynamics(tmp_path: Path) -> None:
 def _plan_cli(task: dict[str, Any], folder: Path) -> tuple[int, str]:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "task.yaml").write_text(yaml.safe_dump(task, sort_keys=False))
-    err = io.StringIO()
-    argv = ["plan", str(folder / "task.yaml"), "-o", str(folder / "out"), "--quiet", "--no-replay"]  # no test reads it
-    code = main(argv, out=io.StringIO(), err=err)
-    return code, err.getvalue()
+    # no test reads the replay
+    code, _, err = run_cli("plan", folder / "task.yaml", "-o", folder / "out", "--quiet", "--no-replay")
+    return code, err
 
 
 def _checker(folder: Path) -> subprocess.CompletedProcess[str]:

@@ -323,3 +323,31 @@ def test_the_format_checks_catch_broken_output(planned_kuka: Path) -> None:
     for text in broken:
         with pytest.raises((AssertionError, ValueError)):
             parse_urscript(text)
+
+
+def test_a_urdf_whose_joints_changed_since_the_plan_is_refused_by_every_output(planned_kuka: Path,
+                                                                                tmp_path: Path) -> None:
+    """One check (``robot_of``) for the exports, the replay and the programs, one message naming the
+    field, the URDF and both joint lists."""
+    from singplan.errors import InputError
+    from singplan.outputs.programs import build_program
+    from singplan.outputs.viewer import replay
+
+    traj = load(planned_kuka)
+    renamed = replace(traj, joint_names=tuple(f"old_{n}" for n in traj.joint_names))
+    wording = (rf"joint_names: the trajectory's joints \['old_{traj.joint_names[0]}', .*\] are not those of "
+               rf".*\.urdf to {traj.tip} \['{traj.joint_names[0]}', .*\]; the URDF changed since the plan\?")
+    for output in (lambda: robot_of(renamed), lambda: exports.to_csv_deg(renamed, vendor_config=True),
+                   lambda: build_program(renamed, "krl"), lambda: replay(renamed, html=tmp_path / "r.html")):
+        with pytest.raises(InputError, match=wording):
+            output()
+    assert not (tmp_path / "r.html").exists()
+
+
+def test_vendor_config_csv_of_a_bundled_arm_whose_urdf_is_gone(planned_kuka: Path) -> None:
+    """The degree CSV's vendor configuration reads the robot as every output does (``robot_of``): a
+    bundled arm planned from a URDF that is not on this machine is the bundled arm."""
+    traj = load(planned_kuka)
+    moved = replace(traj, urdf=str(planned_kuka / "gone" / "kuka_kr6_r900_2.urdf"))
+    assert exports.to_csv_deg(moved, vendor_config=True) == exports.to_csv_deg(traj, vendor_config=True)
+    assert exports.to_csv_deg(moved, vendor_config=True).splitlines()[1].endswith(",S 6 T 50")  # KUKA Status/Turn

@@ -568,10 +568,12 @@ def test_a_user_urdf_named_like_a_bundled_arm_is_replayed_as_itself(tmp_path: Pa
     tree = _tree("abb_irb2400")
     _joint(tree.getroot(), "joint_6").find("origin").set("xyz", "0.2 0.0 0.0")  # type: ignore[union-attr]
     user = _write(tree, tmp_path / "abb_irb2400.urdf")
-    traj = SimpleNamespace(robot="abb_irb2400", urdf=str(user), tip="tool0", tool={"xyz": [0, 0, 0]})
+    joints = load_robot("abb_irb2400").joint_names  # robot_of checks them against the URDF's
+    traj = SimpleNamespace(robot="abb_irb2400", urdf=str(user), tip="tool0", tool={"xyz": [0, 0, 0]},
+                           joint_names=joints)
     assert robot_of(traj).urdf_path == user  # type: ignore[arg-type]
     bundled = SimpleNamespace(robot="abb_irb2400", urdf=str(load_robot("abb_irb2400").urdf_path), tip="tool0",
-                              tool={"xyz": [0, 0, 0]})
+                              tool={"xyz": [0, 0, 0]}, joint_names=joints)
     assert robot_of(bundled).urdf_path == load_robot("abb_irb2400").urdf_path  # type: ignore[arg-type]
 
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import io
 import json
 import math
 import os
@@ -27,25 +26,24 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from singplan.cli import main
 from singplan.errors import InputError
 from singplan.kinematics.robot import load_robot, robots_dir
 from singplan.kinematics.urdf_scan import MAX_JOINTS, MAX_TREE_DEPTH
 from singplan.outputs import exports
 from singplan.outputs.viewer import replay_html, robot_of
 from singplan.results.trajectory import load
+from tests.cli_helpers import assert_no_traceback, run_cli
 
 KUKA = (robots_dir() / "kuka_kr6_r900_2.urdf").read_text()
 START_DEG = [10, -80, 95, 20, 40, 0]
 TARGET = {"xyz": [0.55, -0.08, 0.66], "rpy_deg": [-157.09, 31.93, -172.02]}  # ~40 mm from the start
 
 
-def run_cli(argv: list[str]) -> tuple[int, str]:
-    out, err = io.StringIO(), io.StringIO()
-    code = main(argv, out=out, err=err)
-    text = out.getvalue() + err.getvalue()
-    assert "Traceback" not in text and 'File "' not in text, text
-    return code, text
+def run_clean(*argv: str) -> tuple[int, str]:
+    """Exit code and everything printed, which is never a traceback."""
+    done = run_cli(*argv)
+    assert_no_traceback(done.text)
+    return done.code, done.text
 
 
 def assert_refused(code: int, text: str, *words: str) -> None:
@@ -64,7 +62,7 @@ def _robot_task(folder: Path, urdf_text: str = KUKA) -> Path:
 
 
 def _plan(task: Path, out: Path) -> tuple[int, str]:
-    return run_cli(["plan", str(task), "-o", str(out), "--quiet", "--no-report", "--no-replay"])
+    return run_clean("plan", str(task), "-o", str(out), "--quiet", "--no-report", "--no-replay")
 
 
 # --- the controller sidecar -------------------------------------------------------------------------
@@ -224,7 +222,7 @@ def test_a_bad_trajectory_json_is_refused_by_replay_and_every_export(name: str, 
     edit(doc)
     (tmp_path / "trajectory.json").write_text(json.dumps(doc))
     for argv in _commands(tmp_path):
-        code, text = run_cli(argv)
+        code, text = run_clean(*argv)
         assert_refused(code, text, "trajectory.json", *words)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["trajectory.json"]  # nothing written, no lock left
 
@@ -234,7 +232,7 @@ def test_a_trajectory_json_that_is_no_json_file_is_refused(name: str, tmp_path: 
     make, words = RAW[name]
     make(tmp_path / "trajectory.json")
     for argv in _commands(tmp_path)[:2]:
-        code, text = run_cli(argv)
+        code, text = run_clean(*argv)
         assert_refused(code, text, "trajectory.json", *words)
 
 
@@ -358,7 +356,7 @@ def test_a_hostile_urdf_is_refused_by_name_before_pinocchio(name: str, tmp_path:
     text, words = URDFS[name]
     code, text = _plan(_robot_task(tmp_path, text), tmp_path / "out")
     assert_refused(code, text, "robot.urdf", *words)
-    code, text = run_cli(["info", str(tmp_path / "robot.urdf")])
+    code, text = run_clean("info", str(tmp_path / "robot.urdf"))
     assert_refused(code, text, "robot.urdf", *words)
 
 
@@ -371,7 +369,7 @@ def test_a_urdf_that_is_no_regular_file_is_refused(kind: str, tmp_path: Path) ->
         os.mkfifo(urdf)
     else:
         urdf.symlink_to("/dev/zero")
-    code, text = run_cli(["info", str(urdf)])
+    code, text = run_clean("info", str(urdf))
     assert_refused(code, text, "robot.urdf" if kind == "FIFO" else "/dev/zero", "not a regular file")
     code, text = _plan(task, tmp_path / "out")
     assert_refused(code, text, "robot: ", "not a regular file")

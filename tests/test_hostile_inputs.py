@@ -7,7 +7,6 @@ battery is fast; none may write the output folder.
 
 from __future__ import annotations
 
-import io
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -15,9 +14,9 @@ from typing import NamedTuple
 
 import pytest
 
-from singplan.cli import main
 from singplan.kinematics.robot import MAX_URDF_BYTES, robots_dir
 from singplan.task.schema import MAX_FILE_BYTES
+from tests.cli_helpers import assert_no_traceback, run_cli
 
 GOOD = (Path(__file__).parent / "data" / "good_task.yaml").read_text()  # every field set
 URDF = (robots_dir() / "abb_irb2400.urdf").read_text()
@@ -200,14 +199,14 @@ def _write_case(case: Case, folder: Path) -> Path:
     return task
 
 
-def run_cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
-    """Exit code and everything printed (the out/err streams and anything else on sys.stdout/stderr)."""
-    out, err = io.StringIO(), io.StringIO()
-    code = main(argv, out=out, err=err)
+def run_clean(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+    """Exit code and everything printed (the out/err streams and anything else on sys.stdout/stderr),
+    which is never a traceback."""
+    done = run_cli(*argv)
     captured = capsys.readouterr()
-    text = out.getvalue() + err.getvalue() + captured.out + captured.err
-    assert "Traceback" not in text and 'File "' not in text, text
-    return code, text
+    text = done.text + captured.out + captured.err
+    assert_no_traceback(text)
+    return done.code, text
 
 
 def assert_refused(code: int, text: str, words: tuple[str, ...]) -> None:
@@ -228,7 +227,7 @@ def test_plan_refuses(name: str, tmp_path: Path, capsys: pytest.CaptureFixture[s
     case = CASES[name]
     task = _write_case(case, tmp_path)
     out_dir = tmp_path / "out"
-    code, text = run_cli(["plan", str(task), "-o", str(out_dir)], capsys)
+    code, text = run_clean(["plan", str(task), "-o", str(out_dir)], capsys)
     assert_refused(code, text, case.words)
     assert not out_dir.exists()
 
@@ -237,7 +236,7 @@ def test_plan_refuses(name: str, tmp_path: Path, capsys: pytest.CaptureFixture[s
                                   for n, case in CASES.items() if case.check_too])
 def test_check_refuses(name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     case = CASES[name]
-    code, text = run_cli(["check", str(_write_case(case, tmp_path))], capsys)
+    code, text = run_clean(["check", str(_write_case(case, tmp_path))], capsys)
     assert_refused(code, text, case.words)
 
 
@@ -281,6 +280,6 @@ def test_unusable_files_are_refused(name: str, tmp_path: Path, capsys: pytest.Ca
         pytest.skip("root reads any file")
     make, words = FILES[name]
     (tmp_path / "folder.urdf").mkdir()
-    code, text = run_cli(["plan", str(make(tmp_path)), "-o", str(tmp_path / "out")], capsys)
+    code, text = run_clean(["plan", str(make(tmp_path)), "-o", str(tmp_path / "out")], capsys)
     assert_refused(code, text, words)
     assert not (tmp_path / "out").exists()

@@ -14,6 +14,7 @@ import pytest
 from singplan.cli import main
 from singplan.outputs import documents
 from singplan.results.trajectory import load
+from tests.cli_helpers import run_cli
 
 DEMO = Path(__file__).resolve().parent.parent / "singplan" / "demo_task.yaml"
 KUKA_PROGRAM = Path(__file__).resolve().parent.parent / "examples" / "kuka_program.yaml"
@@ -21,13 +22,12 @@ KUKA_PROGRAM = Path(__file__).resolve().parent.parent / "examples" / "kuka_progr
 
 def run_json(*argv: str) -> tuple[int, dict[str, Any], str]:
     """Exit code, the one document on stdout (validated against its command's schema), stderr."""
-    out, err = io.StringIO(), io.StringIO()
-    code = main([*argv, "--json"], out=out, err=err)
-    document = json.loads(out.getvalue())  # the whole of stdout is one document
+    code, out, err = run_cli(*argv, "--json")
+    document = json.loads(out)  # the whole of stdout is one document
     jsonschema.validate(document, documents.schema(argv[0]))
     assert document["format"] == f"singplan.{argv[0]}/1" and document["exit_code"] == code
     assert document["ok"] is (code == 0)
-    return code, document, err.getvalue()
+    return code, document, err
 
 
 def test_plan_json_holds_what_trajectory_json_holds_without_the_samples(tmp_path: Path) -> None:

@@ -9,7 +9,6 @@ has the `soak` marker (deselected by default, run by CI: ``python -m pytest -q -
 
 from __future__ import annotations
 
-import io
 import json
 import math
 import os
@@ -24,7 +23,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from singplan.cli import main
+from tests.cli_helpers import run_cli
 
 ROOT = Path(__file__).resolve().parent.parent
 SOURCES = [ROOT / "singplan" / "demo_task.yaml", *sorted((ROOT / "examples").glob("*.yaml"))]
@@ -222,11 +221,10 @@ def run(mutant: Mutant, command: str) -> tuple[int, str]:
         task = Path(folder) / "task.yaml"
         task.write_text(mutant.text)
         shutil.copytree(ROOT / "examples" / "meshes", Path(folder) / "meshes")  # a cell's meshes, task-relative
-        out, err = io.StringIO(), io.StringIO()
         argv = ["plan", str(task), "-o", str(Path(folder) / "out")] if command == "plan" else ["check", str(task)]
-        code = main(argv, out=out, err=err)
+        done = run_cli(*argv)
         assert not (Path(folder) / "out").exists()
-    return code, out.getvalue() + err.getvalue()
+    return done.code, done.text
 
 
 def check_mutant(mutant: Mutant, command: str, capsys: pytest.CaptureFixture[str]) -> None:

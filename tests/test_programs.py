@@ -30,7 +30,6 @@ import pinocchio as pin
 import pytest
 import yaml
 
-from singplan.cli import main
 from singplan.errors import InputError, OutputPathError
 from singplan.kinematics.robot import load_robot, robots_dir
 from singplan.kinematics.vendor_config import convention_for, printed_axes_deg
@@ -42,6 +41,7 @@ from singplan.outputs.timeline import robot_of
 from singplan.results.plan import plan
 from singplan.results.trajectory import Trajectory, save
 from singplan.task.load import load_task
+from tests.cli_helpers import run_cli
 from tests.program_readers import convention, read_program, urdf_joints_deg
 from tests.shared import SHARED, require, run_checker
 
@@ -345,13 +345,6 @@ def test_a_generated_task_reads_back_and_passes_the_checker(seed: int, tmp_path:
 
 
 # --- robots without a convention, names, options ---------------------------------------------------
-
-def run_cli(*args: str) -> tuple[int, str, str]:
-    import io
-
-    out, err = io.StringIO(), io.StringIO()
-    code = main(list(args), out=out, err=err)
-    return code, out.getvalue(), err.getvalue()
 
 
 @pytest.fixture(scope="module")

@@ -763,9 +763,8 @@ def _reach(robot: Robot, joint: int, geoms: list[Geom]) -> tuple[np.ndarray, flo
     extent = _extent(geoms)
     if joint == 0:
         return reach, extent, arm
-    offsets = [float(np.linalg.norm(robot.model.jointPlacements[i].translation)) for i in range(joint + 1)]
     for j in range(1, joint + 1):
-        arm[robot.model.joints[j].idx_q] = sum(offsets[j + 1:joint + 1]) + extent
+        arm[robot.model.joints[j].idx_q] = robot.offsets_m(j + 1, joint) + extent
     reach[:] = arm
     axis = robot.joint_axes[joint - 1]
     ends = np.concatenate([g.segment for g in geoms])

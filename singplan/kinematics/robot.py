@@ -179,12 +179,25 @@ class Robot:
             return p.a1 + p.c2 + math.hypot(p.a2, p.c3) + p.c4
         return self._offsets_m()
 
+    @cached_property
+    def link_lengths_m(self) -> np.ndarray:
+        """(n + 1,) [m]: entry i is the length of joint i's fixed offset from joint i - 1's origin
+        (joint 1's from the base; entry 0, the base's, is 0), joints numbered as Pinocchio does."""
+        placements = self.model.jointPlacements
+        return _read_only(np.array([np.linalg.norm(placements[i].translation) for i in range(self.model.njoints)]))
+
+    def offsets_m(self, first: int, last: int) -> float:
+        """The summed lengths [m] of joints ``first`` .. ``last``'s fixed offsets (both included; 0 when
+        ``first > last``): each joint only turns the offsets after it, so no point carried at joint
+        ``last``'s origin is ever farther than this from joint ``first - 1``'s origin (the reach sum
+        of the stopping, collision and out-of-reach bounds). Summed in joint order."""
+        return float(sum(self.link_lengths_m[first:last + 1]))
+
     def _offsets_m(self) -> float:
         """The summed lengths of the chain's fixed offsets after joint 1 up to the flange [m]: each
         joint only turns them, so no flange point is farther from joint 1's origin."""
-        placements = self.model.jointPlacements
-        lengths = [np.linalg.norm(placements[i].translation) for i in range(2, self.model.njoints)]
-        return float(sum(lengths) + np.linalg.norm(self.model.frames[self.tip_frame_id].placement.translation))
+        tip = float(np.linalg.norm(self.model.frames[self.tip_frame_id].placement.translation))
+        return self.offsets_m(2, self.model.njoints - 1) + tip
 
     def with_tool(self, T_tip_tcp: pin.SE3) -> Robot:
         """The same robot with another tool (a new Data, the model is shared; the recognition carried

@@ -142,7 +142,8 @@ def reach_bounds(robot: Robot) -> np.ndarray:
     model = robot.model
     tool = (model.frames[robot.tip_frame_id].placement * robot.T_tip_tcp).translation
     links = [np.asarray(model.jointPlacements[k].translation) for k in range(2, model.njoints)] + [tool]
-    lengths = np.array([float(np.linalg.norm(v)) for v in links])  # link j + 1 .. n, then the tool
+    lengths = np.append(robot.link_lengths_m[2:], np.linalg.norm(tool))  # link j + 1 .. n, then the tool
+    # every suffix at once, summed from the tool inwards (Robot.offsets_m sums the other way: a last bit apart)
     after = np.concatenate([np.cumsum(lengths[::-1])[::-1][1:], [0.0]])  # the links beyond the first
     across = [float(np.linalg.norm(v - np.dot(v, a) * a)) for v, a in zip(links, robot.joint_axes, strict=True)]
     return np.array(across) + after

@@ -35,11 +35,11 @@ from typing import Literal, TextIO
 import numpy as np
 
 from singplan.errors import InputError
-from singplan.kinematics.robot import load_robot
 from singplan.kinematics.vendor_config import format_vendor_config, vendor_configs
 from singplan.outputs.checks import check_trajectory
 from singplan.outputs.choices import DEFAULT_FILE_NAMES, FORMATS, PROGRAM_FORMATS, UR_STEP_S
 from singplan.outputs.programs import ProgramOptions, write_program
+from singplan.outputs.timeline import robot_of
 from singplan.results.files import Writer, check_output_file, write_file
 from singplan.results.trajectory import Trajectory, csv_line, csv_rows
 
@@ -244,10 +244,7 @@ def write_csv_deg(stream: TextIO, traj: Trajectory, vendor_config: bool = False)
     header = (["t [s]"] + [f"{n} [deg]" for n in traj.joint_names] + [f"{n} [deg/s]" for n in traj.joint_names]
               + (["vendor_config"] if vendor_config else []))
     stream.write(csv_line(header) + "\n")
-    robot = load_robot(traj.urdf, tip=traj.tip) if vendor_config else None
-    if robot is not None and robot.joint_names != traj.joint_names:
-        raise InputError(f"joint_names: {list(traj.joint_names)!r} are not the joints of {traj.urdf} to {traj.tip} "
-                         f"({list(robot.joint_names)!r}); the URDF changed since the plan?")
+    robot = robot_of(traj) if vendor_config else None
     for start in range(0, len(traj.t), _CHUNK):
         stop = start + _CHUNK
         block = np.hstack([traj.t[start:stop, None], np.degrees(traj.q[start:stop]),

@@ -120,8 +120,9 @@ class RobotScene:
 
     @classmethod
     def of(cls, robot: Robot) -> RobotScene:
-        """The scene of the robot's URDF: read and scanned again (it may have changed since it was
-        planned with), its visual meshes checked (:func:`~singplan.outputs.visuals.checked_visuals`)."""
+        """The scene of the robot's URDF: read and scanned again for its visuals, its visual meshes
+        checked (:func:`~singplan.outputs.visuals.checked_visuals`). A trajectory's robot read back
+        for the replay was checked against its joints by :func:`~singplan.outputs.timeline.robot_of`."""
         model, scan = load_full_model(robot.urdf_path)  # continuous joints as unlimited revolute ones, as planned
         meshes = checked_visuals(scan.text, robot.urdf_path)
         try:
@@ -134,10 +135,6 @@ class RobotScene:
         if visual.ngeoms == 0:
             logger.warning("replay: %s has no <visual> geometry; the replay shows the tool's paths only",
                            robot.urdf_path)
-        missing = [name for name in robot.joint_names if not model.existJointName(name)]
-        if missing:
-            raise InputError(f"joint_names: {missing[0]!r} is not a joint of {display_path(robot.urdf_path)} "
-                             "(the URDF changed since the plan?)")
         index = np.array([model.joints[model.getJointId(name)].idx_q for name in robot.joint_names])
         names = [g.name for g in visual.geometryObjects]
         return cls(model, model.createData(), visual, visual.createData(), names, index, meshes, robot.urdf_path)

@@ -6,24 +6,17 @@ argparse on its own reports ``singplan plna`` as an invalid choice without a hin
 looks at its own arguments first: each parser of the tree (``singplan``, then the command's)
 checks the tokens it is handed, the top level the command name, a command its options, and
 refuses the first unknown one through ``error()`` (usage, message, exit code 2) with the
-closest name (:func:`difflib.get_close_matches`). Everything else is argparse's own.
+closest name (:func:`singplan.errors.nearest`, as every unknown name). Everything else is argparse's own.
 """
 
 from __future__ import annotations
 
 import argparse
-import difflib
 import sys
 from collections.abc import Sequence
 from typing import Any, NoReturn
 
-_CUTOFF = 0.6  # difflib's similarity ratio a suggestion needs: 'plna' -> 'plan' is 0.75, 'xyz' -> 'plan' 0
-
-
-def closest(word: str, candidates: Sequence[str]) -> str | None:
-    """The candidate nearest ``word``, or None when none is close."""
-    found = difflib.get_close_matches(word, list(candidates), n=1, cutoff=_CUTOFF)
-    return found[0] if found else None
+from singplan.errors import nearest
 
 
 def _is_number(token: str) -> bool:
@@ -75,11 +68,11 @@ class SuggestingParser(argparse.ArgumentParser):
             return  # an abbreviation: argparse resolves it (or names the ambiguity)
         if not token.startswith("--") and token[:2] in known:
             return  # a short option with its value attached: -oDIR
-        near = closest(name, [o for o in known if o.startswith("--") == name.startswith("--")] or known)
+        near = nearest(name, [o for o in known if o.startswith("--") == name.startswith("--")] or known)
         self.error(f"unrecognized option {name!r}" + (f" (did you mean {near}?)" if near else "")
                    + f"; see {self.prog} --help")
 
     def _unknown_command(self, token: str, commands: list[str]) -> NoReturn:
-        near = closest(token, commands)
+        near = nearest(token, commands)
         hint = f" (did you mean {near}?)" if near else ""
         self.error(f"unknown command {token!r}{hint}; commands: {', '.join(commands)}")

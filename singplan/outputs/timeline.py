@@ -18,6 +18,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from singplan.errors import InputError
+from singplan.kinematics.files import display_path
 from singplan.kinematics.geometry import rpy_deg_to_rotation
 from singplan.kinematics.robot import Robot, bundled_robots, load_robot
 from singplan.results.path import woven_moves
@@ -168,10 +170,20 @@ def robot_of(traj: Trajectory) -> Robot:
     name when it was planned from the bundled URDF (or that file is gone, e.g. another install).
 
     A user's URDF whose file name matches a bundled arm is drawn as itself, not as the bundled arm.
+    Every output that reads a trajectory's robot again (exports, replay, programs) loads it here.
+
+    Raises:
+        InputError: the URDF's chain to the tip has other joints than the trajectory's
+            (``joint_names``; the URDF changed since the plan).
     """
     rpy = np.asarray(traj.tool.get("rpy_deg", [0, 0, 0]), dtype=float)
     tool = pin.SE3(rpy_deg_to_rotation(rpy), np.asarray(traj.tool.get("xyz", [0, 0, 0]), dtype=float))
     entry = bundled_robots().get(traj.robot)
     bundled = entry is not None and (str(entry.urdf_path()) == traj.urdf or not Path(traj.urdf).is_file())
     source = traj.robot if bundled else traj.urdf
-    return load_robot(source, tip=traj.tip, tool=tool)
+    robot = load_robot(source, tip=traj.tip, tool=tool)
+    if robot.joint_names != tuple(traj.joint_names):
+        raise InputError(f"joint_names: the trajectory's joints {list(traj.joint_names)} are not those of "
+                         f"{display_path(robot.urdf_path)} to {traj.tip} {list(robot.joint_names)}; "
+                         "the URDF changed since the plan?")
+    return robot

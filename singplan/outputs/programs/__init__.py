@@ -151,9 +151,6 @@ def build_program(traj: Trajectory, fmt: str, options: ProgramOptions | None = N
     tolerance = PointTolerance(_positive(opts.tolerance_mm, "--tolerance-mm") / 1e3,
                                math.radians(_positive(opts.tolerance_deg, "--tolerance-deg")), dialect.max_segment_s)
     robot = robot_of(traj)
-    if tuple(robot.joint_names) != tuple(traj.joint_names):
-        raise InputError(f"joint_names: the trajectory's {list(traj.joint_names)} are not the joints of "
-                         f"{traj.urdf} ({list(robot.joint_names)})")
     conv = require_convention(robot, dialect.vendor, f"--format {fmt} ({dialect.title})",
                               {d.vendor: f" (use --format {d.fmt})" for d in DIALECTS.values()})
     points = choose_points(traj, robot, tolerance)

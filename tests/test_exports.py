@@ -344,6 +344,23 @@ def test_a_urdf_whose_joints_changed_since_the_plan_is_refused_by_every_output(p
     assert not (tmp_path / "r.html").exists()
 
 
+def test_a_urdf_edited_after_its_robot_was_loaded_is_named_by_the_replay_scene(tmp_path: Path) -> None:
+    """The replay scene reads the URDF again for its visuals: a joint renamed in the file since the robot
+    was loaded is named, not an index error."""
+    from singplan.errors import InputError
+    from singplan.kinematics.robot import bundled_robots, load_robot
+    from singplan.outputs.scene import RobotScene
+
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(bundled_robots()["kuka_kr6_r900_2"].urdf_path().read_text())
+    robot = load_robot(str(urdf))
+    text = urdf.read_text()
+    urdf.write_text(text.replace(f'"{robot.joint_names[2]}"', '"renamed_joint"'))
+    with pytest.raises(InputError, match=rf"joint_names: '{robot.joint_names[2]}' is not a joint of .*arm\.urdf "
+                                         r"\(the URDF changed since the plan\?\)"):
+        RobotScene.of(robot)
+
+
 def test_vendor_config_csv_of_a_bundled_arm_whose_urdf_is_gone(planned_kuka: Path) -> None:
     """The degree CSV's vendor configuration reads the robot as every output does (``robot_of``): a
     bundled arm planned from a URDF that is not on this machine is the bundled arm."""

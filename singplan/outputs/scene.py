@@ -121,8 +121,9 @@ class RobotScene:
     @classmethod
     def of(cls, robot: Robot) -> RobotScene:
         """The scene of the robot's URDF: read and scanned again for its visuals, its visual meshes
-        checked (:func:`~singplan.outputs.visuals.checked_visuals`). A trajectory's robot read back
-        for the replay was checked against its joints by :func:`~singplan.outputs.timeline.robot_of`."""
+        checked (:func:`~singplan.outputs.visuals.checked_visuals`); its joints must still be the robot's
+        (a trajectory's robot read back was checked against the trajectory by
+        :func:`~singplan.outputs.timeline.robot_of`)."""
         model, scan = load_full_model(robot.urdf_path)  # continuous joints as unlimited revolute ones, as planned
         meshes = checked_visuals(scan.text, robot.urdf_path)
         try:
@@ -135,6 +136,10 @@ class RobotScene:
         if visual.ngeoms == 0:
             logger.warning("replay: %s has no <visual> geometry; the replay shows the tool's paths only",
                            robot.urdf_path)
+        missing = [name for name in robot.joint_names if not model.existJointName(name)]
+        if missing:  # the file was read again after the robot: it may have changed since
+            raise InputError(f"joint_names: {missing[0]!r} is not a joint of {display_path(robot.urdf_path)} "
+                             "(the URDF changed since the plan?)")
         index = np.array([model.joints[model.getJointId(name)].idx_q for name in robot.joint_names])
         names = [g.name for g in visual.geometryObjects]
         return cls(model, model.createData(), visual, visual.createData(), names, index, meshes, robot.urdf_path)

@@ -365,6 +365,43 @@ def labels_batch(robot: Robot, q: np.ndarray) -> list[str]:
     return labels
 
 
+# [m or rad]: how far the distances of a whole-turn variant of a row, moved by at most 1e-9 rad into
+# the limits (:mod:`singplan.kinematics.ik.turns`), can be from the row's own: the clip times the arm's
+# reach (under 1e-8 for any arm under 10 m) and round-off, with room to spare
+_VARIANT_SLACK = 1e-6
+
+
+def labels_of_variants(robot: Robot, rows: np.ndarray, origin: np.ndarray, q: np.ndarray) -> list[str]:
+    """:func:`labels_batch` of rows q (M, n) [rad], each a whole-turn variant of ``rows[origin]``
+    (``rows`` (B, n), ``origin`` (M,)) moved by at most 1e-9 rad into the joint limits.
+
+    The singular distances are periodic in every joint, so a variant's are its row's to round-off
+    and the clip: each of the B rows is labelled once, and only the rows of a branch within
+    :data:`_VARIANT_SLACK` of :func:`labels_batch`'s own margin of a sign change are labelled one
+    by one, as :func:`labels_batch` labels them (for a UR arm's 256 variants of 8 branches, 8 rows
+    to compute instead of 256).
+    """
+    if _unlabelled(robot) or reduced.is_reduced(robot) or (robot.opw is None and robot.ur is None):
+        return labels_batch(robot, q)
+    codes = _codes_off_sign_change(distances_batch(robot, rows), LABEL_ZERO, _LABEL_BOUNDARY + _VARIANT_SLACK)
+    by_row = codes[origin]
+    labels: list[str] = _LABELS[by_row].tolist()
+    near = np.flatnonzero(by_row < 0)
+    if len(near):
+        for k, label in zip(near.tolist(), labels_batch(robot, q[near]), strict=True):
+            labels[k] = label
+    return labels
+
+
+@jit
+def _codes_off_sign_change(d: np.ndarray, zero: float, margin: float) -> np.ndarray:
+    """:func:`_label_codes` of distance rows d (N, 3), -1 for the rows :func:`_near_sign_change` finds
+    within ``margin`` of a sign change."""
+    codes = _label_codes(d, zero)
+    codes[_near_sign_change(d, margin)] = -1
+    return codes
+
+
 @jit
 def _near_sign_change(d: np.ndarray, margin: float) -> np.ndarray:
     """The rows of distances d (N, 3) with one within ``margin`` of 0, or an angle (wrist, elbow)

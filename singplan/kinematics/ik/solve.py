@@ -33,7 +33,7 @@ from singplan.kinematics.angles import nearest_shifted, wrap_to_pi
 from singplan.kinematics.closedform import opw
 from singplan.kinematics.closedform.ur import arm_for_point as ur_arm_kernel
 from singplan.kinematics.closedform.ur import ur_batch
-from singplan.kinematics.configuration import LABEL_ZERO, classify, labels_batch
+from singplan.kinematics.configuration import LABEL_ZERO, classify, labels_batch, labels_of_variants
 from singplan.kinematics.ik import numeric as ik_numeric
 from singplan.kinematics.ik import turns
 from singplan.kinematics.robot import OpwParameters, Robot
@@ -151,8 +151,9 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
     """
     if robot.family in ("opw", "ur"):
         rows, branches = _closed_form_candidates(robot, T_base_tcp, seed)
-    else:
-        rows, branches = _numeric_candidates(robot, T_base_tcp, seed)
+        q_all, branch = turns.inside_limits(rows, branches, robot.lower_rad, robot.upper_rad, seed, LABEL_ZERO)
+        return IkSolutions(q=q_all, labels=tuple(labels_of_variants(robot, rows, branch, q_all)), branches=branch)
+    rows, branches = _numeric_candidates(robot, T_base_tcp, seed)
     q_all, branch = turns.inside_limits(rows, branches, robot.lower_rad, robot.upper_rad, seed, LABEL_ZERO)
     return IkSolutions(q=q_all, labels=tuple(labels_batch(robot, q_all)), branches=branch)
 

@@ -320,16 +320,27 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if _unlabelled(robot):
         return np.full((len(q), 3), np.nan)
-    p = robot.opw
-    ur = robot.ur
     if reduced.is_reduced(robot):
         return reduced.distances_batch(robot, q)
-    if p is None and ur is not None:
-        return _ur_distances(np.ascontiguousarray(q), ur.l2, ur.l3, ur.d5)
-    if p is None:
+    if robot.opw is None and robot.ur is None:
         return np.array([_signed_distances(*_frames(robot, qk)) for qk in q]).reshape(-1, 3)
+    return _closed_form_distances(robot, q)
+
+
+def _closed_form_distances(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """:func:`distances_batch` of an OPW or UR arm's samples q (N, n)."""
+    p = robot.opw
+    if p is None:
+        ur = robot.ur
+        assert ur is not None
+        return _ur_distances(np.ascontiguousarray(q), ur.l2, ur.l3, ur.d5)
     return _opw_distances(np.ascontiguousarray(q), p.signs, p.offsets, p.a1, p.c2, math.hypot(p.a2, p.c3),
                           math.atan2(p.a2, p.c3))
+
+
+def _closed_form_labelled(robot: Robot) -> bool:
+    """Whether :func:`distances_batch` is a closed form (OPW, UR) rather than classify's own computation."""
+    return not (_unlabelled(robot) or reduced.is_reduced(robot)) and (robot.opw is not None or robot.ur is not None)
 
 
 @jit
@@ -358,7 +369,7 @@ def labels_batch(robot: Robot, q: np.ndarray) -> list[str]:
     q = np.atleast_2d(np.asarray(q, dtype=float))
     d = distances_batch(robot, q)
     labels = labels_from_distances(d)
-    if _unlabelled(robot) or reduced.is_reduced(robot) or (robot.opw is None and robot.ur is None):
+    if not _closed_form_labelled(robot):
         return labels  # distances_batch is classify's own computation, row by row
     for k in _near_sign_change(d, _LABEL_BOUNDARY):
         labels[k] = classify(robot, q[k]).label
@@ -381,13 +392,13 @@ def labels_of_variants(robot: Robot, rows: np.ndarray, origin: np.ndarray, q: np
     by one, as :func:`labels_batch` labels them (for a UR arm's 256 variants of 8 branches, 8 rows
     to compute instead of 256).
     """
-    if _unlabelled(robot) or reduced.is_reduced(robot) or (robot.opw is None and robot.ur is None):
+    if not _closed_form_labelled(robot):
         return labels_batch(robot, q)
-    codes = _codes_off_sign_change(distances_batch(robot, rows), LABEL_ZERO, _LABEL_BOUNDARY + _VARIANT_SLACK)
+    codes = _codes_off_sign_change(_closed_form_distances(robot, rows), LABEL_ZERO, _LABEL_BOUNDARY + _VARIANT_SLACK)
     by_row = codes[origin]
     labels: list[str] = _LABELS[by_row].tolist()
-    near = np.flatnonzero(by_row < 0)
-    if len(near):
+    if -1 in codes.tolist():
+        near = np.flatnonzero(by_row < 0)
         for k, label in zip(near.tolist(), labels_batch(robot, q[near]), strict=True):
             labels[k] = label
     return labels

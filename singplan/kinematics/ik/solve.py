@@ -149,9 +149,9 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
     turns are one solution, listed once (branches meet on a singular pose: the UR5 at q = 0 has
     two solver branches 360 deg apart in q2 and q4), as the variant nearest the seed.
     """
-    if robot.family in ("opw", "ur"):
-        rows, branches = _closed_form_candidates(robot, T_base_tcp, seed)
-        q_all, branch = turns.inside_limits(rows, branches, robot.lower_rad, robot.upper_rad, seed, LABEL_ZERO)
+    if robot.family in ("opw", "ur"):  # the branches are the closed form's rows 0..7
+        rows = closed_form_branches(robot, T_base_tcp.homogeneous[None], None if seed is None else seed[None])[0]
+        q_all, branch = turns.variants_inside(rows, robot.lower_rad, robot.upper_rad, seed, LABEL_ZERO)
         return IkSolutions(q=q_all, labels=tuple(labels_of_variants(robot, rows, branch, q_all)), branches=branch)
     rows, branches = _numeric_candidates(robot, T_base_tcp, seed)
     q_all, branch = turns.inside_limits(rows, branches, robot.lower_rad, robot.upper_rad, seed, LABEL_ZERO)
@@ -174,13 +174,6 @@ def closed_form_branches(robot: Robot, T_base_tcp: np.ndarray, seeds: np.ndarray
     if robot.ur is not None:
         return ur_batch(robot.ur, T_flange, seeds)
     return np.full((len(T_flange), 0, robot.n_joints), np.nan)
-
-
-def _closed_form_candidates(robot: Robot, T_base_tcp: pin.SE3,
-                            seed: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """The closed form's branches (B, n), NaN rows unreachable, and their numbers (B,)."""
-    sols = closed_form_branches(robot, T_base_tcp.homogeneous[None], None if seed is None else seed[None])[0]
-    return sols, np.arange(len(sols))
 
 
 def _numeric_candidates(robot: Robot, T_base_tcp: pin.SE3,

@@ -39,11 +39,17 @@ def inside_limits(rows: np.ndarray, branches: np.ndarray, lower: np.ndarray, upp
 
     Returns: joint values (M, n) and the ``branches`` (B,) entry each came from (M,).
     """
-    rows = np.ascontiguousarray(rows, dtype=float).reshape(len(branches), len(lower))
+    q, origin = variants_inside(np.asarray(rows).reshape(len(branches), len(lower)), lower, upper, seed, same_rad)
+    return q, np.asarray(branches)[origin]
+
+
+def variants_inside(rows: np.ndarray, lower: np.ndarray, upper: np.ndarray, seed: np.ndarray | None,
+                    same_rad: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`inside_limits` of rows (B, n) numbered 0..B-1: joint values (M, n) and the row each came from (M,)."""
+    rows = np.ascontiguousarray(rows, dtype=float)
     lo, hi = np.ascontiguousarray(lower, dtype=float), np.ascontiguousarray(upper, dtype=float)
     nearest = np.ascontiguousarray(seed if seed is not None else lo, dtype=float)
-    q, origin = _inside(rows, lo, hi, nearest, seed is not None, same_rad)
-    return q, np.asarray(branches)[origin]
+    return _inside(rows, lo, hi, nearest, seed is not None, same_rad)  # type: ignore[no-any-return]
 
 
 @jit

@@ -144,9 +144,9 @@ def test_repeats_are_dropped_as_pairwise_allclose_does_even_where_shifts_cancel_
 # threshold), at 10 LABEL_ZERO (where labels_batch classifies a row on its own) and just past it, and
 # angles near +-pi (where the wrapped value jumps); an elbow 1e-7 or 2e-6 from stretched has two branches
 # equal up to LABEL_ZERO but not to allclose
-_BOUNDARY_DISTANCES = [0.0, 1e-12, -1e-12, 1e-7, 2e-6, LABEL_ZERO, -LABEL_ZERO, 1.0001 * LABEL_ZERO, -1.0001 * LABEL_ZERO,
-                       1e-4, -1e-4, 1.001e-4, -1.001e-4, 1.02e-4, -1.02e-4, math.pi - 1e-5, -math.pi + 1e-5,
-                       math.pi - 1.02e-4, -math.pi + 1.02e-4]
+_BOUNDARY_DISTANCES = [0.0, 1e-12, -1e-12, 1e-7, 2e-6, LABEL_ZERO, -LABEL_ZERO, 1.0001 * LABEL_ZERO,
+                       -1.0001 * LABEL_ZERO, 1e-4, -1e-4, 1.001e-4, -1.001e-4, 1.02e-4, -1.02e-4,
+                       math.pi - 1e-5, -math.pi + 1e-5, math.pi - 1.02e-4, -math.pi + 1.02e-4]
 
 
 def _on_boundary(robot: Robot, q: np.ndarray, kind: int, distance: float) -> np.ndarray | None:

@@ -49,7 +49,8 @@ def variants_inside(rows: np.ndarray, lower: np.ndarray, upper: np.ndarray, seed
     rows = np.ascontiguousarray(rows, dtype=float)
     lo, hi = np.ascontiguousarray(lower, dtype=float), np.ascontiguousarray(upper, dtype=float)
     nearest = np.ascontiguousarray(seed if seed is not None else lo, dtype=float)
-    return _inside(rows, lo, hi, nearest, seed is not None, same_rad)  # type: ignore[no-any-return]
+    q, origin = _inside(rows, lo, hi, nearest, seed is not None, same_rad)
+    return q, origin
 
 
 @jit

@@ -15,12 +15,15 @@ The numeric all-branch solver (singplan.kinematics.ik.numeric) on arms without a
 milliseconds per call and the branches it finds against a reference (the closed form inside
 the limits, or for the offset-wrist arm the brute force of tests/test_ik_numeric.py).
 
-    python bench/bench_ik.py --solve-all [--baseline DIR] [--poses 1000] [--write docs/benchmarks.md]
+    python bench/bench_ik.py --solve-all [--baseline DIR [--baseline-label TEXT]] [--poses 1000]
+                             [--arms ARM ...] [--write docs/benchmarks.md]
 
 ``solve_all`` per pose (every branch and whole-turn variant inside the limits, labelled) on OPW
-and UR arms, without and with a seed, each tree in a fresh process (``--baseline``: a tree of
-an earlier singplan, measured alternately with this one in the same run), beside
-py-opw-kinematics ``inverse`` (eight branches, no limits, no labels).
+and UR arms (default: the KUKA KR 6 R900-2, the ABB IRB 2400 and the UR5), without and with a
+seed, each tree in a fresh process (``--baseline``: a tree of an earlier singplan, e.g. a
+``git archive`` of a commit, measured alternately with this one in the same run; the table
+names it by ``--baseline-label``), beside py-opw-kinematics ``inverse`` (eight branches, no
+limits, no labels). The load average is read before and after the run.
 """
 
 from __future__ import annotations
@@ -207,11 +210,11 @@ def main_numeric(n_poses: int, write: Path | None) -> int:
 SOLVE_ALL_ARMS = ("kuka_kr6_r900_2", "abb_irb2400", "ur5")
 
 
-def solve_all_figures(poses: int, repeat: int) -> dict[str, dict[str, float]]:
+def solve_all_figures(poses: int, repeat: int, arms: list[str]) -> dict[str, dict[str, float]]:
     """solve_all's microseconds per pose (best of ``repeat`` loops) without and with a seed, and the
     mean number of rows, per arm; seeded random poses inside the limits (capped at +-2 pi)."""
     out = {}
-    for name in SOLVE_ALL_ARMS:
+    for name in arms:
         robot = load_robot(name)
         rng = np.random.default_rng(24)
         q = rng.uniform(np.maximum(robot.lower_rad, -2 * np.pi), np.minimum(robot.upper_rad, 2 * np.pi),
@@ -228,41 +231,48 @@ def solve_all_figures(poses: int, repeat: int) -> dict[str, dict[str, float]]:
     return out
 
 
-def _solve_all_in(tree: Path, poses: int, repeat: int) -> dict[str, dict[str, float]]:
+def _solve_all_in(tree: Path, poses: int, repeat: int, arms: list[str]) -> dict[str, dict[str, float]]:
     """:func:`solve_all_figures` of the singplan in ``tree``, in a fresh process."""
     import json
     import os
     import subprocess
 
-    argv = [sys.executable, __file__, "--solve-all-child", "--poses", str(poses), "--repeat", str(repeat)]
+    argv = [sys.executable, __file__, "--solve-all-child", "--poses", str(poses), "--repeat", str(repeat),
+            "--arms", *arms]
     done = subprocess.run(argv, env={**os.environ, "PYTHONPATH": str(tree)}, capture_output=True, text=True,
                           check=True)
     figures: dict[str, dict[str, float]] = json.loads(done.stdout.strip().splitlines()[-1])
     return figures
 
 
-def solve_all_table(trees: dict[str, Path], poses: int, repeat: int, baseline: Path | None) -> str:
+def solve_all_table(trees: dict[str, Path], poses: int, repeat: int, baseline: str | None,
+                    arms: list[str]) -> str:
+    import os
+
+    load_before = os.getloadavg()[0]
     results: dict[str, list[dict[str, dict[str, float]]]] = {label: [] for label in trees}
     for _ in range(2):  # two rounds, alternating the trees; the best of each
         for label, tree in trees.items():
-            results[label].append(_solve_all_in(tree, poses, repeat))
-    best = {label: {arm: {k: min(r[arm][k] for r in runs) for k in runs[0][arm]} for arm in SOLVE_ALL_ARMS}
+            results[label].append(_solve_all_in(tree, poses, repeat, arms))
+    load_after = os.getloadavg()[0]
+    best = {label: {arm: {k: min(r[arm][k] for r in runs) for k in runs[0][arm]} for arm in arms}
             for label, runs in results.items()}
     labels = list(trees)
     lines = [
         "### `solve_all` per pose (all branches and whole turns inside the limits, labelled)",
         "",
-        f"Machine: {machine()}; Python {platform.python_version()}, numpy {version('numpy')}, "
+        f"Machine: {machine()}, load average {load_before:.1f} before the run and {load_after:.1f} after; "
+        f"Python {platform.python_version()}, numpy {version('numpy')}, "
         f"numba {version('numba')}, pin {version('pin')}, py-opw-kinematics {version('py-opw-kinematics')}. "
         f"{poses} seeded random poses an arm; microseconds per pose, the best of {repeat} loops in each of two "
         "fresh processes per tree" + (f", `before` = {baseline}, measured alternately in the same run" if baseline
-                                      else "") + "; a shared, loaded machine: compare the ratios.",
+                                      else "") + "; a shared machine: compare the ratios.",
         "",
         "| arm | rows a pose | " + " | ".join(f"{lb} (no seed)" for lb in labels) + " | "
         + " | ".join(f"{lb} (seeded)" for lb in labels) + " | py-opw `inverse` (8 branches) |",
         "|---|---:|" + "---:|" * (2 * len(labels) + 1),
     ]
-    for arm in SOLVE_ALL_ARMS:
+    for arm in arms:
         robot = load_robot(arm)
         reference = "-"
         if robot.opw is not None:
@@ -289,6 +299,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="random poses per arm (--numeric: 30, --solve-all: 1000)")
     parser.add_argument("--solve-all", action="store_true", help="solve_all per pose, beside --baseline")
     parser.add_argument("--baseline", type=Path, default=None, help="a tree of an earlier singplan (--solve-all)")
+    parser.add_argument("--baseline-label", default=None, help="how the table names --baseline (default its path)")
+    parser.add_argument("--arms", nargs="+", default=list(SOLVE_ALL_ARMS), help="the arms of --solve-all")
     parser.add_argument("--solve-all-child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.numeric:
@@ -296,12 +308,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.solve_all_child:
         import json
 
-        sys.stdout.write(json.dumps(solve_all_figures(args.poses or 1000, args.repeat)) + "\n")
+        sys.stdout.write(json.dumps(solve_all_figures(args.poses or 1000, args.repeat, args.arms)) + "\n")
         return 0
     if args.solve_all:
         trees = {"before": args.baseline.resolve()} if args.baseline else {}
         trees["this"] = Path(__file__).resolve().parents[1]
-        text = solve_all_table(trees, args.poses or 1000, args.repeat, args.baseline)
+        label = args.baseline_label or (str(args.baseline) if args.baseline else None)
+        text = solve_all_table(trees, args.poses or 1000, args.repeat, label, args.arms)
         sys.stdout.write(text + "\n")
         if args.write:
             write_section(args.write, text, mark="bench_ik_solve_all")

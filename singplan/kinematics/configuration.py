@@ -320,16 +320,27 @@ def distances_batch(robot: Robot, q: np.ndarray) -> np.ndarray:
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if _unlabelled(robot):
         return np.full((len(q), 3), np.nan)
-    p = robot.opw
-    ur = robot.ur
     if reduced.is_reduced(robot):
         return reduced.distances_batch(robot, q)
-    if p is None and ur is not None:
-        return _ur_distances(np.ascontiguousarray(q), ur.l2, ur.l3, ur.d5)
-    if p is None:
+    if robot.opw is None and robot.ur is None:
         return np.array([_signed_distances(*_frames(robot, qk)) for qk in q]).reshape(-1, 3)
+    return _closed_form_distances(robot, q)
+
+
+def _closed_form_distances(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """:func:`distances_batch` of an OPW or UR arm's samples q (N, n)."""
+    p = robot.opw
+    if p is None:
+        ur = robot.ur
+        assert ur is not None
+        return _ur_distances(np.ascontiguousarray(q), ur.l2, ur.l3, ur.d5)
     return _opw_distances(np.ascontiguousarray(q), p.signs, p.offsets, p.a1, p.c2, math.hypot(p.a2, p.c3),
                           math.atan2(p.a2, p.c3))
+
+
+def _closed_form_labelled(robot: Robot) -> bool:
+    """Whether :func:`distances_batch` is a closed form (OPW, UR) rather than classify's own computation."""
+    return not (_unlabelled(robot) or reduced.is_reduced(robot)) and (robot.opw is not None or robot.ur is not None)
 
 
 @jit
@@ -358,11 +369,48 @@ def labels_batch(robot: Robot, q: np.ndarray) -> list[str]:
     q = np.atleast_2d(np.asarray(q, dtype=float))
     d = distances_batch(robot, q)
     labels = labels_from_distances(d)
-    if _unlabelled(robot) or reduced.is_reduced(robot) or (robot.opw is None and robot.ur is None):
+    if not _closed_form_labelled(robot):
         return labels  # distances_batch is classify's own computation, row by row
     for k in _near_sign_change(d, _LABEL_BOUNDARY):
         labels[k] = classify(robot, q[k]).label
     return labels
+
+
+# [m or rad]: how far the distances of a whole-turn variant of a row, moved by at most 1e-9 rad into
+# the limits (:mod:`singplan.kinematics.ik.turns`), can be from the row's own: the clip times the arm's
+# reach (under 1e-8 for any arm under 10 m) and round-off, with room to spare
+_VARIANT_SLACK = 1e-6
+
+
+def labels_of_variants(robot: Robot, rows: np.ndarray, origin: np.ndarray, q: np.ndarray) -> list[str]:
+    """:func:`labels_batch` of rows q (M, n) [rad], each a whole-turn variant of ``rows[origin]``
+    (``rows`` (B, n), ``origin`` (M,)) moved by at most 1e-9 rad into the joint limits.
+
+    The singular distances are periodic in every joint, so a variant's are its row's to round-off
+    and the clip: each of the B rows is labelled once, and only the rows of a branch within
+    :data:`_VARIANT_SLACK` of :func:`labels_batch`'s own margin of a sign change are labelled one
+    by one, as :func:`labels_batch` labels them (for a UR arm's 256 variants of 8 branches, 8 rows
+    to compute instead of 256).
+    """
+    if not _closed_form_labelled(robot):
+        return labels_batch(robot, q)
+    codes = _codes_off_sign_change(_closed_form_distances(robot, rows), LABEL_ZERO, _LABEL_BOUNDARY + _VARIANT_SLACK)
+    by_row = codes[origin]
+    labels: list[str] = _LABELS[by_row].tolist()
+    if -1 in codes.tolist():
+        near = np.flatnonzero(by_row < 0)
+        for k, label in zip(near.tolist(), labels_batch(robot, q[near]), strict=True):
+            labels[k] = label
+    return labels
+
+
+@jit
+def _codes_off_sign_change(d: np.ndarray, zero: float, margin: float) -> np.ndarray:
+    """:func:`_label_codes` of distance rows d (N, 3), -1 for the rows :func:`_near_sign_change` finds
+    within ``margin`` of a sign change."""
+    codes = _label_codes(d, zero)
+    codes[_near_sign_change(d, margin)] = -1
+    return codes
 
 
 @jit

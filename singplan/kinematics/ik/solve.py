@@ -33,7 +33,7 @@ from singplan.kinematics.angles import nearest_shifted, wrap_to_pi
 from singplan.kinematics.closedform import opw
 from singplan.kinematics.closedform.ur import arm_for_point as ur_arm_kernel
 from singplan.kinematics.closedform.ur import ur_batch
-from singplan.kinematics.configuration import LABEL_ZERO, classify, labels_batch
+from singplan.kinematics.configuration import LABEL_ZERO, classify, labels_batch, labels_of_variants
 from singplan.kinematics.ik import numeric as ik_numeric
 from singplan.kinematics.ik import turns
 from singplan.kinematics.robot import OpwParameters, Robot
@@ -149,10 +149,11 @@ def solve_all(robot: Robot, T_base_tcp: pin.SE3, seed: np.ndarray | None = None)
     turns are one solution, listed once (branches meet on a singular pose: the UR5 at q = 0 has
     two solver branches 360 deg apart in q2 and q4), as the variant nearest the seed.
     """
-    if robot.family in ("opw", "ur"):
-        rows, branches = _closed_form_candidates(robot, T_base_tcp, seed)
-    else:
-        rows, branches = _numeric_candidates(robot, T_base_tcp, seed)
+    if robot.family in ("opw", "ur"):  # the branches are the closed form's rows 0..7
+        rows = closed_form_branches(robot, T_base_tcp.homogeneous[None], None if seed is None else seed[None])[0]
+        q_all, branch = turns.variants_inside(rows, robot.lower_rad, robot.upper_rad, seed, LABEL_ZERO)
+        return IkSolutions(q=q_all, labels=tuple(labels_of_variants(robot, rows, branch, q_all)), branches=branch)
+    rows, branches = _numeric_candidates(robot, T_base_tcp, seed)
     q_all, branch = turns.inside_limits(rows, branches, robot.lower_rad, robot.upper_rad, seed, LABEL_ZERO)
     return IkSolutions(q=q_all, labels=tuple(labels_batch(robot, q_all)), branches=branch)
 
@@ -173,13 +174,6 @@ def closed_form_branches(robot: Robot, T_base_tcp: np.ndarray, seeds: np.ndarray
     if robot.ur is not None:
         return ur_batch(robot.ur, T_flange, seeds)
     return np.full((len(T_flange), 0, robot.n_joints), np.nan)
-
-
-def _closed_form_candidates(robot: Robot, T_base_tcp: pin.SE3,
-                            seed: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """The closed form's branches (B, n), NaN rows unreachable, and their numbers (B,)."""
-    sols = closed_form_branches(robot, T_base_tcp.homogeneous[None], None if seed is None else seed[None])[0]
-    return sols, np.arange(len(sols))
 
 
 def _numeric_candidates(robot: Robot, T_base_tcp: pin.SE3,

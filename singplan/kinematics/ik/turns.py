@@ -19,6 +19,9 @@ from singplan.kinematics.compiled import jit
 _EDGE = 1e-12  # in turns: a variant this close outside a limit still counts as inside
 _NEAREST_SLACK = 1e-9  # [rad]: the seeded variant may be this far outside a limit (then clipped)
 _SAME_ABS, _SAME_REL = 1e-9, 1e-5  # rows within np.allclose(atol=1e-9) (rtol 1e-5) of an earlier one repeat it
+# [rad]: more than a seeded variant's clip (_NEAREST_SLACK) and the round-off of a whole-turn shift
+# (a few 1e-15 rad) can move two rows' difference
+_APART_PAD = 1e-8
 
 
 def inside_limits(rows: np.ndarray, branches: np.ndarray, lower: np.ndarray, upper: np.ndarray,
@@ -36,11 +39,18 @@ def inside_limits(rows: np.ndarray, branches: np.ndarray, lower: np.ndarray, upp
 
     Returns: joint values (M, n) and the ``branches`` (B,) entry each came from (M,).
     """
-    rows = np.ascontiguousarray(rows, dtype=float).reshape(len(branches), len(lower))
+    q, origin = variants_inside(np.asarray(rows).reshape(len(branches), len(lower)), lower, upper, seed, same_rad)
+    return q, np.asarray(branches)[origin]
+
+
+def variants_inside(rows: np.ndarray, lower: np.ndarray, upper: np.ndarray, seed: np.ndarray | None,
+                    same_rad: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`inside_limits` of rows (B, n) numbered 0..B-1: joint values (M, n) and the row each came from (M,)."""
+    rows = np.ascontiguousarray(rows, dtype=float)
     lo, hi = np.ascontiguousarray(lower, dtype=float), np.ascontiguousarray(upper, dtype=float)
     nearest = np.ascontiguousarray(seed if seed is not None else lo, dtype=float)
     q, origin = _inside(rows, lo, hi, nearest, seed is not None, same_rad)
-    return q, np.asarray(branches)[origin]
+    return q, origin
 
 
 @jit
@@ -49,13 +59,56 @@ def _inside(rows: np.ndarray, lower: np.ndarray, upper: np.ndarray, seed: np.nda
     """:func:`inside_limits` in one call (each compiled call's arrays cost microseconds to hand back)."""
     if seeded:
         q, origin, count = _nearest_variants(rows, lower, upper, seed)
-        keep = _distinct(q[:count])
+        q, origin = q[:count], origin[:count]
+        if _branches_apart(rows, q, max(_largest_gap(q), same_rad)):
+            return q.copy(), origin.copy()
+        keep = _distinct(q)
         q, origin = q[keep], origin[keep]
         keep = _distinct_turns(q, seed, same_rad)
     else:
         q, origin = _all_variants(rows, lower, upper)
+        if _branches_apart(rows, q, _largest_gap(q)):
+            return q, origin
         keep = _distinct(q)
     return q[keep], origin[keep]
+
+
+@jit
+def _largest_gap(q: np.ndarray) -> float:  # pragma: no cover - compiled
+    """The widest gap (rad) two joint values of rows q (M, n) may have and still repeat one another."""
+    largest = 0.0
+    for value in q.flat:
+        largest = max(largest, abs(value))
+    return _SAME_ABS + _SAME_REL * largest
+
+
+@jit
+def _branches_apart(rows: np.ndarray, q: np.ndarray, gap: float) -> bool:  # pragma: no cover - compiled
+    """Whether no two rows of q (M, n), each a whole-turn variant of a row of ``rows`` (B, n) moved
+    by at most :data:`_NEAREST_SLACK` into the limits, can be within ``gap`` of each other in every
+    joint (neither within allclose, nor equal up to whole turns within ``gap``): true when every two
+    finite ``rows`` are further than ``gap`` apart, up to whole turns, in some joint (then so are
+    all their variants: a variant's joint differs from its row's by whole turns, the clip and
+    round-off, which :data:`_APART_PAD` covers), and ``gap`` is well under a turn (two variants of
+    one row differ by whole turns in some joint). The common case: the repeat searches are skipped.
+    """
+    if not gap < 1.0:
+        return False
+    b, n = rows.shape
+    for r in range(b):
+        if not _finite(rows[r]):
+            continue
+        for e in range(r):
+            if not _finite(rows[e]):
+                continue
+            near = True
+            for j in range(n):
+                if abs(wrap(rows[r, j] - rows[e, j])) > gap + _APART_PAD:
+                    near = False
+                    break
+            if near:
+                return False
+    return True
 
 
 @jit
@@ -94,15 +147,24 @@ def _all_variants(rows: np.ndarray, lower: np.ndarray, upper: np.ndarray
             products[r] *= count[r, j]
     out = np.empty((np.sum(products), n))
     origin = np.empty(len(out), dtype=np.int64)
+    turn = np.empty(n, dtype=np.int64)
     m = 0
     for r in range(b):
-        for t in range(products[r]):
-            rest = t
-            for j in range(n - 1, -1, -1):  # the last joint fastest, as itertools.product
-                out[m, j] = rows[r, j] + TWO_PI * (first[r, j] + rest % count[r, j])
-                rest //= count[r, j]
+        if products[r] == 0:
+            continue
+        turn[:] = 0
+        for _ in range(products[r]):
+            for j in range(n):
+                out[m, j] = rows[r, j] + TWO_PI * (first[r, j] + turn[j])
             origin[m] = r
             m += 1
+            j = n - 1  # the next turns, the last joint fastest, as itertools.product
+            while j >= 0:
+                turn[j] += 1
+                if turn[j] < count[r, j]:
+                    break
+                turn[j] = 0
+                j -= 1
     return out, origin
 
 

@@ -35,7 +35,7 @@ from singplan.planning.orchestration.chain import chain_limits, chain_map, chain
 from singplan.planning.orchestration.checks import check_config, check_samples, screen
 from singplan.planning.orchestration.move_plan import MoveTracking, plan_move
 from singplan.planning.orchestration.records import PlannedMove
-from singplan.planning.orchestration.select import Candidate, Rank, Refused, best_of
+from singplan.planning.orchestration.select import Candidate, Rank, Refused, best_of, forget_tracebacks
 from singplan.planning.orchestration.stops import stops, time_in_pieces
 from singplan.planning.orchestration.targets import move_limits, ptp_targets, task_arm
 from singplan.planning.path.cartesian import STEP_M, STEP_RAD
@@ -252,8 +252,10 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
     """Plan each method's joint map, then time and check the candidates that can still win;
     :func:`select.best_of` keeps the fastest. ``q_target``: a PTP's end joints (default: the preferred)."""
     candidates = _MoveCandidates(robot, task, i, move, T, q, len(methods), max_samples, place, q_target)
-    return best_of(robot, i, move.kind, methods, candidates.prepare, candidates.finish,
+    best = best_of(robot, i, move.kind, methods, candidates.prepare, candidates.finish,
                    task.singularity.deviation_cost_percent / 100.0)
+    forget_tracebacks(outcome for _, outcome in candidates.outcomes if isinstance(outcome, Exception))
+    return best
 
 
 def _best_end(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
@@ -292,6 +294,7 @@ def _best_end(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nd
                 continue
         refused.append((target, error))
     if best is not None:
+        forget_tracebacks(error for _, error in refused)  # listed by their messages, never raised now
         return best
     pm, tm = _best_of(robot, task, i, move, T, q, methods, max_samples, place, targets[0])
     reasons = "; ".join(f"{classify(robot, target).label}: {_reason(error)}" for target, error in refused)

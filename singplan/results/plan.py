@@ -64,7 +64,7 @@ def planned_trajectory(task: Task | str | Path, method: str | CrossingMethod | N
 def trajectory_of(planned: PlannedTask) -> Trajectory:
     """The trajectory record of planned moves, checked against the limits and for collisions sample by sample."""
     moves, timed = list(planned.moves), list(planned.timed)
-    traj = build_trajectory(planned.robot, planned.task, planned.method, moves, timed, planned.planning_s,
+    traj = build_trajectory(planned.robot, planned.task, planned.method, moves, timed, planned.q, planned.planning_s,
                             planned.held, planned.blends, _clearance(planned))
     _check_metrics(planned.full, planned.task, moves, timed, traj)
     return traj
@@ -77,9 +77,8 @@ def _clearance(planned: PlannedTask) -> tuple[CollisionModel, Clearance] | None:
     if not model.active and not model.notes and planned.task.collision is None:
         return None
     ends = np.cumsum([0] + [len(tm.q) - 1 for tm in planned.timed])
-    q = np.concatenate([planned.timed[0].q] + [tm.q[1:] for tm in planned.timed[1:]])
     spans = [(int(a), int(b)) for a, b in itertools.pairwise(ends)]
-    return model, check_trajectory(model, q, spans, [pm.kind for pm in planned.moves], planned.task.period_s)
+    return model, check_trajectory(model, planned.q, spans, [pm.kind for pm in planned.moves], planned.task.period_s)
 
 
 def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: list[TimedMove],

@@ -60,6 +60,7 @@ class PlannedTask:
     held: HeldJoint | None
     moves: tuple[PlannedMove, ...]
     timed: tuple[TimedMove, ...]  # moves joined by fly-by corners were timed together, then split
+    q: np.ndarray  # (K, n) every move's samples in one array, a shared boundary sample once; each ``timed`` q a view
     planning_s: float  # wall time from the call to the last move timed
     collision: CollisionModel  # the bodies and pairs checked (``robot``'s)
     blends: tuple[Blend, ...] = ()  # every corner that asked for a fly-by, with the radius it got
@@ -108,9 +109,28 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
             progress(i + 1, len(task.moves))
     timed, blends = _fly_by(robot, planned, timed, [m.blend_mm / 1e3 for m in arm_task.moves], task.period_s,
                             allowance, arm.collision)
+    q_all, planned, timed = _stitched(planned, timed)
     return PlannedTask(task, task.singularity.method if chosen is None else chosen.name,
-                       arm.full, robot, arm.held, tuple(planned), tuple(timed), time.perf_counter() - started,
+                       arm.full, robot, arm.held, tuple(planned), tuple(timed), q_all, time.perf_counter() - started,
                        arm.collision, tuple(blends.values()))
+
+
+def _stitched(planned: list[PlannedMove], timed: list[TimedMove]
+              ) -> tuple[np.ndarray, list[PlannedMove], list[TimedMove]]:
+    """Every move's samples in one array (K, n) (a move starts at the sample its predecessor ends at),
+    and the moves with their samples (and the samples their deviations were measured on) as views of
+    it: a long program's samples held once, by the trajectory record, not again move by move. The
+    deviations of samples a fly-by timed again are dropped (the record measures those itself)."""
+    q_all = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
+    moves, samples = [], []
+    k0 = 0
+    for pm, tm in zip(planned, timed, strict=True):
+        view = q_all[k0:k0 + len(tm.q)]
+        measured = pm.deviations.of(tm.u, tm.q) if pm.deviations is not None else None
+        moves.append(replace(pm, deviations=None if measured is None else replace(measured, q=view)))
+        samples.append(replace(tm, q=view))
+        k0 += len(tm.q) - 1
+    return q_all, moves, samples
 
 
 def _fly_by(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], requested_m: list[float],

@@ -119,8 +119,11 @@ def _stitched(planned: list[PlannedMove], timed: list[TimedMove]
               ) -> tuple[np.ndarray, list[PlannedMove], list[TimedMove]]:
     """Every move's samples in one array (K, n) (a move starts at the sample its predecessor ends at),
     and the moves with their samples (and the samples their deviations were measured on) as views of
-    it: a long program's samples held once, by the trajectory record, not again move by move. The
-    deviations of samples a fly-by timed again are dropped (the record measures those itself)."""
+    it: a long program's samples held once, by the trajectory record, not again move by move.
+
+    A LIN / CIRC whose samples a fly-by timed again keeps its own array: the record measures its
+    deviations on it, and numpy's kernels may round differently on a view at another memory
+    alignment (the figures must stay those of the samples as timed). Its old deviations are dropped."""
     q_all = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
     moves, samples = [], []
     k0 = 0
@@ -128,7 +131,7 @@ def _stitched(planned: list[PlannedMove], timed: list[TimedMove]
         view = q_all[k0:k0 + len(tm.q)]
         measured = pm.deviations.of(tm.u, tm.q) if pm.deviations is not None else None
         moves.append(replace(pm, deviations=None if measured is None else replace(measured, q=view)))
-        samples.append(replace(tm, q=view))
+        samples.append(replace(tm, q=view) if measured is not None or pm.piece is None else tm)
         k0 += len(tm.q) - 1
     return q_all, moves, samples
 

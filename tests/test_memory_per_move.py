@@ -20,20 +20,21 @@ import pytest
 
 from singplan.kinematics import clearance, dynamics, stopping
 from singplan.kinematics.robot import load_robot
-from singplan.planning.orchestration.planner import plan_moves
+from singplan.planning.orchestration.planner import PlannedTask, plan_moves
 from singplan.results import build
-from singplan.results.plan import trajectory_of
+from singplan.results import plan as plan_module
 from singplan.task.load import parse_task
 from singplan.task.schema import Task
 
 START_DEG = [34.466047735, -69.193961827, 100.109975431, 68.691762951, -14.064499937, -11.872434380]
 ACROSS = {"xyz": [0.703837, -0.107362, 0.658022], "rpy_deg": [-121.329770, 35.631042, -129.525465]}
 # What the plan may hold beyond its record per move, at its peak [bytes]. Measured on this program
-# (313 samples a move): about 40 kB (the planned moves kept until the record is built: their joint
-# maps, the samples' path parameters and deviations); at commit 6c7c391 about 250 kB (each move's
+# (313 samples a move): about 14 kB (the samples' path parameters the final gate's messages use, a
+# few int64 and bool temporaries of the whole trajectory); with the planned moves' joint maps and
+# deviations kept until the record is built, about 40 kB; at commit 6c7c391 about 250 kB (each move's
 # samples copied again, whole-trajectory temporaries, the refused candidates' errors holding their
 # frames until the cyclic collector ran).
-PER_MOVE_BYTES = 80_000
+PER_MOVE_BYTES = 30_000
 
 
 def _program(moves: int) -> Task:
@@ -48,19 +49,21 @@ def _program(moves: int) -> Task:
         "limits": {"acceleration": 10.0}, "output": {"period": 0.004}})
 
 
-def _over_record(moves: int) -> int:
-    """The traced peak of building the record from the planned moves (planning's own peak, loading the
-    robot, is the same for any program), over the record itself (what is left once the planned moves
-    are dropped) [bytes]."""
+def _over_record(moves: int, monkeypatch: pytest.MonkeyPatch) -> int:
+    """The traced peak of :func:`singplan.results.plan.plan` once the moves are planned (planning's own
+    peak, loading the task's robot, is the same for any program) over the record it returns [bytes]."""
+    def planned_moves(*args: Any) -> PlannedTask:
+        planned = plan_moves(*args)
+        tracemalloc.reset_peak()  # from here: the record built from the planned moves
+        return planned
+
+    monkeypatch.setattr(plan_module, "plan_moves", planned_moves)
     task = _program(moves)
     gc.collect()
     tracemalloc.start()
     try:
-        planned = plan_moves(task)
-        tracemalloc.reset_peak()
-        traj = trajectory_of(planned)
+        traj = plan_module.plan(task)
         peak = tracemalloc.get_traced_memory()[1]
-        del planned
         gc.collect()
         record = tracemalloc.get_traced_memory()[0]
     finally:
@@ -78,9 +81,10 @@ def small_chunks(monkeypatch: pytest.MonkeyPatch) -> None:
         monkeypatch.setattr(module, name, value)
 
 
-def test_what_a_plan_needs_beyond_its_record_grows_little_per_move(small_chunks: None) -> None:
-    over_small = _over_record(8)
-    over_large = _over_record(32)
+def test_what_a_plan_needs_beyond_its_record_grows_little_per_move(small_chunks: None,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    over_small = _over_record(8, monkeypatch)
+    over_large = _over_record(32, monkeypatch)
     per_move = (over_large - over_small) / 24
     assert per_move < PER_MOVE_BYTES, (f"the peak over the record grows {per_move / 1e3:.1f} kB a move "
                                        f"({over_small / 1e6:.1f} MB at 8 moves, {over_large / 1e6:.1f} MB at 32)")

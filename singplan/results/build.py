@@ -81,6 +81,9 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     so samples, limits and torques are the 7-joint arm's. ``blends``: the corners that asked for
     a fly-by; a flown one is its incoming move's ``blend`` segment, and every one is reported.
     ``collision``: the bodies checked and the check of these samples (one span per move).
+    ``planned`` is consumed: after its pass each move is replaced by :meth:`PlannedMove.for_messages`
+    (what the final gate's messages need of it), so that where nothing else holds them the moves'
+    joint maps and deviations are freed as the record is built, not after it.
     ``q_planned`` (K, n): the moves' samples stitched (:class:`~singplan.planning.orchestration.planner.PlannedTask`'s
     ``q``), the record's own samples unless a joint is held.
     """
@@ -109,6 +112,7 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
         events.extend(_move_events(pm, tm, k0, k1, t, labels, spans))
         crossings.extend(CrossingReport(s.move, s.t0, s.t1, s.singularity, s.method, s.config_before, s.config_after,
                                         s.details) for s in segs if isinstance(s.details, CrossingFigures))
+        planned[i] = pm.for_messages()
         k0 = k1
     arm, q = (held.full, held.expand(q_planned)) if held is not None else (robot, q_planned)
     acceleration_rad_s2 = task.limits.joint_accelerations(arm.n_joints)  # (n,) the task's, every joint of the arm

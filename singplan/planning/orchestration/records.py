@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -46,6 +46,16 @@ class PlannedMove:
     variant: str = ""  # e.g. the wrist-joint blend window
     alternatives: tuple[Alternative, ...] = ()  # what auto compared, fastest first
     deviations: SampleDeviations | None = None  # of the samples the move was checked on (LIN / CIRC)
+
+    def for_messages(self) -> PlannedMove:
+        """The move as the trajectory's final gate still needs it once the record has its samples'
+        figures: index, kind, limits, and where a point of it is (:meth:`describe`). A LIN / CIRC gives
+        up its joint map's parts, its zones, crossings and deviations (it is described by its piece):
+        a long program's record is built a move at a time and these are freed as it goes."""
+        if self.piece is None:
+            return replace(self, deviations=None)  # a PTP is described by its joint map (its two ends)
+        return replace(self, jmap=JointMap(self.jmap.robot, self.jmap.poses, []), zones=(), crossings=(),
+                       deviations=None)
 
     def describe(self, u: float) -> str:
         """A point of the move for messages: the path point of a LIN / CIRC, the fraction and joints of a PTP."""

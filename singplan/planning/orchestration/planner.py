@@ -92,6 +92,8 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     planned: list[PlannedMove] = []
     timed: list[TimedMove] = []
     left = allowance - 1  # output samples the remaining moves may add (they share their boundary samples)
+    flies = any(m.blend_mm > 0 for m in arm_task.moves[:-1])  # a corner asks for a fly-by: _fly_by evaluates the maps
+    store = _SampleStore(robot.n_joints)
     for i, move in enumerate(task.moves):
         methods = registry.candidates(task.singularity.method, move) if chosen is None else [chosen]
         place = _Place(arm.collision, allowance - 1 - left)
@@ -101,10 +103,11 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
             pm, tm = _best_of(robot, arm_task, i, arm_task.moves[i], T, q, methods, left, place)
         left -= len(tm.q) - 1
         pm.jmap.release()  # its timing is done: a fly-by or a message that evaluates it makes them again
-        planned.append(pm)
-        timed.append(tm)
         q = tm.q[-1]
         T = pm.piece.T_end if pm.piece is not None else robot.fk(q)
+        pm, tm = store.kept(pm if flies else pm.without_joint_map(), tm)
+        planned.append(pm)
+        timed.append(tm)
         if progress is not None:
             progress(i + 1, len(task.moves))
     timed, blends = _fly_by(robot, planned, timed, [m.blend_mm / 1e3 for m in arm_task.moves], task.period_s,
@@ -113,6 +116,31 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     return PlannedTask(task, task.singularity.method if chosen is None else chosen.name,
                        arm.full, robot, arm.held, tuple(planned), tuple(timed), q_all, time.perf_counter() - started,
                        arm.collision, tuple(blends.values()))
+
+
+_BLOCK_ROWS = 65_536  # samples of the moves kept in one block while they are planned (3 MB for six joints)
+
+
+class _SampleStore:
+    """The chosen moves' samples, copied into blocks of rows as the moves are planned, so that a long
+    program keeps no array of its own per move: the heap would keep their room after they are stitched
+    (:func:`_stitched`), and the record's arrays come on top of it; a block is given back whole."""
+
+    def __init__(self, n: int) -> None:
+        self.block = np.empty((0, n))  # (rows, n), the block being filled
+        self.used = 0  # its rows taken
+
+    def kept(self, pm: PlannedMove, tm: TimedMove) -> tuple[PlannedMove, TimedMove]:
+        """The move with its samples (and those its deviations were measured on, the same array) a
+        view of their copy in a block."""
+        if self.used + len(tm.q) > len(self.block):
+            self.block, self.used = np.empty((max(_BLOCK_ROWS, len(tm.q)), self.block.shape[1])), 0
+        view = self.block[self.used:self.used + len(tm.q)]
+        view[...] = tm.q
+        self.used += len(tm.q)
+        if pm.deviations is not None and pm.deviations.q is tm.q:
+            pm = replace(pm, deviations=replace(pm.deviations, q=view))
+        return pm, replace(tm, q=view)
 
 
 def _stitched(planned: list[PlannedMove], timed: list[TimedMove]

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import gc
 import tracemalloc
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -35,6 +35,10 @@ ACROSS = {"xyz": [0.703837, -0.107362, 0.658022], "rpy_deg": [-121.329770, 35.63
 # samples copied again, whole-trajectory temporaries, the refused candidates' errors holding their
 # frames until the cyclic collector ran).
 PER_MOVE_BYTES = 30_000
+# What the planned task keeps per move beyond its samples [bytes]: about 25 kB (the samples' path
+# parameters and deviations, zones, crossings, alternatives, pieces); with every LIN's joint map
+# kept, about 40 kB.
+KEPT_PER_MOVE_BYTES = 32_000
 
 
 def _program(moves: int) -> Task:
@@ -49,11 +53,19 @@ def _program(moves: int) -> Task:
         "limits": {"acceleration": 10.0}, "output": {"period": 0.004}})
 
 
-def _over_record(moves: int, monkeypatch: pytest.MonkeyPatch) -> int:
-    """The traced peak of :func:`singplan.results.plan.plan` once the moves are planned (planning's own
-    peak, loading the task's robot, is the same for any program) over the record it returns [bytes]."""
+class Measured(NamedTuple):
+    over_record: int  # the traced peak of plan() once the moves are planned, over the record it returns [bytes]
+    kept: int  # what the planned task holds beyond its samples (PlannedTask.q) [bytes]
+
+
+def _measured(moves: int, monkeypatch: pytest.MonkeyPatch) -> Measured:
+    """:func:`singplan.results.plan.plan` traced; its peak counted from the moves planned (planning's
+    own peak, loading the task's robot, is the same for any program)."""
+    kept: list[int] = []
+
     def planned_moves(*args: Any) -> PlannedTask:
         planned = plan_moves(*args)
+        kept.append(tracemalloc.get_traced_memory()[0] - base - planned.q.nbytes)
         tracemalloc.reset_peak()  # from here: the record built from the planned moves
         return planned
 
@@ -62,6 +74,7 @@ def _over_record(moves: int, monkeypatch: pytest.MonkeyPatch) -> int:
     gc.collect()
     tracemalloc.start()
     try:
+        base = tracemalloc.get_traced_memory()[0]
         traj = plan_module.plan(task)
         peak = tracemalloc.get_traced_memory()[1]
         gc.collect()
@@ -69,7 +82,7 @@ def _over_record(moves: int, monkeypatch: pytest.MonkeyPatch) -> int:
     finally:
         tracemalloc.stop()
     assert len(traj.moves) == moves
-    return peak - record
+    return Measured(peak - record, kept[0])
 
 
 @pytest.fixture
@@ -83,11 +96,14 @@ def small_chunks(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_what_a_plan_needs_beyond_its_record_grows_little_per_move(small_chunks: None,
                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
-    over_small = _over_record(8, monkeypatch)
-    over_large = _over_record(32, monkeypatch)
-    per_move = (over_large - over_small) / 24
+    plan_module.plan(_program(2))  # caches filled once (robot, kernels)
+    small, large = _measured(6, monkeypatch), _measured(24, monkeypatch)
+    per_move = (large.over_record - small.over_record) / 18
     assert per_move < PER_MOVE_BYTES, (f"the peak over the record grows {per_move / 1e3:.1f} kB a move "
-                                       f"({over_small / 1e6:.1f} MB at 8 moves, {over_large / 1e6:.1f} MB at 32)")
+                                       f"({small.over_record / 1e6:.1f} MB at 6 moves, "
+                                       f"{large.over_record / 1e6:.1f} MB at 24)")
+    kept_per_move = (large.kept - small.kept) / 18
+    assert kept_per_move < KEPT_PER_MOVE_BYTES, f"the planned moves keep {kept_per_move / 1e3:.1f} kB each"
 
 
 def test_planning_leaves_no_cycles_holding_a_moves_candidates() -> None:

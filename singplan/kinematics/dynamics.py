@@ -31,6 +31,7 @@ logger = logging.getLogger(__name__)
 NO_DYNAMICS_MARK = "singplan: no published dynamics"  # robots/generate_urdfs.py writes it
 _HEADER_BYTES = 8192  # the generator's header comes first in the file
 _CHUNK = 65_536  # samples whose velocities and accelerations are formed at once (~100 bytes each)
+_DIFFERENCES_CHUNK = 16_384  # ... and for the trajectory's own qd, qdd (~400 bytes of temporaries each)
 
 
 def no_dynamics_reason(robot: Robot) -> str | None:
@@ -135,8 +136,8 @@ def central_differences(q: np.ndarray, period_s: float) -> tuple[np.ndarray, np.
     """Velocities [rad/s] and accelerations [rad/s^2] (K, n) of samples q (K, n): :func:`span_differences`
     of all samples, written into whole arrays a chunk at a time (its temporaries stay bounded)."""
     qd, qdd = np.empty(q.shape), np.empty(q.shape)
-    for c in range(0, len(q), _CHUNK):
-        end = min(c + _CHUNK, len(q))
+    for c in range(0, len(q), _DIFFERENCES_CHUNK):
+        end = min(c + _DIFFERENCES_CHUNK, len(q))
         qd[c:end], qdd[c:end] = span_differences(q, period_s, c, end)
     return qd, qdd
 

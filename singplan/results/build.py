@@ -72,7 +72,7 @@ def sample_time(k: int, period_s: float) -> float:
 
 
 def build_trajectory(robot: Robot, task: Task, method: str, planned: list[PlannedMove], timed: list[TimedMove],
-                     planning_time_s: float, held: HeldJoint | None = None,
+                     q_planned: np.ndarray, planning_time_s: float, held: HeldJoint | None = None,
                      blends: tuple[Blend, ...] = (), collision: tuple[CollisionModel, Clearance] | None = None
                      ) -> Trajectory:
     """The trajectory of the planned moves of ``robot`` (``method``: the crossing method asked for).
@@ -81,9 +81,13 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     so samples, limits and torques are the 7-joint arm's. ``blends``: the corners that asked for
     a fly-by; a flown one is its incoming move's ``blend`` segment, and every one is reported.
     ``collision``: the bodies checked and the check of these samples (one span per move).
+    ``planned`` is consumed: after its pass each move is replaced by :meth:`PlannedMove.for_messages`
+    (what the final gate's messages need of it), so that where nothing else holds them the moves'
+    joint maps and deviations are freed as the record is built, not after it.
+    ``q_planned`` (K, n): the moves' samples stitched (:class:`~singplan.planning.orchestration.planner.PlannedTask`'s
+    ``q``), the record's own samples unless a joint is held.
     """
     period = task.period_s
-    q_planned = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
     t = sample_times(len(q_planned), period)
     distances = distances_batch(robot, q_planned)  # (K, 3): the labels of the chain that was planned
     labels = _Labels(distances)
@@ -92,14 +96,14 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     crossings: list[CrossingReport] = []
     worst_pos, worst_ori = 0.0, 0.0
     k0 = 0
-    pos_all, ori_all, tcp_all = [np.zeros(1)], [np.zeros(1)], [np.zeros(1)]
+    # (K,) each sample's deviations, and the TCP speed over the programmed one of the step arriving at it
+    position_error, orientation_error, tcp_ratio = np.zeros(len(t)), np.zeros(len(t)), np.zeros(len(t))
     flown = {b.move: b for b in blends if b.jmap is not None}
     for i, (pm, tm) in enumerate(zip(planned, timed, strict=True)):
         k1 = k0 + len(tm.q) - 1
         pos_err, ori_err, tcp = _deviations(robot, pm, tm, period, planned[i + 1] if i + 1 < len(planned) else None)
-        pos_all.append(pos_err[1:])
-        ori_all.append(ori_err[1:])
-        tcp_all.append(tcp)
+        position_error[k0 + 1:k1 + 1], orientation_error[k0 + 1:k1 + 1] = pos_err[1:], ori_err[1:]
+        tcp_ratio[k0 + 1:k1 + 1] = tcp
         worst_pos = max(worst_pos, float(pos_err.max(initial=0.0)))
         worst_ori = max(worst_ori, float(ori_err.max(initial=0.0)))
         spans = _own_spans(pm, tm, k1 - k0)  # once for the move's segments and its zone events
@@ -108,6 +112,7 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
         events.extend(_move_events(pm, tm, k0, k1, t, labels, spans))
         crossings.extend(CrossingReport(s.move, s.t0, s.t1, s.singularity, s.method, s.config_before, s.config_after,
                                         s.details) for s in segs if isinstance(s.details, CrossingFigures))
+        planned[i] = pm.for_messages()
         k0 = k1
     arm, q = (held.full, held.expand(q_planned)) if held is not None else (robot, q_planned)
     acceleration_rad_s2 = task.limits.joint_accelerations(arm.n_joints)  # (n,) the task's, every joint of the arm
@@ -115,14 +120,13 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
     qd, qdd = central_differences(q, period)
     stopping_m = stopping_distances(arm, q, qd, acceleration_rad_s2)
     stop_mm, stop_at_s = worst_stopping(stopping_m, t)
-    tcp_ratio = np.concatenate(tcp_all)  # (K,) the TCP speed over the programmed one, of the step arriving at k
     metrics = Metrics(worst_pos * 1e3, math.degrees(worst_ori), speed, accel, float(t[-1]), planning_time_s, len(t),
                       method, tuple(crossings), _torque_metrics(arm, task, q, t), stop_mm, stop_at_s,
                       _jerk_metrics(arm, task, q, timed), _blend_reports(blends),
                       _clearance_figures(*collision, period) if collision is not None else None,
                       float(tcp_ratio.max(initial=0.0)))
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
-    samples = {"position_error_m": np.concatenate(pos_all), "orientation_error_rad": np.concatenate(ori_all),
+    samples = {"position_error_m": position_error, "orientation_error_rad": orientation_error,
                "stopping_distance_m": stopping_m, "tcp_speed_ratio": tcp_ratio}
     if not np.isnan(distances).all():  # an arm without labels (7 joints) has no singular distances to store
         samples["distances"] = distances
@@ -161,7 +165,7 @@ def _clearance_figures(model: CollisionModel, found: Clearance, period: float) -
         model.notes, found.distance_calls)
 
 
-_CHUNK = 65_536  # samples whose ratios are formed at once
+_CHUNK = 16_384  # samples whose ratios are formed at once (~600 bytes of temporaries each)
 
 
 def _jerk_metrics(robot: Robot, task: Task, q: np.ndarray, timed: list[TimedMove]) -> JerkFigures | None:

@@ -57,16 +57,29 @@ class PlannedTrajectory(NamedTuple):
 def planned_trajectory(task: Task | str | Path, method: str | CrossingMethod | None = None,
                        progress: Progress | None = None) -> PlannedTrajectory:
     """As :func:`plan`, with the robot the plan loaded (the pages are built on it, not loaded again)."""
-    planned = plan_moves(task, method, progress)
-    return PlannedTrajectory(trajectory_of(planned), planned.full)
+    handover = [plan_moves(task, method, progress)]
+    robot = handover[0].full
+    return PlannedTrajectory(_record_of(handover), robot)
 
 
 def trajectory_of(planned: PlannedTask) -> Trajectory:
     """The trajectory record of planned moves, checked against the limits and for collisions sample by sample."""
+    return _record_of([planned])
+
+
+def _record_of(handover: list[PlannedTask]) -> Trajectory:
+    """:func:`trajectory_of` of the planned task taken out of ``handover``: where nothing else holds it,
+    each move's joint map and deviations are freed as the record is built (:func:`build_trajectory`)
+    and a long program's peak memory is the record's, not the record's and every planned move's."""
+    planned = handover.pop()
     moves, timed = list(planned.moves), list(planned.timed)
-    traj = build_trajectory(planned.robot, planned.task, planned.method, moves, timed, planned.planning_s,
-                            planned.held, planned.blends, _clearance(planned))
-    _check_metrics(planned.full, planned.task, moves, timed, traj)
+    collision = _clearance(planned)
+    robot, full, task, method, q, planning_s, held, blends = (planned.robot, planned.full, planned.task,
+                                                              planned.method, planned.q, planned.planning_s,
+                                                              planned.held, planned.blends)
+    del planned  # the moves are the lists' alone now
+    traj = build_trajectory(robot, task, method, moves, timed, q, planning_s, held, blends, collision)
+    _check_metrics(full, task, moves, timed, traj)
     return traj
 
 
@@ -77,9 +90,8 @@ def _clearance(planned: PlannedTask) -> tuple[CollisionModel, Clearance] | None:
     if not model.active and not model.notes and planned.task.collision is None:
         return None
     ends = np.cumsum([0] + [len(tm.q) - 1 for tm in planned.timed])
-    q = np.concatenate([planned.timed[0].q] + [tm.q[1:] for tm in planned.timed[1:]])
     spans = [(int(a), int(b)) for a, b in itertools.pairwise(ends)]
-    return model, check_trajectory(model, q, spans, [pm.kind for pm in planned.moves], planned.task.period_s)
+    return model, check_trajectory(model, planned.q, spans, [pm.kind for pm in planned.moves], planned.task.period_s)
 
 
 def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: list[TimedMove],

@@ -35,7 +35,7 @@ from singplan.planning.orchestration.chain import chain_limits, chain_map, chain
 from singplan.planning.orchestration.checks import check_config, check_samples, screen
 from singplan.planning.orchestration.move_plan import MoveTracking, plan_move
 from singplan.planning.orchestration.records import PlannedMove
-from singplan.planning.orchestration.select import Candidate, Rank, Refused, best_of
+from singplan.planning.orchestration.select import Candidate, Rank, Refused, best_of, forget_tracebacks
 from singplan.planning.orchestration.stops import stops, time_in_pieces
 from singplan.planning.orchestration.targets import move_limits, ptp_targets, task_arm
 from singplan.planning.path.cartesian import STEP_M, STEP_RAD
@@ -60,6 +60,7 @@ class PlannedTask:
     held: HeldJoint | None
     moves: tuple[PlannedMove, ...]
     timed: tuple[TimedMove, ...]  # moves joined by fly-by corners were timed together, then split
+    q: np.ndarray  # (K, n) every move's samples in one array, a shared boundary sample once; each ``timed`` q a view
     planning_s: float  # wall time from the call to the last move timed
     collision: CollisionModel  # the bodies and pairs checked (``robot``'s)
     blends: tuple[Blend, ...] = ()  # every corner that asked for a fly-by, with the radius it got
@@ -91,6 +92,8 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     planned: list[PlannedMove] = []
     timed: list[TimedMove] = []
     left = allowance - 1  # output samples the remaining moves may add (they share their boundary samples)
+    flies = any(m.blend_mm > 0 for m in arm_task.moves[:-1])  # a corner asks for a fly-by: _fly_by evaluates the maps
+    store = _SampleStore(robot.n_joints)
     for i, move in enumerate(task.moves):
         methods = registry.candidates(task.singularity.method, move) if chosen is None else [chosen]
         place = _Place(arm.collision, allowance - 1 - left)
@@ -100,17 +103,65 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
             pm, tm = _best_of(robot, arm_task, i, arm_task.moves[i], T, q, methods, left, place)
         left -= len(tm.q) - 1
         pm.jmap.release()  # its timing is done: a fly-by or a message that evaluates it makes them again
-        planned.append(pm)
-        timed.append(tm)
         q = tm.q[-1]
         T = pm.piece.T_end if pm.piece is not None else robot.fk(q)
+        pm, tm = store.kept(pm if flies else pm.without_joint_map(), tm)
+        planned.append(pm)
+        timed.append(tm)
         if progress is not None:
             progress(i + 1, len(task.moves))
     timed, blends = _fly_by(robot, planned, timed, [m.blend_mm / 1e3 for m in arm_task.moves], task.period_s,
                             allowance, arm.collision)
+    q_all, planned, timed = _stitched(planned, timed)
     return PlannedTask(task, task.singularity.method if chosen is None else chosen.name,
-                       arm.full, robot, arm.held, tuple(planned), tuple(timed), time.perf_counter() - started,
+                       arm.full, robot, arm.held, tuple(planned), tuple(timed), q_all, time.perf_counter() - started,
                        arm.collision, tuple(blends.values()))
+
+
+_BLOCK_ROWS = 65_536  # samples of the moves kept in one block while they are planned (3 MB for six joints)
+
+
+class _SampleStore:
+    """The chosen moves' samples, copied into blocks of rows as the moves are planned, so that a long
+    program keeps no array of its own per move: the heap would keep their room after they are stitched
+    (:func:`_stitched`), and the record's arrays come on top of it; a block is given back whole."""
+
+    def __init__(self, n: int) -> None:
+        self.block = np.empty((0, n))  # (rows, n), the block being filled
+        self.used = 0  # its rows taken
+
+    def kept(self, pm: PlannedMove, tm: TimedMove) -> tuple[PlannedMove, TimedMove]:
+        """The move with its samples (and those its deviations were measured on, the same array) a
+        view of their copy in a block."""
+        if self.used + len(tm.q) > len(self.block):
+            self.block, self.used = np.empty((max(_BLOCK_ROWS, len(tm.q)), self.block.shape[1])), 0
+        view = self.block[self.used:self.used + len(tm.q)]
+        view[...] = tm.q
+        self.used += len(tm.q)
+        if pm.deviations is not None and pm.deviations.q is tm.q:
+            pm = replace(pm, deviations=replace(pm.deviations, q=view))
+        return pm, replace(tm, q=view)
+
+
+def _stitched(planned: list[PlannedMove], timed: list[TimedMove]
+              ) -> tuple[np.ndarray, list[PlannedMove], list[TimedMove]]:
+    """Every move's samples in one array (K, n) (a move starts at the sample its predecessor ends at),
+    and the moves with their samples (and the samples their deviations were measured on) as views of
+    it: a long program's samples held once, by the trajectory record, not again move by move.
+
+    A LIN / CIRC whose samples a fly-by timed again keeps its own array: the record measures its
+    deviations on it, and numpy's kernels may round differently on a view at another memory
+    alignment (the figures must stay those of the samples as timed). Its old deviations are dropped."""
+    q_all = np.concatenate([timed[0].q] + [tm.q[1:] for tm in timed[1:]])
+    moves, samples = [], []
+    k0 = 0
+    for pm, tm in zip(planned, timed, strict=True):
+        view = q_all[k0:k0 + len(tm.q)]
+        measured = pm.deviations.of(tm.u, tm.q) if pm.deviations is not None else None
+        moves.append(replace(pm, deviations=None if measured is None else replace(measured, q=view)))
+        samples.append(replace(tm, q=view) if measured is not None or pm.piece is None else tm)
+        k0 += len(tm.q) - 1
+    return q_all, moves, samples
 
 
 def _fly_by(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], requested_m: list[float],
@@ -252,8 +303,10 @@ def _best_of(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nda
     """Plan each method's joint map, then time and check the candidates that can still win;
     :func:`select.best_of` keeps the fastest. ``q_target``: a PTP's end joints (default: the preferred)."""
     candidates = _MoveCandidates(robot, task, i, move, T, q, len(methods), max_samples, place, q_target)
-    return best_of(robot, i, move.kind, methods, candidates.prepare, candidates.finish,
+    best = best_of(robot, i, move.kind, methods, candidates.prepare, candidates.finish,
                    task.singularity.deviation_cost_percent / 100.0)
+    forget_tracebacks(outcome for _, outcome in candidates.outcomes if isinstance(outcome, Exception))
+    return best
 
 
 def _best_end(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.ndarray,
@@ -292,6 +345,7 @@ def _best_end(robot: Robot, task: Task, i: int, move: Move, T: pin.SE3, q: np.nd
                 continue
         refused.append((target, error))
     if best is not None:
+        forget_tracebacks(error for _, error in refused)  # listed by their messages, never raised now
         return best
     pm, tm = _best_of(robot, task, i, move, T, q, methods, max_samples, place, targets[0])
     reasons = "; ".join(f"{classify(robot, target).label}: {_reason(error)}" for target, error in refused)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -46,6 +46,21 @@ class PlannedMove:
     variant: str = ""  # e.g. the wrist-joint blend window
     alternatives: tuple[Alternative, ...] = ()  # what auto compared, fastest first
     deviations: SampleDeviations | None = None  # of the samples the move was checked on (LIN / CIRC)
+
+    def without_joint_map(self) -> PlannedMove:
+        """A LIN / CIRC without its joint map's parts, once nothing evaluates it again (it is described
+        by its piece; its record is made from its samples, zones and crossings): a long program keeps
+        every move, and the parts are a third of what one keeps. A PTP as it is (its map: two ends)."""
+        if self.piece is None:
+            return self
+        return replace(self, jmap=JointMap(self.jmap.robot, self.jmap.poses, []))
+
+    def for_messages(self) -> PlannedMove:
+        """The move as the trajectory's final gate still needs it once the record has its samples'
+        figures: index, kind, limits, and where a point of it is (:meth:`describe`); a LIN / CIRC
+        without its joint map's parts, zones, crossings and deviations. A long program's record is
+        built a move at a time and these are freed as it goes."""
+        return replace(self.without_joint_map(), zones=(), crossings=(), deviations=None)
 
     def describe(self, u: float) -> str:
         """A point of the move for messages: the path point of a LIN / CIRC, the fraction and joints of a PTP."""

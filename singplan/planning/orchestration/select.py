@@ -15,7 +15,7 @@ durations are replaced by their bounds.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
 from typing import NamedTuple, TypeVar
@@ -134,6 +134,7 @@ def best_of(robot: Robot, i: int, kind: str, methods: list[CrossingMethod], prep
                          + [Alternative(f.method, False, f.variant, reason=str(f.error)) for f in failures]
                          + [Alternative(c.method.name, False, c.method.variant, reason=str(c.refusal)) for c in skipped
                             if c.refusal is not None])
+    forget_tracebacks(f.error for f in failures)  # listed by their messages, never raised now
     return replace(best.pm, alternatives=alternatives if len(methods) > 1 else ()), best.tm
 
 
@@ -186,6 +187,20 @@ def _timed_best_first(i: int, kind: str, candidates: list[Candidate], finish: Fi
         best = min(best or c.rank(tm.duration_s, cost), c.rank(tm.duration_s, cost))
     skipped += deferred
     return results, sorted(skipped, key=lambda c: c.rank(c.bound_s, cost)), failures
+
+
+def forget_tracebacks(errors: Iterable[BaseException]) -> None:
+    """Drop the tracebacks of errors kept as values once none of them will be raised (their messages
+    are what is reported), and their causes'. A traceback holds the frames it passed through, and they
+    hold the move's candidates (joint maps, TOPP-RA splines) in a reference cycle that only Python's
+    cyclic collector frees, late: on a program of a thousand moves, tens of MB at a time."""
+    todo, seen = list(errors), set()
+    while todo:
+        exc = todo.pop()
+        if id(exc) not in seen:
+            seen.add(id(exc))
+            exc.__traceback__ = None
+            todo += [e for e in (exc.__cause__, exc.__context__) if e is not None]
 
 
 T = TypeVar("T")

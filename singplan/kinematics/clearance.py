@@ -477,7 +477,7 @@ class _Block:
                 elif i in st.found and st.found[i].exact:
                     break  # measured exactly: its bound is its distance (round-off)
                 else:
-                    refine -= within
+                    refine -= 1 if within else 0
                     self.sample(st, i, walk.best[span] - EXACT_M, gain=0.0 if within else EXACT_M / 2)
                 lows[key] = _span_low(st, local)
 

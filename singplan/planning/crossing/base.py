@@ -19,7 +19,7 @@ class MoveContext:
     """What a method may look at: one LIN/CIRC move tracked in its current branch.
 
     auto's candidates are handed the same context (the planner tracks each stretch once): a method
-    reads its arrays and never changes them.
+    reads its arrays and never changes them (``branches``, the branches solved so far, only grows).
     """
 
     robot: Robot

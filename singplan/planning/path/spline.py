@@ -29,13 +29,13 @@ def not_a_knot(x: np.ndarray, y: np.ndarray) -> CubicSpline:
         return CubicSpline(x, y)
     dxr = dx.reshape((len(dx),) + (1,) * (y.ndim - 1))
     slope = np.diff(y, axis=0) / dxr
-    s = _end_slopes(x, dx, dxr, slope, y.shape)
+    s = _knot_slopes(x, dx, dxr, slope, y.shape)
     t = (s[:-1] + s[1:] - 2 * slope) / dxr
     c = np.stack((t / dxr, (slope - s[:-1]) / dxr - t, s[:-1], y[:-1]))
     return CubicSpline.construct_fast(np.ascontiguousarray(c), np.ascontiguousarray(x))
 
 
-def _end_slopes(x: np.ndarray, dx: np.ndarray, dxr: np.ndarray, slope: np.ndarray, shape: tuple[int, ...]
+def _knot_slopes(x: np.ndarray, dx: np.ndarray, dxr: np.ndarray, slope: np.ndarray, shape: tuple[int, ...]
                 ) -> np.ndarray:
     """The spline's slopes at the points (N, ...): the tridiagonal system of a C2 cubic with
     not-a-knot ends (de Boor, A Practical Guide to Splines, IV)."""

@@ -143,6 +143,8 @@ class JointMap:
         u = np.minimum(np.maximum(np.asarray(u, dtype=float), 0.0), 1.0)  # np.clip costs several times more
         if len(u) == 0:
             return np.empty((0, self.robot.n_joints))
+        if not self.parts:  # given up once timed (PlannedMove.without_joint_map): nothing may evaluate it
+            raise ValueError("a joint map without parts (given up once its move was timed) was evaluated")
         if len(u) > _CHUNK:
             out = np.empty((len(u), self.robot.n_joints))
             for k in range(0, len(u), _CHUNK):

@@ -100,11 +100,12 @@ def _damped_steps(J: np.ndarray, err: np.ndarray, damping: float, rcond: float |
 
     A tall J of full rank has one least-squares step: Householder QR (compiled, a fraction of a
     microsecond a row against numpy's few for an SVD); rows whose R is near rank-deficient (its
-    diagonal spans more than :data:`_QR_SPAN`) and wide J take the pseudo-inverse as before."""
+    diagonal spans more than :data:`_QR_SPAN`), wide J and a caller's own ``rcond`` take the
+    pseudo-inverse as before."""
     if damping == 0.0:
         cut = np.finfo(float).eps * max(J.shape[1:]) if rcond is None else rcond
         m, n = J.shape[1:]
-        if m < n or len(J) == 0:
+        if m < n or len(J) == 0 or rcond is not None:  # a cut-off of the caller's: the SVD applies it
             return np.einsum("kij,kj->ki", np.linalg.pinv(J, rcond=cut), err)
         steps, sound = _qr_steps(np.ascontiguousarray(J, dtype=float), np.ascontiguousarray(err, dtype=float),
                                  _QR_SPAN)

@@ -92,7 +92,8 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     planned: list[PlannedMove] = []
     timed: list[TimedMove] = []
     left = allowance - 1  # output samples the remaining moves may add (they share their boundary samples)
-    flies = any(m.blend_mm > 0 for m in arm_task.moves[:-1])  # a corner asks for a fly-by: _fly_by evaluates the maps
+    requested_m = [m.blend_mm / 1e3 for m in arm_task.moves]  # each corner's fly-by radius asked for
+    flies = any(r > 0 for r in requested_m[:-1])  # a corner asks for a fly-by: _fly_by evaluates the maps
     store = _SampleStore(robot.n_joints)
     for i, move in enumerate(task.moves):
         methods = registry.candidates(task.singularity.method, move) if chosen is None else [chosen]
@@ -110,8 +111,8 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
         timed.append(tm)
         if progress is not None:
             progress(i + 1, len(task.moves))
-    timed, blends = _fly_by(robot, planned, timed, [m.blend_mm / 1e3 for m in arm_task.moves], task.period_s,
-                            allowance, arm.collision)
+    timed, blends = _fly_by(robot, planned, timed, requested_m, task.period_s, allowance, arm.collision) if flies \
+        else (timed, {})
     q_all, planned, timed = _stitched(planned, timed)
     return PlannedTask(task, task.singularity.method if chosen is None else chosen.name,
                        arm.full, robot, arm.held, tuple(planned), tuple(timed), q_all, time.perf_counter() - started,
@@ -169,8 +170,6 @@ def _fly_by(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], re
     """The fly-by corners, and the moves timed through them: with each ramp shape of
     :func:`~singplan.planning.blending.ramps` (the quartic's smooth seams win on some corners, the
     quadratic's tighter curve on others), the one whose program ends sooner kept."""
-    if not any(r > 0 for r in requested_m[:-1]):
-        return timed, {}  # no corner asks for a fly-by (corners() would list none)
     sides = [side_of(robot, pm.jmap, pm.piece is not None, pm.limits.tcp_speed_m_s) for pm in planned]
     at_rest = [_at_rest(pm) for pm in planned]
     best: tuple[float, list[TimedMove], dict[int, Blend]] | None = None

@@ -275,12 +275,13 @@ class CollisionModel:
                     d = self._distance(ga.geometry, Ta, gb.geometry, Tb)
                     if d <= 0.0 and (ga.is_mesh or gb.is_mesh):
                         d = -math.inf  # a mesh has no inside for coal: touching or crossing, no depth
+                if gaps is None and d >= best.distance_m:
+                    continue
+                point_a, point_b = np.array(self._result.getNearestPoint1()), np.array(self._result.getNearestPoint2())
                 if gaps is not None:
-                    gaps.append(ShapeGap(ia, ib, d, np.array(self._result.getNearestPoint1()),
-                                         np.array(self._result.getNearestPoint2())))
+                    gaps.append(ShapeGap(ia, ib, d, point_a, point_b))
                 if d < best.distance_m:
-                    best = Distance(d, np.array(self._result.getNearestPoint1()),
-                                    np.array(self._result.getNearestPoint2()), exact)
+                    best = Distance(d, point_a, point_b, exact)
                 if d == -math.inf:
                     return best
         return best

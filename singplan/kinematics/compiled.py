@@ -39,15 +39,18 @@ def _digest(path: Path) -> str:
 SHARED_DIGEST = _digest(Path(__file__).with_name("angles.py"))
 
 
+def _named(func: Callable[..., Any]) -> Callable[..., Any]:
+    func.__qualname__ = f"{func.__qualname__}__{SHARED_DIGEST}"  # numba names the cache files after it
+    return func
+
+
 def jit(func: Callable[..., Any]) -> Any:
     """numba.njit(cache=True, nogil=True), cached under the function's name and :data:`SHARED_DIGEST`."""
-    func.__qualname__ = f"{func.__qualname__}__{SHARED_DIGEST}"  # numba names the cache files after it
-    return _njit(func)
+    return _njit(_named(func))
 
 
 def jit_fused(func: Callable[..., Any]) -> Any:
     """:func:`jit` with ``a * b + c`` fused into one rounding where the CPU has FMA (fastmath "contract"
     only: no reordering, no approximations), for the kernels that form products as BLAS does
     (:mod:`singplan.kinematics.chain`)."""
-    func.__qualname__ = f"{func.__qualname__}__{SHARED_DIGEST}"
-    return _njit_fused(func)
+    return _njit_fused(_named(func))

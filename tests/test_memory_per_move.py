@@ -29,16 +29,15 @@ from singplan.task.schema import Task
 START_DEG = [34.466047735, -69.193961827, 100.109975431, 68.691762951, -14.064499937, -11.872434380]
 ACROSS = {"xyz": [0.703837, -0.107362, 0.658022], "rpy_deg": [-121.329770, 35.631042, -129.525465]}
 # What the plan may hold beyond its record per move, at its peak [bytes]. Measured on this program
-# (313 samples a move): about 14 kB (the samples' path parameters the final gate's messages use, a
-# few int64 and bool temporaries of the whole trajectory); with the planned moves' joint maps and
-# deviations kept until the record is built, about 40 kB; at commit 6c7c391 about 250 kB (each move's
-# samples copied again, whole-trajectory temporaries, the refused candidates' errors holding their
-# frames until the cyclic collector ran).
-PER_MOVE_BYTES = 30_000
-# What the planned task keeps per move beyond its samples [bytes]: about 25 kB (the samples' path
-# parameters and deviations, zones, crossings, alternatives, pieces); with every LIN's joint map
-# kept, about 40 kB.
-KEPT_PER_MOVE_BYTES = 32_000
+# (313 samples a move): about 3.4 kB (what the final gate's messages need of each move, its samples'
+# path parameters); with the moves kept whole until the record was built, about 14 kB; at commit
+# 6c7c391 about 250 kB (each move's samples copied again, whole-trajectory temporaries, the refused
+# candidates' errors holding their frames until the cyclic collector ran).
+PER_MOVE_BYTES = 8_000
+# What the planned task keeps per move beyond its samples, the record's parts of the move included
+# (``MoveReports``: segments, events, crossing reports, ~5 kB) [bytes]: about 7.3 kB; with the moves
+# kept whole until the record was built (their deviations, zones, crossings), about 25 kB.
+KEPT_PER_MOVE_BYTES = 12_000
 
 
 def _program(moves: int) -> Task:

@@ -38,8 +38,8 @@ from singplan.kinematics.robot import Robot
 
 BRAKE_STEP_RAD = 0.025  # the most a joint turns between two Jacobians of the braking motion ...
 MAX_BRAKE_STEPS = 64  # ... up to this many (1.6 rad: a joint braking from 5.7 rad/s at 10 rad/s^2; longer steps beyond)
-_CHUNK_VALUES = 250_000  # floats of per-piece Jacobians formed at once (2 MB; their temporaries take a few times that)
-_CHUNK_ROWS = 65_536  # samples whose braking steps are counted at once
+_CHUNK_VALUES = 62_500  # floats of per-piece Jacobians formed at once (0.5 MB; their temporaries take a few times that)
+_CHUNK_ROWS = 8_192  # samples whose braking steps are counted at once (their temporaries ~1.6 MB)
 
 
 def braking_joints(q: np.ndarray, qd: np.ndarray, acceleration_rad_s2: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -88,20 +88,20 @@ def mean_norm(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def stopping_distances(robot: Robot, q: np.ndarray, qd: np.ndarray, acceleration_rad_s2: np.ndarray) -> np.ndarray:
-    """Stopping distance [m] (K,) of each sample q, qd (K, n), a bounded chunk of samples at a time."""
+    """Stopping distance [m] (K,) of each sample q, qd (K, n), a bounded chunk of samples at a time
+    (a sample at rest stops where it is: 0)."""
     n = q.shape[1]
     acc = np.broadcast_to(np.asarray(acceleration_rad_s2, dtype=float), (n,))
     out = np.zeros(len(q))
-    steps = np.zeros(len(q), dtype=np.int64)  # Jacobians of each sample's braking; 0: at rest, it stops where it is
     for c in range(0, len(q), _CHUNK_ROWS):  # (brake_steps' temporaries take ~200 bytes a sample)
-        moving = np.any(qd[c:c + _CHUNK_ROWS] != 0.0, axis=1)
-        steps[c:c + _CHUNK_ROWS][moving] = brake_steps(qd[c:c + _CHUNK_ROWS][moving], acc)
-    for m in np.unique(steps[steps > 0]).tolist():
-        group = np.flatnonzero(steps == m)
-        rows_per_chunk = max(1, _CHUNK_VALUES // ((m + n) * 3 * n))
-        for c in range(0, len(group), rows_per_chunk):
-            rows = group[c:c + rows_per_chunk]
-            out[rows] = _braking_lengths(robot, q[rows], qd[rows], acc, m)
+        moving = c + np.flatnonzero(np.any(qd[c:c + _CHUNK_ROWS] != 0.0, axis=1))
+        steps = brake_steps(qd[moving], acc)  # Jacobians of each moving sample's braking
+        for m in np.flatnonzero(np.bincount(steps)).tolist():
+            group = moving[steps == m]
+            rows_per_chunk = max(1, _CHUNK_VALUES // ((m + n) * 3 * n))
+            for k in range(0, len(group), rows_per_chunk):
+                rows = group[k:k + rows_per_chunk]
+                out[rows] = _braking_lengths(robot, q[rows], qd[rows], acc, m)
     return out
 
 

@@ -12,7 +12,7 @@ parameter, an upper bound of the distance to the path.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from decimal import Decimal
 from typing import Any, Literal
 
@@ -30,6 +30,7 @@ from singplan.planning.crossing.methods import Exact, Stop
 from singplan.planning.orchestration.blending import Blend
 from singplan.planning.orchestration.checks import tcp_speed_ratios
 from singplan.planning.orchestration.records import PlannedMove
+from singplan.planning.orchestration.rows import RowStore
 from singplan.planning.path.cartesian import sample_deviations
 from singplan.planning.path.zones import Zone
 from singplan.planning.timing.ratios import sample_ratios, third_difference_ratio
@@ -48,8 +49,8 @@ from singplan.results.trajectory import Event, MoveRecord, Segment, SegmentKind,
 from singplan.task.schema import Task
 
 
-def sample_times(count: int, period_s: float) -> np.ndarray:
-    """The times of ``count`` samples from 0 at ``period_s`` [s], shape (count,).
+def sample_times(count: int, period_s: float, start: int = 0) -> np.ndarray:
+    """The times of ``count`` samples from sample ``start`` at ``period_s`` [s], shape (count,).
 
     Sample k is at the float nearest the decimal k x period as the task wrote it (its shortest
     round-trip text: 0.004), not at the float product k * 0.004, which drifts off the decimal
@@ -60,8 +61,8 @@ def sample_times(count: int, period_s: float) -> np.ndarray:
     sign, digits, exponent = Decimal(repr(period_s)).as_tuple()
     m = int("".join(map(str, digits)))
     d = -int(exponent)
-    k = np.arange(count, dtype=float)
-    if sign or not 0 <= d <= 22 or m * max(count - 1, 0) >= 2**53:  # no exact form: the plain product
+    k = np.arange(start, start + count, dtype=float)
+    if sign or not 0 <= d <= 22 or m * max(start + count - 1, 0) >= 2**53:  # no exact form: the plain product
         return k * period_s
     return k * m / 10.0**d
 
@@ -71,60 +72,91 @@ def sample_time(k: int, period_s: float) -> float:
     return float(Decimal(k) * Decimal(repr(period_s)))
 
 
-def build_trajectory(robot: Robot, task: Task, method: str, planned: list[PlannedMove], timed: list[TimedMove],
+class MoveReports:
+    """The trajectory record's parts of each move, made as the planner hands the move over
+    (:class:`~singplan.planning.orchestration.planner.MoveSink`): its segments, events and crossing
+    reports, and its samples' deviations from the path and singular distances (kept in blocks,
+    :class:`~singplan.planning.orchestration.rows.RowStore`), so that a long program keeps no
+    planned move whole until its record is built.
+
+    Moves share their boundary sample: each move's first sample is the one its predecessor ended at.
+    """
+
+    def __init__(self, robot: Robot, task: Task) -> None:
+        self.robot = robot  # the chain planned (a 7-joint arm's 6R chain): its labels and deviations
+        self.period_s = task.period_s
+        self.segments: list[Segment] = []
+        self.events: list[Event] = []
+        self.crossings: list[CrossingReport] = []
+        self.worst_position_m = 0.0
+        self.worst_orientation_rad = 0.0
+        self.worst_tcp_ratio = 0.0
+        self.position_m = RowStore()  # (K,) each sample's position deviation [m]
+        self.orientation_rad = RowStore()  # (K,) orientation deviation [rad]
+        self.tcp_ratio = RowStore()  # (K,) the TCP speed over the programmed one of the step arriving at each sample
+        self.distances = RowStore((3,))  # (K, 3) signed singular distances: the samples' labels
+        self.samples = 0  # samples taken so far
+
+    def take(self, pm: PlannedMove, tm: TimedMove, nxt: PlannedMove | None, blend: Blend | None) -> None:
+        """Move ``pm``'s record parts, from its samples ``tm`` (see :class:`MoveSink`)."""
+        k0 = max(self.samples - 1, 0)
+        last = len(tm.q) - 1  # the move's samples are k0 .. k0 + last
+        pos_err, ori_err, tcp = _deviations(self.robot, pm, tm, self.period_s, nxt)
+        self.worst_position_m = max(self.worst_position_m, float(pos_err.max(initial=0.0)))
+        self.worst_orientation_rad = max(self.worst_orientation_rad, float(ori_err.max(initial=0.0)))
+        self.worst_tcp_ratio = max(self.worst_tcp_ratio, float(tcp.max(initial=0.0)))
+        distances = distances_batch(self.robot, tm.q)  # (last + 1, 3): the labels of the chain that was planned
+        if not self.samples:  # the trajectory's first sample: no step arrives at it, its deviations count 0
+            for series in (self.position_m, self.orientation_rad, self.tcp_ratio):
+                series.kept(np.zeros(1))
+        self.position_m.kept(pos_err[1:])  # the boundary sample is the predecessor's
+        self.orientation_rad.kept(ori_err[1:])
+        self.tcp_ratio.kept(tcp)
+        self.distances.kept(distances[1:] if self.samples else distances)
+        t = sample_times(last + 1, self.period_s, k0)
+        labels = _Labels(distances)
+        spans = _own_spans(pm, tm, last)  # once for the move's segments and its zone events
+        segs = _move_segments(pm, tm, last, t, self.period_s, labels, pos_err, ori_err, blend, spans)
+        self.segments.extend(segs)
+        self.events.extend(_move_events(pm, tm, last, t, labels, spans))
+        self.crossings.extend(CrossingReport(s.move, s.t0, s.t1, s.singularity, s.method, s.config_before,
+                                             s.config_after, s.details)
+                              for s in segs if isinstance(s.details, CrossingFigures))
+        self.samples = k0 + last + 1
+
+
+def build_trajectory(robot: Robot, task: Task, method: str, reports: MoveReports, timed: Sequence[TimedMove],
                      q_planned: np.ndarray, planning_time_s: float, held: HeldJoint | None = None,
                      blends: tuple[Blend, ...] = (), collision: tuple[CollisionModel, Clearance] | None = None
                      ) -> Trajectory:
-    """The trajectory of the planned moves of ``robot`` (``method``: the crossing method asked for).
+    """The trajectory of the planned moves of ``robot`` (``method``: the crossing method asked for),
+    each move's parts in ``reports`` (every move handed over; its series are taken out of it).
 
     With ``held`` (``robot`` is then its 6R chain) the held joint comes back as a constant column,
     so samples, limits and torques are the 7-joint arm's. ``blends``: the corners that asked for
-    a fly-by; a flown one is its incoming move's ``blend`` segment, and every one is reported.
-    ``collision``: the bodies checked and the check of these samples (one span per move).
-    ``planned`` is consumed: after its pass each move is replaced by :meth:`PlannedMove.for_messages`
-    (what the final gate's messages need of it), so that where nothing else holds them the moves'
-    joint maps and deviations are freed as the record is built, not after it.
-    ``q_planned`` (K, n): the moves' samples stitched (:class:`~singplan.planning.orchestration.planner.PlannedTask`'s
-    ``q``), the record's own samples unless a joint is held.
+    a fly-by; every one is reported. ``collision``: the bodies checked and the check of these
+    samples (one span per move). ``q_planned`` (K, n): the moves' samples stitched
+    (:class:`~singplan.planning.orchestration.planner.PlannedTask`'s ``q``), the record's own samples
+    unless a joint is held.
     """
     period = task.period_s
     t = sample_times(len(q_planned), period)
-    distances = distances_batch(robot, q_planned)  # (K, 3): the labels of the chain that was planned
-    labels = _Labels(distances)
-    segments: list[Segment] = []
-    events: list[Event] = []
-    crossings: list[CrossingReport] = []
-    worst_pos, worst_ori = 0.0, 0.0
-    k0 = 0
-    # (K,) each sample's deviations, and the TCP speed over the programmed one of the step arriving at it
-    position_error, orientation_error, tcp_ratio = np.zeros(len(t)), np.zeros(len(t)), np.zeros(len(t))
-    flown = {b.move: b for b in blends if b.jmap is not None}
-    for i, (pm, tm) in enumerate(zip(planned, timed, strict=True)):
-        k1 = k0 + len(tm.q) - 1
-        pos_err, ori_err, tcp = _deviations(robot, pm, tm, period, planned[i + 1] if i + 1 < len(planned) else None)
-        position_error[k0 + 1:k1 + 1], orientation_error[k0 + 1:k1 + 1] = pos_err[1:], ori_err[1:]
-        tcp_ratio[k0 + 1:k1 + 1] = tcp
-        worst_pos = max(worst_pos, float(pos_err.max(initial=0.0)))
-        worst_ori = max(worst_ori, float(ori_err.max(initial=0.0)))
-        spans = _own_spans(pm, tm, k1 - k0)  # once for the move's segments and its zone events
-        segs = _move_segments(pm, tm, k0, k1, t, period, labels, pos_err, ori_err, flown.get(pm.index), spans)
-        segments.extend(segs)
-        events.extend(_move_events(pm, tm, k0, k1, t, labels, spans))
-        crossings.extend(CrossingReport(s.move, s.t0, s.t1, s.singularity, s.method, s.config_before, s.config_after,
-                                        s.details) for s in segs if isinstance(s.details, CrossingFigures))
-        planned[i] = pm.for_messages()
-        k0 = k1
+    if reports.samples != len(t):
+        raise AssertionError(f"the moves' reports cover {reports.samples} samples, the trajectory {len(t)}")
+    position_error, orientation_error = reports.position_m.stitched(), reports.orientation_rad.stitched()
+    tcp_ratio, distances = reports.tcp_ratio.stitched(), reports.distances.stitched()
     arm, q = (held.full, held.expand(q_planned)) if held is not None else (robot, q_planned)
     acceleration_rad_s2 = task.limits.joint_accelerations(arm.n_joints)  # (n,) the task's, every joint of the arm
     speed, accel = _chunked_ratios(q, period, arm.velocity_rad_s * task.joint_speed_scale(), acceleration_rad_s2)
     qd, qdd = central_differences(q, period)
     stopping_m = stopping_distances(arm, q, qd, acceleration_rad_s2)
     stop_mm, stop_at_s = worst_stopping(stopping_m, t)
-    metrics = Metrics(worst_pos * 1e3, math.degrees(worst_ori), speed, accel, float(t[-1]), planning_time_s, len(t),
-                      method, tuple(crossings), _torque_metrics(arm, task, q, t), stop_mm, stop_at_s,
-                      _jerk_metrics(arm, task, q, timed), _blend_reports(blends),
+    metrics = Metrics(reports.worst_position_m * 1e3, math.degrees(reports.worst_orientation_rad), speed, accel,
+                      float(t[-1]), planning_time_s, len(t), method, tuple(reports.crossings),
+                      _torque_metrics(arm, task, q, t), stop_mm, stop_at_s, _jerk_metrics(arm, task, q, timed),
+                      _blend_reports(blends),
                       _clearance_figures(*collision, period) if collision is not None else None,
-                      float(tcp_ratio.max(initial=0.0)))
+                      reports.worst_tcp_ratio)
     tool = {"xyz": list(task.tool_xyz), "rpy_deg": list(task.tool_rpy_deg)}
     samples = {"position_error_m": position_error, "orientation_error_rad": orientation_error,
                "stopping_distance_m": stopping_m, "tcp_speed_ratio": tcp_ratio}
@@ -132,8 +164,8 @@ def build_trajectory(robot: Robot, task: Task, method: str, planned: list[Planne
         samples["distances"] = distances
     least = collision[1].least if collision is not None and collision[0].active else None
     return Trajectory(arm.name, str(arm.urdf_path), arm.tip, tool, task, arm.joint_names,
-                      period, t, q, qd, qdd, tuple(segments), tuple(events), metrics, samples,
-                      _move_records(arm, task, segments, q, period, least))
+                      period, t, q, qd, qdd, tuple(reports.segments), tuple(reports.events), metrics, samples,
+                      _move_records(arm, task, reports.segments, q, period, least))
 
 
 def _move_records(robot: Robot, task: Task, segments: list[Segment], q: np.ndarray, period: float,
@@ -168,7 +200,7 @@ def _clearance_figures(model: CollisionModel, found: Clearance, period: float) -
 _CHUNK = 16_384  # samples whose ratios are formed at once (~600 bytes of temporaries each)
 
 
-def _jerk_metrics(robot: Robot, task: Task, q: np.ndarray, timed: list[TimedMove]) -> JerkFigures | None:
+def _jerk_metrics(robot: Robot, task: Task, q: np.ndarray, timed: Sequence[TimedMove]) -> JerkFigures | None:
     """With a jerk limit or the quintic PTP law: the jerk ratio and the time they cost against the
     acceleration-limited optimum (TOPP-RA's duration of every move)."""
     jerk = task.limits.jerk_rad_s3
@@ -290,17 +322,18 @@ def _own_spans(pm: PlannedMove, tm: TimedMove, end: int) -> Spans:
     return [] if pm.kind == "ptp" or last == 0 else _merged_spans(pm, tm, last)
 
 
-def _move_segments(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, t: np.ndarray, period: float,
+def _move_segments(pm: PlannedMove, tm: TimedMove, last: int, t: np.ndarray, period: float,
                    labels: _Labels, pos_err: np.ndarray, ori_err: np.ndarray, blend: Blend | None,
                    spans: Spans) -> list[Segment]:
+    """The move's segments; ``t`` and ``labels``: of its samples 0 .. ``last``."""
     def seg(kind: SegmentKind, a: int, b: int, **extra: Any) -> Segment:
-        return Segment(pm.index, kind, float(t[k0 + a]), float(t[k0 + b]), labels[k0 + a], labels[k0 + b], **extra)
+        return Segment(pm.index, kind, float(t[a]), float(t[b]), labels[a], labels[b], **extra)
 
     if tm.blend_from is None:
-        return _path_segments(pm, tm, k1 - k0, seg, period, pos_err, ori_err, spans)
+        return _path_segments(pm, tm, last, seg, period, pos_err, ori_err, spans)
     assert blend is not None
     own = _path_segments(pm, tm, tm.blend_from, seg, period, pos_err, ori_err, spans) if tm.blend_from > 0 else []
-    return [*own, seg("blend", tm.blend_from, k1 - k0,
+    return [*own, seg("blend", tm.blend_from, last,
                       details=BlendFigures(blend.radius_m * 1e3, blend.requested_m * 1e3, blend.note, blend.ramp))]
 
 
@@ -351,12 +384,13 @@ def _crossing_figures(pm: PlannedMove, tm: TimedMove, a: int, b: int, zone: Zone
                            sample_time(max(0, sum(waits)), period) if waits else None)
 
 
-def _move_events(pm: PlannedMove, tm: TimedMove, k0: int, k1: int, t: np.ndarray,
+def _move_events(pm: PlannedMove, tm: TimedMove, last: int, t: np.ndarray,
                  labels: _Labels, spans: Spans) -> list[Event]:
-    """The move's zone entries and exits (its crossings at ``spans``), and its configuration changes."""
-    events = [Event(float(t[k0 + k]), pm.index, kind, zone.kind)
-              for k, kind, zone in _zone_samples(tm, k1 - k0, spans)]
-    for k in labels.changes(k0, k1).tolist():
+    """The move's zone entries and exits (its crossings at ``spans``), and its configuration changes;
+    ``t`` and ``labels``: of its samples 0 .. ``last``."""
+    events = [Event(float(t[k]), pm.index, kind, zone.kind)
+              for k, kind, zone in _zone_samples(tm, last, spans)]
+    for k in labels.changes(0, last).tolist():
         events.append(Event(float(t[k]), pm.index, "config_change", config_from=labels[k - 1], config_to=labels[k]))
     return sorted(events, key=lambda e: e.t)
 

@@ -23,12 +23,12 @@ from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.crossing.methods import EXACT_ORIENTATION_TOL_RAD
 from singplan.planning.orchestration.checks import ROUND_OFF, TCP_ROUND_OFF
 from singplan.planning.orchestration.collide import check_trajectory
-from singplan.planning.orchestration.planner import PlannedTask, Progress, plan_moves
+from singplan.planning.orchestration.planner import PlannedTask, Progress, hand_over, plan_moves
 from singplan.planning.orchestration.records import PlannedMove
 from singplan.planning.path.zones import KIND_INDEX, KINDS, NEAR_SINGULAR
 from singplan.planning.timing.ratios import worst_sample
 from singplan.planning.timing.records import TimedMove
-from singplan.results.build import build_trajectory
+from singplan.results.build import MoveReports, build_trajectory
 from singplan.results.trajectory import Trajectory
 from singplan.task.schema import Task
 
@@ -57,7 +57,7 @@ class PlannedTrajectory(NamedTuple):
 def planned_trajectory(task: Task | str | Path, method: str | CrossingMethod | None = None,
                        progress: Progress | None = None) -> PlannedTrajectory:
     """As :func:`plan`, with the robot the plan loaded (the pages are built on it, not loaded again)."""
-    handover = [plan_moves(task, method, progress)]
+    handover = [plan_moves(task, method, progress, MoveReports)]
     robot = handover[0].full
     return PlannedTrajectory(_record_of(handover), robot)
 
@@ -68,17 +68,22 @@ def trajectory_of(planned: PlannedTask) -> Trajectory:
 
 
 def _record_of(handover: list[PlannedTask]) -> Trajectory:
-    """:func:`trajectory_of` of the planned task taken out of ``handover``: where nothing else holds it,
-    each move's joint map and deviations are freed as the record is built (:func:`build_trajectory`)
-    and a long program's peak memory is the record's, not the record's and every planned move's."""
+    """:func:`trajectory_of` of the planned task taken out of ``handover``. Its moves' record parts
+    were made as they were planned (:class:`MoveReports`, the planner's sink) or are made here, each
+    move freed once its parts are (where nothing else holds it), so that a long program's peak
+    memory is its record's, not the record's and every planned move's."""
     planned = handover.pop()
     moves, timed = list(planned.moves), list(planned.timed)
+    reports = planned.sink
+    if not isinstance(reports, MoveReports):
+        reports = MoveReports(planned.robot, planned.task)
+        hand_over(reports, moves, timed, planned.blends)
     collision = _clearance(planned)
     robot, full, task, method, q, planning_s, held, blends = (planned.robot, planned.full, planned.task,
                                                               planned.method, planned.q, planned.planning_s,
                                                               planned.held, planned.blends)
     del planned  # the moves are the lists' alone now
-    traj = build_trajectory(robot, task, method, moves, timed, q, planning_s, held, blends, collision)
+    traj = build_trajectory(robot, task, method, reports, timed, q, planning_s, held, blends, collision)
     _check_metrics(full, task, moves, timed, traj)
     return traj
 

@@ -13,9 +13,10 @@ validators are :mod:`.checks`', the IK of targets :mod:`.targets`', fly-by corne
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -35,6 +36,7 @@ from singplan.planning.orchestration.chain import chain_limits, chain_map, chain
 from singplan.planning.orchestration.checks import check_config, check_samples, screen
 from singplan.planning.orchestration.move_plan import MoveTracking, plan_move
 from singplan.planning.orchestration.records import PlannedMove
+from singplan.planning.orchestration.rows import RowStore
 from singplan.planning.orchestration.select import Candidate, Rank, Refused, best_of, forget_tracebacks
 from singplan.planning.orchestration.stops import stops, time_in_pieces
 from singplan.planning.orchestration.targets import move_limits, ptp_targets, task_arm
@@ -47,6 +49,21 @@ from singplan.task.load import load_task
 from singplan.task.schema import Move, Task
 
 Progress = Callable[[int, int], None]
+
+
+class MoveSink(Protocol):
+    """What takes each move once it is decided (planned, timed, its fly-by corner settled), in order
+    (the trajectory record's parts of it: :class:`singplan.results.build.MoveReports`); the planner then
+    keeps only what the trajectory's final gate needs of the move (:meth:`PlannedMove.for_messages`)."""
+
+    def take(self, pm: PlannedMove, tm: TimedMove, nxt: PlannedMove | None, blend: Blend | None) -> None:
+        """Move ``pm`` timed as ``tm``; ``nxt``: the move after it (None for the last), ``blend``: its
+        flown fly-by corner into ``nxt`` (None where it ends at rest)."""
+        ...
+
+
+# Given the chain planned and the task as planned: the sink its moves are handed to
+SinkFor = Callable[[Robot, Task], MoveSink]
 
 
 @dataclass(frozen=True)
@@ -64,14 +81,20 @@ class PlannedTask:
     planning_s: float  # wall time from the call to the last move timed
     collision: CollisionModel  # the bodies and pairs checked (``robot``'s)
     blends: tuple[Blend, ...] = ()  # every corner that asked for a fly-by, with the radius it got
+    # the sink every move was handed to (``moves`` then hold what the final gate's messages need of
+    # them, each ``timed`` q a view of ``q``); None: the moves whole
+    sink: MoveSink | None = None
 
 
 def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = None,
-               progress: Progress | None = None) -> PlannedTask:
+               progress: Progress | None = None, sink_for: SinkFor | None = None) -> PlannedTask:
     """Plan and time every move of a task (a :class:`Task`, or the path of a YAML file).
 
     ``method`` overrides the task's crossing method: a registered name, or a method object
-    (:class:`~singplan.planning.crossing.base.CrossingMethod`) used on every move.
+    (:class:`~singplan.planning.crossing.base.CrossingMethod`) used on every move. ``sink_for``: the
+    sink each move is handed to once decided: as it is planned where no corner asks for a fly-by (a
+    long program then keeps no planned move whole: its memory is what the sink keeps), after the
+    corners otherwise (their ramp is chosen over the whole program).
 
     Raises:
         InputError: the task is malformed or contradicts the robot (exit code 2).
@@ -95,6 +118,7 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     requested_m = [m.blend_mm / 1e3 for m in arm_task.moves]  # each corner's fly-by radius asked for
     flies = any(r > 0 for r in requested_m[:-1])  # a corner asks for a fly-by: _fly_by evaluates the maps
     store = _SampleStore(robot.n_joints)
+    sink = sink_for(robot, arm_task) if sink_for is not None else None
     for i, move in enumerate(task.moves):
         methods = registry.candidates(task.singularity.method, move) if chosen is None else [chosen]
         place = _Place(arm.collision, allowance - 1 - left)
@@ -107,6 +131,9 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
         q = tm.q[-1]
         T = pm.piece.T_end if pm.piece is not None else robot.fk(q)
         pm, tm = store.kept(pm if flies else pm.without_joint_map(), tm)
+        if sink is not None and not flies:
+            sink.take(pm, tm, None, None)  # a move not flown needs neither its successor nor a corner
+            pm = pm.for_messages()
         planned.append(pm)
         timed.append(tm)
         if progress is not None:
@@ -114,34 +141,51 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
     timed, blends = _fly_by(robot, planned, timed, requested_m, task.period_s, allowance, arm.collision) if flies \
         else (timed, {})
     q_all, planned, timed = _stitched(planned, timed)
+    if sink is not None:
+        if flies:
+            hand_over(sink, planned, timed, blends.values())
+        timed = _views(q_all, timed)  # no move's own samples are needed any more
     return PlannedTask(task, task.singularity.method if chosen is None else chosen.name,
                        arm.full, robot, arm.held, tuple(planned), tuple(timed), q_all, time.perf_counter() - started,
-                       arm.collision, tuple(blends.values()))
+                       arm.collision, tuple(blends.values()), sink)
 
 
-_BLOCK_ROWS = 65_536  # samples of the moves kept in one block while they are planned (3 MB for six joints)
+def hand_over(sink: MoveSink, planned: list[PlannedMove], timed: list[TimedMove] | tuple[TimedMove, ...],
+              blends: Iterable[Blend]) -> None:
+    """Each move handed to ``sink`` in order, with the move after it and its flown corner (``blends``:
+    every corner that asked for one); ``planned`` is consumed: each move is replaced by what the final
+    gate's messages need of it (:meth:`PlannedMove.for_messages`) once taken, freeing the rest."""
+    flown = {b.move: b for b in blends if b.jmap is not None}
+    for i, (pm, tm) in enumerate(zip(planned, timed, strict=True)):
+        sink.take(pm, tm, planned[i + 1] if i + 1 < len(planned) else None, flown.get(pm.index))
+        planned[i] = pm.for_messages()
+
+
+def _views(q_all: np.ndarray, timed: list[TimedMove]) -> list[TimedMove]:
+    """The moves with their samples views of the stitched samples ``q_all`` (K, n)."""
+    out = []
+    k0 = 0
+    for tm in timed:
+        out.append(replace(tm, q=q_all[k0:k0 + len(tm.q)]))
+        k0 += len(tm.q) - 1
+    return out
 
 
 class _SampleStore:
-    """The chosen moves' samples, copied into blocks of rows as the moves are planned, so that a long
-    program keeps no array of its own per move: the heap would keep their room after they are stitched
-    (:func:`_stitched`), and the record's arrays come on top of it; a block is given back whole."""
+    """The chosen moves' samples and their path parameters, copied into blocks (:class:`RowStore`) as
+    the moves are planned: a long program keeps no array of its own per move."""
 
     def __init__(self, n: int) -> None:
-        self.block = np.empty((0, n))  # (rows, n), the block being filled
-        self.used = 0  # its rows taken
+        self.q = RowStore((n,))
+        self.u = RowStore()
 
     def kept(self, pm: PlannedMove, tm: TimedMove) -> tuple[PlannedMove, TimedMove]:
-        """The move with its samples (and those its deviations were measured on, the same array) a
-        view of their copy in a block."""
-        if self.used + len(tm.q) > len(self.block):
-            self.block, self.used = np.empty((max(_BLOCK_ROWS, len(tm.q)), self.block.shape[1])), 0
-        view = self.block[self.used:self.used + len(tm.q)]
-        view[...] = tm.q
-        self.used += len(tm.q)
-        if pm.deviations is not None and pm.deviations.q is tm.q:
-            pm = replace(pm, deviations=replace(pm.deviations, q=view))
-        return pm, replace(tm, q=view)
+        """The move with its samples and their path parameters (and those its deviations were measured
+        on, the same arrays) views of their copies in the blocks."""
+        q, u = self.q.kept(tm.q), self.u.kept(tm.u)
+        if pm.deviations is not None and pm.deviations.q is tm.q and pm.deviations.u is tm.u:
+            pm = replace(pm, deviations=replace(pm.deviations, q=q, u=u))
+        return pm, replace(tm, q=q, u=u)
 
 
 def _stitched(planned: list[PlannedMove], timed: list[TimedMove]

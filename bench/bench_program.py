@@ -75,7 +75,9 @@ def child(moves: int, method: str) -> None:
     counts = [round((m.t1 - m.t0) / traj.period) for m in traj.moves]
     print(json.dumps({"seconds": seconds, "base_mb": base_mb, "duration_s": traj.duration_s,
                       "samples": len(traj.t), "move_samples": counts,
-                      "output_mb": (traj.q.nbytes + traj.qd.nbytes + traj.qdd.nbytes + traj.t.nbytes) / 2**20}))
+                      "output_mb": (traj.q.nbytes + traj.qd.nbytes + traj.qdd.nbytes + traj.t.nbytes) / 2**20,
+                      "arrays_mb": (traj.q.nbytes + traj.qd.nbytes + traj.qdd.nbytes + traj.t.nbytes
+                                    + sum(np.asarray(v).nbytes for v in traj.samples.values())) / 2**20}))
 
 
 def run(tree: Path, moves: int, method: str) -> dict[str, Any]:
@@ -116,7 +118,8 @@ def measure(trees: dict[str, Path], sizes: list[int], methods: list[str], rounds
 def table(rows: list[dict[str, Any]], labels: list[str]) -> str:
     pair = len(labels) == 2
     head = ["moves", "method", *(f"{lb} [ms/move]" for lb in labels), *(["ratio"] if pair else []),
-            *(f"{lb} peak over warm-up [MB]" for lb in labels), "trajectory arrays [MB]", "duration [s]",
+            *(f"{lb} peak over warm-up [MB]" for lb in labels), "trajectory arrays [MB]",
+            "all per-sample arrays [MB]", *(f"{lb} peak over them [MB]" for lb in labels), "duration [s]",
             *(["same durations"] if pair else [])]
     lines = ["| " + " | ".join(head) + " |", "|" + "---:|" * len(head)]
     for r in rows:
@@ -125,7 +128,9 @@ def table(rows: list[dict[str, Any]], labels: list[str]) -> str:
         if pair:
             cells.append(f"{f[0]['seconds'] / f[1]['seconds']:.1f}x")
         cells += [f"{x['peak_mb'] - x['base_mb']:.0f}" for x in f]
-        cells += [f"{f[-1]['output_mb']:.1f}", f"{f[-1]['duration_s']:.3f}"]
+        cells += [f"{f[-1]['output_mb']:.1f}", f"{f[-1]['arrays_mb']:.1f}"]
+        cells += [f"{x['peak_mb'] - x['base_mb'] - f[-1]['arrays_mb']:.0f}" for x in f]
+        cells.append(f"{f[-1]['duration_s']:.3f}")
         if pair:
             same = f[0]["move_samples"] == f[1]["move_samples"] and f[0]["samples"] == f[1]["samples"]
             cells.append("yes" if same else "**no**")
@@ -143,7 +148,8 @@ def report(rows: list[dict[str, Any]], labels: list[str], baseline: str | None, 
         f"toppra {version('toppra')}.", "",
         "N LINs back and forth across the wrist zone (0.25 m/s, 10 rad/s^2, 4 ms), each planned in a fresh "
         f"process after a two-move warm-up, {rounds} times, the fastest kept; peak RSS above the RSS after the "
-        "warm-up. "
+        "warm-up, and above that the record's own per-sample arrays (q, qd, qdd, t and every per-sample series: "
+        "what any plan of these moves returns). "
         + (f"`{labels[0]}` is {baseline}, planned alternately with `{labels[1]}` (this tree); 'same durations': "
            "every move's sample count and the total equal." if baseline else ""), "",
         table(rows, labels)])

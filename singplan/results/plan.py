@@ -132,11 +132,18 @@ def _check_metrics(robot: Robot, task: Task, planned: list[PlannedMove], timed: 
 
 
 def _check_positions(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], traj: Trajectory) -> None:
-    """Every output sample inside the joint position limits."""
-    outside = ~((traj.q >= robot.lower_rad - 1e-9) & (traj.q <= robot.upper_rad + 1e-9))  # NaN too
-    if not outside.any():
-        return
-    k, j = (int(v) for v in np.argwhere(outside)[0])
+    """Every output sample inside the joint position limits (a chunk of samples at a time: no whole-trajectory
+    temporary)."""
+    for c in range(0, len(traj.q), _CHUNK):
+        rows = traj.q[c:c + _CHUNK]
+        outside = ~((rows >= robot.lower_rad - 1e-9) & (rows <= robot.upper_rad + 1e-9))  # NaN too
+        if outside.any():
+            k, j = (int(v) for v in np.argwhere(outside)[0])
+            _refuse_position(robot, planned, timed, traj, c + k, j)
+
+
+def _refuse_position(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], traj: Trajectory,
+                     k: int, j: int) -> None:
     m, k_move = _move_of_sample(timed, k)
     pm = planned[m]
     raise JointLimitError(
@@ -196,15 +203,14 @@ def _check_rest(robot: Robot, task: Task, planned: list[PlannedMove], timed: lis
 
 def _check_outside_crossings(planned: list[PlannedMove], timed: list[TimedMove], traj: Trajectory) -> None:
     """Outside the segments marked crossing (and fly-by corners, PTP moves) the orientation is kept
-    to 0.01 deg: only a crossing may trade orientation for the singularity."""
+    to 0.01 deg: only a crossing may trade orientation for the singularity. Measured a stretch of
+    kept samples at a time (no whole-trajectory mask)."""
     ori = traj.samples.get("orientation_error_rad")
     if ori is None:
         return
-    kept = np.ones(len(ori), dtype=bool)
-    for seg in traj.segments:
-        if seg.kind in ("crossing", "blend", "ptp"):
-            kept[round(seg.t0 / traj.period):round(seg.t1 / traj.period) + 1] = False
-    over = np.flatnonzero(kept & ~(ori <= EXACT_ORIENTATION_TOL_RAD * (1.0 + 1e-6)))
+    over = np.concatenate([np.zeros(0, dtype=np.int64)] + [a + np.flatnonzero(~(ori[a:b] <= EXACT_ORIENTATION_TOL_RAD
+                                                                               * (1.0 + 1e-6)))
+                                                         for a, b in _kept_stretches(traj, len(ori))])
     if over.size:
         k = int(over[np.argmax(ori[over])])
         m, k_move = _move_of_sample(timed, k)
@@ -212,6 +218,20 @@ def _check_outside_crossings(planned: list[PlannedMove], timed: list[TimedMove],
         raise PlanningError(f"move {m} ({pm.kind}): sample {k} (t = {k * traj.period:.4f} s) turns the tool "
                             f"{math.degrees(ori[k]):.4f} deg from the path outside any crossing (at most 0.01 deg), "
                             f"at {pm.describe(float(timed[m].u[k_move]))}")
+
+
+def _kept_stretches(traj: Trajectory, count: int) -> list[tuple[int, int]]:
+    """The sample ranges [a, b) of ``count`` samples outside every crossing, fly-by corner and PTP segment."""
+    taken = sorted((round(seg.t0 / traj.period), round(seg.t1 / traj.period) + 1) for seg in traj.segments
+                   if seg.kind in ("crossing", "blend", "ptp"))
+    out, cursor = [], 0
+    for a, b in taken:
+        if a > cursor:
+            out.append((cursor, min(a, count)))
+        cursor = max(cursor, b)
+    if cursor < count:
+        out.append((cursor, count))
+    return out
 
 
 def _check_crossings_near(robot: Robot, traj: Trajectory) -> None:
@@ -234,6 +254,9 @@ def _check_crossings_near(robot: Robot, traj: Trajectory) -> None:
 
 def _distance_text(kind: str, value: float) -> str:
     return f"{value * 1e3:.1f} mm" if kind == "shoulder" else f"{math.degrees(value):.2f} deg"
+
+
+_CHUNK = 65_536  # samples whose joint limits are compared at once
 
 
 def _move_of_sample(timed: list[TimedMove], k: int) -> tuple[int, int]:

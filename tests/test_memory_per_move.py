@@ -20,24 +20,29 @@ import pytest
 
 from singplan.kinematics import clearance, dynamics, stopping
 from singplan.kinematics.robot import load_robot
+from singplan.planning.orchestration import rows
 from singplan.planning.orchestration.planner import PlannedTask, plan_moves
 from singplan.results import build
 from singplan.results import plan as plan_module
+from singplan.results.build import MoveReports
 from singplan.task.load import parse_task
 from singplan.task.schema import Task
 
 START_DEG = [34.466047735, -69.193961827, 100.109975431, 68.691762951, -14.064499937, -11.872434380]
 ACROSS = {"xyz": [0.703837, -0.107362, 0.658022], "rpy_deg": [-121.329770, 35.631042, -129.525465]}
-# What the plan may hold beyond its record per move, at its peak [bytes]. Measured on this program
-# (313 samples a move): about 3.4 kB (what the final gate's messages need of each move, its samples'
-# path parameters); with the moves kept whole until the record was built, about 14 kB; at commit
-# 6c7c391 about 250 kB (each move's samples copied again, whole-trajectory temporaries, the refused
-# candidates' errors holding their frames until the cyclic collector ran).
-PER_MOVE_BYTES = 8_000
-# What the planned task keeps per move beyond its samples, the record's parts of the move included
-# (``MoveReports``: segments, events, crossing reports, ~5 kB) [bytes]: about 7.3 kB; with the moves
-# kept whole until the record was built (their deviations, zones, crossings), about 25 kB.
-KEPT_PER_MOVE_BYTES = 12_000
+# What the plan may hold beyond its record per move, at its peak [bytes], the blocks rows wait in
+# counted (here heap arrays: tracemalloc does not see memory maps). Measured on this program (313
+# samples a move): about 5.9 kB (each move's samples' path parameters, 2.5 kB, and what the final
+# gate's messages need of it, both kept until the gate has passed); with the moves kept whole until
+# the record was built, about 14 kB without the blocks; at commit 6c7c391 about 250 kB (each move's
+# samples copied again, whole-trajectory temporaries, the refused candidates' errors holding their
+# frames until the cyclic collector ran).
+PER_MOVE_BYTES = 9_000
+# What the planned task keeps per move beyond its samples and the record's per-sample series [bytes]:
+# about 11 kB (the record's parts of each move, ~5 kB: segments, events, crossing reports; the
+# samples' path parameters; what the gate's messages need). With the moves kept whole until the
+# record was built, about 25 kB, their deviation series (the record's series now) included.
+KEPT_PER_MOVE_BYTES = 15_000
 
 
 def _program(moves: int) -> Task:
@@ -54,7 +59,7 @@ def _program(moves: int) -> Task:
 
 class Measured(NamedTuple):
     over_record: int  # the traced peak of plan() once the moves are planned, over the record it returns [bytes]
-    kept: int  # what the planned task holds beyond its samples (PlannedTask.q) [bytes]
+    kept: int  # what the planned task holds beyond its samples (PlannedTask.q) and the record's series [bytes]
 
 
 def _measured(moves: int, monkeypatch: pytest.MonkeyPatch) -> Measured:
@@ -64,11 +69,16 @@ def _measured(moves: int, monkeypatch: pytest.MonkeyPatch) -> Measured:
 
     def planned_moves(*args: Any) -> PlannedTask:
         planned = plan_moves(*args)
-        kept.append(tracemalloc.get_traced_memory()[0] - base - planned.q.nbytes)
+        assert isinstance(planned.sink, MoveReports)
+        series = [planned.sink.position_m, planned.sink.orientation_rad, planned.sink.tcp_ratio, planned.sink.distances]
+        rows = sum(b[:n].nbytes for store in series for b, n in zip(store.blocks, store.filled, strict=True))
+        kept.append(tracemalloc.get_traced_memory()[0] - base - planned.q.nbytes - rows)
         tracemalloc.reset_peak()  # from here: the record built from the planned moves
         return planned
 
     monkeypatch.setattr(plan_module, "plan_moves", planned_moves)
+    # the blocks rows wait in as heap arrays, which tracemalloc sees (memory maps it does not)
+    monkeypatch.setattr(rows, "_block", np.empty)
     task = _program(moves)
     gc.collect()
     tracemalloc.start()
@@ -89,7 +99,7 @@ def small_chunks(monkeypatch: pytest.MonkeyPatch) -> None:
     """The whole-trajectory stages' chunks at a few hundred samples (results unchanged: they work sample by sample)."""
     for module, name, value in [(build, "_CHUNK", 256), (dynamics, "_DIFFERENCES_CHUNK", 256),
                                 (stopping, "_CHUNK_VALUES", 20_000), (stopping, "_CHUNK_ROWS", 256),
-                                (clearance, "BLOCK", 256)]:
+                                (clearance, "BLOCK", 256), (rows, "BLOCK_ROWS", 256)]:
         monkeypatch.setattr(module, name, value)
 
 

@@ -9,14 +9,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from singplan.planning.orchestration import rows
-from singplan.planning.orchestration.planner import plan_moves
+from singplan.planning.orchestration.planner import PlannedMove, TimedMove, plan_moves
 from singplan.planning.orchestration.rows import RowStore
 from singplan.results.build import MoveReports
 from singplan.results.plan import plan, trajectory_of
 from singplan.results.trajectory import Trajectory
-from singplan.task.load import load_task
+from singplan.task.load import load_task, parse_task
 
 ROOT = Path(__file__).resolve().parents[1]
 # no fly-by (each move handed over as it is planned): LIN, CIRC, PTP; wrist crossings with auto;
@@ -71,3 +72,36 @@ def test_rows_kept_in_blocks_come_back_in_order_bit_for_bit(monkeypatch: pytest.
     gc.collect()
     assert block() is None  # the stitched rows are a copy: the blocks are given back
     assert RowStore().stitched().shape == (0,)
+
+
+def test_every_reported_time_is_a_sample_time_whatever_the_period() -> None:
+    """A period whose decimal form is too long for exact times over the whole trajectory: its times
+    are the plain products, and so are those of the moves whose own samples alone had exact ones."""
+    mapping = yaml.safe_load((ROOT / "examples" / "kuka_long_program.yaml").read_text())
+    mapping.setdefault("output", {})["period"] = 0.006000000000123
+    task = parse_task(mapping)
+    traj = plan(task)
+    _same(traj, trajectory_of(plan_moves(task)))
+    times = [*(t for s in traj.segments for t in (s.t0, s.t1)), *(e.t for e in traj.events),
+             *(t for c in traj.metrics.crossings for t in (c.t0, c.t1))]
+    assert times and all(t == traj.t[round(t / traj.period)] for t in times)
+
+
+def test_a_record_built_twice_from_moves_handed_over_is_the_same() -> None:
+    planned = plan_moves(load_task(ROOT / "examples" / "kuka_program.yaml"), None, None, MoveReports)
+    _same(trajectory_of(planned), trajectory_of(planned))
+
+
+class _Counting:
+    def __init__(self, *_: object) -> None:
+        self.moves = 0
+
+    def take(self, pm: PlannedMove, tm: TimedMove, nxt: PlannedMove | None, blend: object) -> None:
+        self.moves += 1
+
+
+def test_moves_handed_to_another_sink_give_no_trajectory_here() -> None:
+    planned = plan_moves(load_task(ROOT / "examples" / "kuka_program.yaml"), None, None, _Counting)
+    assert isinstance(planned.sink, _Counting) and planned.sink.moves == 3
+    with pytest.raises(TypeError, match="_Counting"):
+        trajectory_of(planned)

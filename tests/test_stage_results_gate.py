@@ -66,3 +66,10 @@ def test_the_worst_turn_outside_the_crossings_is_named_and_a_crossing_may_turn(
 
 def _with_turns(traj: Trajectory, ori: np.ndarray) -> Trajectory:
     return replace(traj, samples={**traj.samples, "orientation_error_rad": ori.copy()})
+
+
+def test_a_sample_that_is_not_a_number_is_refused_by_name_not_by_a_crash() -> None:
+    planned = plan_moves(load_task(ROOT / "examples" / "kuka_program.yaml"))
+    planned.q[100, 2] = np.nan  # the stopping distances skip it; the gate names it
+    with pytest.raises(JointLimitError, match=r"move 0 \(lin\): sample 100 .* puts joint_3 at nan deg"):
+        trajectory_of(planned)

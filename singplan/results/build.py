@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from decimal import Decimal
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
@@ -58,13 +59,22 @@ def sample_times(count: int, period_s: float, start: int = 0) -> np.ndarray:
     The period is m / 10**d with integers m, d; (k * m) is exact while below 2**53 and one
     correctly rounded division by the exact 10**d gives the nearest float to the decimal.
     """
+    k = np.arange(start, start + count, dtype=float)
+    decimal = _decimal_form(period_s, start + count - 1)
+    if decimal is None:  # no exact form: the plain product
+        return k * period_s
+    m, d = decimal
+    return k * m / 10.0**d
+
+
+def _decimal_form(period_s: float, last: int) -> tuple[int, int] | None:
+    """(m, d) with period = m / 10**d where k * m is exact for every sample k up to ``last``; None where not."""
     sign, digits, exponent = Decimal(repr(period_s)).as_tuple()
     m = int("".join(map(str, digits)))
     d = -int(exponent)
-    k = np.arange(start, start + count, dtype=float)
-    if sign or not 0 <= d <= 22 or m * max(start + count - 1, 0) >= 2**53:  # no exact form: the plain product
-        return k * period_s
-    return k * m / 10.0**d
+    if sign or not 0 <= d <= 22 or m * max(last, 0) >= 2**53:
+        return None
+    return m, d
 
 
 def sample_time(k: int, period_s: float) -> float:
@@ -95,7 +105,9 @@ class MoveReports:
         self.orientation_rad = RowStore()  # (K,) orientation deviation [rad]
         self.tcp_ratio = RowStore()  # (K,) the TCP speed over the programmed one of the step arriving at each sample
         self.distances = RowStore((3,))  # (K, 3) signed singular distances: the samples' labels
+        self.last_distances = np.zeros((0, 3))  # (0 or 1, 3) the last move's last row: the next move's first
         self.samples = 0  # samples taken so far
+        self._series: _Series | None = None
 
     def take(self, pm: PlannedMove, tm: TimedMove, nxt: PlannedMove | None, blend: Blend | None) -> None:
         """Move ``pm``'s record parts, from its samples ``tm`` (see :class:`MoveSink`)."""
@@ -105,14 +117,19 @@ class MoveReports:
         self.worst_position_m = max(self.worst_position_m, float(pos_err.max(initial=0.0)))
         self.worst_orientation_rad = max(self.worst_orientation_rad, float(ori_err.max(initial=0.0)))
         self.worst_tcp_ratio = max(self.worst_tcp_ratio, float(tcp.max(initial=0.0)))
-        distances = distances_batch(self.robot, tm.q)  # (last + 1, 3): the labels of the chain that was planned
+        # (last + 1, 3): the labels of the chain that was planned; the boundary sample's row is the
+        # predecessor's (its last sample, which the stitched samples keep; this move's own first
+        # differs from it by round-off)
+        own = distances_batch(self.robot, tm.q[1:] if self.samples else tm.q)
+        distances = np.concatenate([self.last_distances, own])
+        self.last_distances = distances[-1:]
         if not self.samples:  # the trajectory's first sample: no step arrives at it, its deviations count 0
             for series in (self.position_m, self.orientation_rad, self.tcp_ratio):
                 series.kept(np.zeros(1))
         self.position_m.kept(pos_err[1:])  # the boundary sample is the predecessor's
         self.orientation_rad.kept(ori_err[1:])
         self.tcp_ratio.kept(tcp)
-        self.distances.kept(distances[1:] if self.samples else distances)
+        self.distances.kept(own)
         t = sample_times(last + 1, self.period_s, k0)
         labels = _Labels(distances)
         spans = _own_spans(pm, tm, last)  # once for the move's segments and its zone events
@@ -124,13 +141,29 @@ class MoveReports:
                               for s in segs if isinstance(s.details, CrossingFigures))
         self.samples = k0 + last + 1
 
+    def series(self) -> _Series:
+        """The samples' series, stitched once (every move taken)."""
+        if self._series is None:
+            self._series = _Series(self.position_m.stitched(), self.orientation_rad.stitched(),
+                                   self.tcp_ratio.stitched(), self.distances.stitched())
+        return self._series
+
+
+class _Series(NamedTuple):
+    """Every sample's figures (K,) / (K, 3), made as the moves were taken."""
+
+    position_m: np.ndarray  # (K,) position deviation [m]
+    orientation_rad: np.ndarray  # (K,) orientation deviation [rad]
+    tcp_ratio: np.ndarray  # (K,) the TCP speed over the programmed one of the step arriving at each sample
+    distances: np.ndarray  # (K, 3) signed singular distances
+
 
 def build_trajectory(robot: Robot, task: Task, method: str, reports: MoveReports, timed: Sequence[TimedMove],
                      q_planned: np.ndarray, planning_time_s: float, held: HeldJoint | None = None,
                      blends: tuple[Blend, ...] = (), collision: tuple[CollisionModel, Clearance] | None = None
                      ) -> Trajectory:
     """The trajectory of the planned moves of ``robot`` (``method``: the crossing method asked for),
-    each move's parts in ``reports`` (every move handed over; its series are taken out of it).
+    each move's parts in ``reports`` (every move handed over; its series stitched once).
 
     With ``held`` (``robot`` is then its 6R chain) the held joint comes back as a constant column,
     so samples, limits and torques are the 7-joint arm's. ``blends``: the corners that asked for
@@ -143,8 +176,10 @@ def build_trajectory(robot: Robot, task: Task, method: str, reports: MoveReports
     t = sample_times(len(q_planned), period)
     if reports.samples != len(t):
         raise AssertionError(f"the moves' reports cover {reports.samples} samples, the trajectory {len(t)}")
-    position_error, orientation_error = reports.position_m.stitched(), reports.orientation_rad.stitched()
-    tcp_ratio, distances = reports.tcp_ratio.stitched(), reports.distances.stitched()
+    position_error, orientation_error, tcp_ratio, distances = reports.series()
+    segments, events, crossings = reports.segments, reports.events, reports.crossings
+    if _decimal_form(period, len(t) - 1) is None:  # the trajectory's times are the plain products ...
+        segments, events, crossings = _on_times(t, period, segments, events, crossings)
     arm, q = (held.full, held.expand(q_planned)) if held is not None else (robot, q_planned)
     acceleration_rad_s2 = task.limits.joint_accelerations(arm.n_joints)  # (n,) the task's, every joint of the arm
     speed, accel = _chunked_ratios(q, period, arm.velocity_rad_s * task.joint_speed_scale(), acceleration_rad_s2)
@@ -152,7 +187,7 @@ def build_trajectory(robot: Robot, task: Task, method: str, reports: MoveReports
     stopping_m = stopping_distances(arm, q, qd, acceleration_rad_s2)
     stop_mm, stop_at_s = worst_stopping(stopping_m, t)
     metrics = Metrics(reports.worst_position_m * 1e3, math.degrees(reports.worst_orientation_rad), speed, accel,
-                      float(t[-1]), planning_time_s, len(t), method, tuple(reports.crossings),
+                      float(t[-1]), planning_time_s, len(t), method, tuple(crossings),
                       _torque_metrics(arm, task, q, t), stop_mm, stop_at_s, _jerk_metrics(arm, task, q, timed),
                       _blend_reports(blends),
                       _clearance_figures(*collision, period) if collision is not None else None,
@@ -164,8 +199,19 @@ def build_trajectory(robot: Robot, task: Task, method: str, reports: MoveReports
         samples["distances"] = distances
     least = collision[1].least if collision is not None and collision[0].active else None
     return Trajectory(arm.name, str(arm.urdf_path), arm.tip, tool, task, arm.joint_names,
-                      period, t, q, qd, qdd, tuple(reports.segments), tuple(reports.events), metrics, samples,
-                      _move_records(arm, task, reports.segments, q, period, least))
+                      period, t, q, qd, qdd, tuple(segments), tuple(events), metrics, samples,
+                      _move_records(arm, task, segments, q, period, least))
+
+
+def _on_times(t: np.ndarray, period: float, segments: list[Segment], events: list[Event],
+              crossings: list[CrossingReport]) -> tuple[list[Segment], list[Event], list[CrossingReport]]:
+    """... where a move's own samples may have had exact decimal times (their last index was small
+    enough, :func:`sample_times`): every report's times made the trajectory's samples' ``t`` (K,)."""
+    def at(time_s: float) -> float:
+        return float(t[round(time_s / period)])
+
+    return ([replace(s, t0=at(s.t0), t1=at(s.t1)) for s in segments], [replace(e, t=at(e.t)) for e in events],
+            [replace(c, t0=at(c.t0), t1=at(c.t1)) for c in crossings])
 
 
 def _move_records(robot: Robot, task: Task, segments: list[Segment], q: np.ndarray, period: float,

@@ -11,7 +11,7 @@ from __future__ import annotations
 import itertools
 import math
 from pathlib import Path
-from typing import NamedTuple
+from typing import NamedTuple, NoReturn
 
 import numpy as np
 
@@ -31,6 +31,8 @@ from singplan.planning.timing.records import TimedMove
 from singplan.results.build import MoveReports, build_trajectory
 from singplan.results.trajectory import Trajectory
 from singplan.task.schema import Task
+
+_CHUNK = 65_536  # samples whose joint limits the final gate compares at once
 
 
 def plan(task: Task | str | Path, method: str | CrossingMethod | None = None,
@@ -73,16 +75,18 @@ def _record_of(handover: list[PlannedTask]) -> Trajectory:
     move freed once its parts are (where nothing else holds it), so that a long program's peak
     memory is its record's, not the record's and every planned move's."""
     planned = handover.pop()
-    moves, timed = list(planned.moves), list(planned.timed)
-    reports = planned.sink
-    if not isinstance(reports, MoveReports):
-        reports = MoveReports(planned.robot, planned.task)
-        hand_over(reports, moves, timed, planned.blends)
+    if planned.sink is not None and not isinstance(planned.sink, MoveReports):
+        raise TypeError(f"the moves went to a {type(planned.sink).__name__}, which keeps their record's parts: "
+                        f"only a MoveReports sink (or none) gives a trajectory")
+    moves, timed, reports = list(planned.moves), list(planned.timed), planned.sink
     collision = _clearance(planned)
     robot, full, task, method, q, planning_s, held, blends = (planned.robot, planned.full, planned.task,
                                                               planned.method, planned.q, planned.planning_s,
                                                               planned.held, planned.blends)
     del planned  # the moves are the lists' alone now
+    if reports is None:
+        reports = MoveReports(robot, task)
+        hand_over(reports, moves, timed, blends)
     traj = build_trajectory(robot, task, method, reports, timed, q, planning_s, held, blends, collision)
     _check_metrics(full, task, moves, timed, traj)
     return traj
@@ -143,7 +147,7 @@ def _check_positions(robot: Robot, planned: list[PlannedMove], timed: list[Timed
 
 
 def _refuse_position(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], traj: Trajectory,
-                     k: int, j: int) -> None:
+                     k: int, j: int) -> NoReturn:
     m, k_move = _move_of_sample(timed, k)
     pm = planned[m]
     raise JointLimitError(
@@ -254,9 +258,6 @@ def _check_crossings_near(robot: Robot, traj: Trajectory) -> None:
 
 def _distance_text(kind: str, value: float) -> str:
     return f"{value * 1e3:.1f} mm" if kind == "shoulder" else f"{math.degrees(value):.2f} deg"
-
-
-_CHUNK = 65_536  # samples whose joint limits are compared at once
 
 
 def _move_of_sample(timed: list[TimedMove], k: int) -> tuple[int, int]:

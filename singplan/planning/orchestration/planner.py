@@ -13,7 +13,7 @@ validators are :mod:`.checks`', the IK of targets :mod:`.targets`', fly-by corne
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Protocol
@@ -150,8 +150,7 @@ def plan_moves(task: Task | str | Path, method: str | CrossingMethod | None = No
                        arm.collision, tuple(blends.values()), sink)
 
 
-def hand_over(sink: MoveSink, planned: list[PlannedMove], timed: list[TimedMove] | tuple[TimedMove, ...],
-              blends: Iterable[Blend]) -> None:
+def hand_over(sink: MoveSink, planned: list[PlannedMove], timed: Sequence[TimedMove], blends: Iterable[Blend]) -> None:
     """Each move handed to ``sink`` in order, with the move after it and its flown corner (``blends``:
     every corner that asked for one); ``planned`` is consumed: each move is replaced by what the final
     gate's messages need of it (:meth:`PlannedMove.for_messages`) once taken, freeing the rest."""

@@ -49,6 +49,6 @@ class RowStore:
 
 
 def _block(shape: tuple[int, ...]) -> np.ndarray:
-    """An uninitialised float array of ``shape`` in an anonymous memory map of its own (unmapped when the
-    array and every view of it are freed)."""
+    """A float array of ``shape`` in an anonymous memory map of its own (zero-filled by the system, its pages
+    taken only when written; unmapped when the array and every view of it are freed)."""
     return np.frombuffer(mmap.mmap(-1, max(math.prod(shape), 1) * 8), dtype=float)[:math.prod(shape)].reshape(shape)

@@ -94,9 +94,9 @@ def stopping_distances(robot: Robot, q: np.ndarray, qd: np.ndarray, acceleration
     acc = np.broadcast_to(np.asarray(acceleration_rad_s2, dtype=float), (n,))
     out = np.zeros(len(q))
     for c in range(0, len(q), _CHUNK_ROWS):  # (brake_steps' temporaries take ~200 bytes a sample)
-        rows = qd[c:c + _CHUNK_ROWS]
+        speeds = qd[c:c + _CHUNK_ROWS]
         # a sample that is not a number keeps 0 (the final gate names it)
-        moving = c + np.flatnonzero(np.any(rows != 0.0, axis=1) & np.all(np.isfinite(rows), axis=1))
+        moving = c + np.flatnonzero(np.any(speeds != 0.0, axis=1) & np.all(np.isfinite(speeds), axis=1))
         steps = brake_steps(qd[moving], acc)  # Jacobians of each moving sample's braking
         for m in np.flatnonzero(np.bincount(steps)).tolist():
             group = moving[steps == m]

@@ -19,7 +19,7 @@ from singplan.cli import main
 from singplan.errors import TaskError
 from singplan.kinematics.robot import load_robot
 from singplan.planning.orchestration import planner as planner_module
-from singplan.planning.orchestration.blending import RAMPS, Ramp, ramps
+from singplan.planning.orchestration.blending import RAMPS, CrossingMemo, Ramp, corners, ramps, side_of
 from singplan.planning.orchestration.chain import chain_map
 from singplan.planning.orchestration.planner import plan_moves
 from singplan.results.metrics import BlendFigures
@@ -356,3 +356,24 @@ def test_both_ramps_are_tried_and_the_faster_program_kept(monkeypatch: pytest.Mo
     assert traj.duration_s == min(alone.values())
     kept = {s.details.ramp for s in traj.segments if s.kind == "blend"}
     assert kept == {min(alone, key=lambda r: alone[r])}
+
+
+def test_the_corners_crossings_found_once_for_every_ramp_are_the_same() -> None:
+    """The crossings of each corner's sphere do not depend on the ramp shape: found for the first ramp
+    and reused for the next (``CrossingMemo``), every corner is what it is found afresh."""
+    planned = plan_moves(Path(__file__).resolve().parents[1] / "examples" / "flyby_pick_place.yaml")
+    robot = planned.robot
+    sides = [side_of(robot, pm.jmap, pm.piece is not None, pm.limits.tcp_speed_m_s) for pm in planned.moves]
+    at_rest = [planner_module._at_rest(pm) for pm in planned.moves]
+    requested = [m.blend_mm / 1e3 for m in planned.task.moves]
+    memo = CrossingMemo()
+    found = []
+    for ramp in RAMPS:
+        shared = corners(robot, sides, at_rest, requested, ramp, memo)
+        fresh = corners(robot, sides, at_rest, requested, ramp)
+        assert shared.keys() == fresh.keys() and any(b.jmap is not None for b in fresh.values())
+        for i, blend in fresh.items():
+            assert (shared[i].radius_m, shared[i].u_leave, shared[i].u_join, shared[i].note) == \
+                (blend.radius_m, blend.u_leave, blend.u_join, blend.note)
+        found.append(len(memo._found))
+    assert found[0] > 0 and found[-1] == found[0]  # the later ramps found every crossing in the memo

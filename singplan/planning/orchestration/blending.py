@@ -177,13 +177,29 @@ def crossing_parameter(robot: Robot, jmap: JointMap, corner_m: np.ndarray, radiu
     return lo if leaving else hi
 
 
+class CrossingMemo:
+    """Where each move's TCP crosses a corner's sphere, found once for every ramp shape tried: the
+    crossing depends on the joint map, the corner and the radius, not on the ramp."""
+
+    def __init__(self) -> None:
+        self._found: dict[tuple[int, bool, float, bytes], float] = {}
+
+    def parameter(self, robot: Robot, jmap: JointMap, corner_m: np.ndarray, radius_m: float, leaving: bool) -> float:
+        """:func:`crossing_parameter` (``jmap`` alive while the memo is: its id is the key)."""
+        key = (id(jmap), leaving, radius_m, corner_m.tobytes())
+        if key not in self._found:
+            self._found[key] = crossing_parameter(robot, jmap, corner_m, radius_m, leaving)
+        return self._found[key]
+
+
 def blend_corner(robot: Robot, move: int, requested_m: float, incoming: Side, outgoing: Side,
-                 u_floor: float, ramp: Ramp = "quartic") -> Blend:
+                 u_floor: float, ramp: Ramp = "quartic", memo: CrossingMemo | None = None) -> Blend:
     """The fly-by corner after ``move``, its radius reduced until it fits and holds.
 
     ``u_floor``: where the incoming move's own path begins (the end of the blend into it), so
-    two blends never overlap on one move.
+    two blends never overlap on one move. ``memo``: crossings found for another ramp shape.
     """
+    memo = memo if memo is not None else CrossingMemo()
     cap = min(incoming.cap_m, outgoing.cap_m)
     radius, note = requested_m, ""
     which = move if incoming.cap_m <= outgoing.cap_m else move + 1
@@ -206,8 +222,8 @@ def blend_corner(robot: Robot, move: int, requested_m: float, incoming: Side, ou
     for _ in range(_SHRINK_STEPS):
         if radius <= _LEAST_RADIUS_M:
             break
-        u_leave = crossing_parameter(robot, incoming.jmap, corner, radius, leaving=True)
-        u_join = crossing_parameter(robot, outgoing.jmap, corner, radius, leaving=False)
+        u_leave = memo.parameter(robot, incoming.jmap, corner, radius, leaving=True)
+        u_join = memo.parameter(robot, outgoing.jmap, corner, radius, leaving=False)
         failure = f"it overlaps the fly-by into move {move}" if u_leave <= u_floor + _OWN_PATH else None
         blend = None
         if failure is None:
@@ -280,7 +296,7 @@ def _violation(robot: Robot, q: np.ndarray, T: np.ndarray, T_corner: pin.SE3, ra
 
 
 def corners(robot: Robot, sides: list[Side], at_rest: list[str], requested_m: list[float],
-            ramp: Ramp = "quartic") -> dict[int, Blend]:
+            ramp: Ramp = "quartic", memo: CrossingMemo | None = None) -> dict[int, Blend]:
     """The fly-by corners of a task's moves, in order, each fitted between its neighbours.
 
     Per move: ``sides`` (:func:`side_of`), why it must start and end at rest in ``at_rest`` (""
@@ -298,7 +314,7 @@ def corners(robot: Robot, sides: list[Side], at_rest: list[str], requested_m: li
             out[i] = Blend(i, r, 0.0, f"not flown by: move {resting[0]} {at_rest[resting[0]]}")
             u_floor = 0.0
             continue
-        out[i] = blend_corner(robot, i, r, sides[i], sides[i + 1], u_floor, ramp)
+        out[i] = blend_corner(robot, i, r, sides[i], sides[i + 1], u_floor, ramp, memo)
         u_floor = out[i].u_join if out[i].jmap is not None else 0.0
     return out
 

@@ -30,7 +30,7 @@ from singplan.kinematics.robot import Robot
 from singplan.planning.crossing import registry
 from singplan.planning.crossing.base import CrossingMethod
 from singplan.planning.orchestration import collide
-from singplan.planning.orchestration.blending import RAMPS, Blend, corners, side_of, stopped
+from singplan.planning.orchestration.blending import RAMPS, Blend, CrossingMemo, corners, side_of, stopped
 from singplan.planning.orchestration.budget import check_task
 from singplan.planning.orchestration.chain import chain_limits, chain_map, chains, describe_chain_point, split, starved
 from singplan.planning.orchestration.checks import check_config, check_samples, screen
@@ -216,8 +216,9 @@ def _fly_by(robot: Robot, planned: list[PlannedMove], timed: list[TimedMove], re
     sides = [side_of(robot, pm.jmap, pm.piece is not None, pm.limits.tcp_speed_m_s) for pm in planned]
     at_rest = [_at_rest(pm) for pm in planned]
     best: tuple[float, list[TimedMove], dict[int, Blend]] | None = None
+    memo = CrossingMemo()  # where the moves cross each corner's sphere: the same for every ramp
     for ramp in RAMPS:
-        blends = corners(robot, sides, at_rest, requested_m, ramp)
+        blends = corners(robot, sides, at_rest, requested_m, ramp, memo)
         if not any(b.jmap is not None for b in blends.values()):
             return timed, blends  # nothing flown: the ramp makes no difference
         flown = _time_chains(planned, timed, blends, period_s, allowance, collision)

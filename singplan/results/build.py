@@ -15,6 +15,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from decimal import Decimal
+from functools import cache
 from typing import Any, Literal, NamedTuple
 
 import numpy as np
@@ -274,6 +275,14 @@ def _torque_metrics(robot: Robot, task: Task, q: np.ndarray, t: np.ndarray) -> T
                          dict(zip(robot.joint_names, limit_nm.tolist(), strict=True)))
 
 
+@cache
+def _label_table() -> list[str]:
+    """The label of each sign code (bit 0: wrist, 1: shoulder, 2: elbow positive; 8: no distance), made
+    once: every move's samples are labelled from it."""
+    rows = np.array([[bit & 1, bit & 2, bit & 4] for bit in range(8)] + [[np.nan] * 3], dtype=float) - 0.5
+    return labels_from_distances(rows)
+
+
 class _Labels:
     """Configuration labels of the samples, kept as one sign code per sample.
 
@@ -285,8 +294,7 @@ class _Labels:
         signs = positive_sides(distances)  # NaN counts as negative, as in labels_from_distances ...
         self.codes = (signs[:, 0] * 1 + signs[:, 1] * 2 + signs[:, 2] * 4).astype(np.int8)
         self.codes[np.isnan(distances).all(axis=1)] = 8  # ... but a row with no distance has no label
-        rows = np.array([[bit & 1, bit & 2, bit & 4] for bit in range(8)] + [[np.nan] * 3], dtype=float) - 0.5
-        self.table = labels_from_distances(rows)
+        self.table = _label_table()
 
     def __getitem__(self, k: int) -> str:
         return self.table[self.codes[k]]

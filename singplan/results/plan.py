@@ -212,9 +212,10 @@ def _check_outside_crossings(planned: list[PlannedMove], timed: list[TimedMove],
     ori = traj.samples.get("orientation_error_rad")
     if ori is None:
         return
-    over = np.concatenate([np.zeros(0, dtype=np.int64)] + [a + np.flatnonzero(~(ori[a:b] <= EXACT_ORIENTATION_TOL_RAD
-                                                                               * (1.0 + 1e-6)))
-                                                         for a, b in _kept_stretches(traj, len(ori))])
+    tol_rad = EXACT_ORIENTATION_TOL_RAD * (1.0 + 1e-6)
+    over = np.zeros(0, dtype=np.int64)  # the kept samples over it, in order (`not <=`: NaN too)
+    for a, b in _kept_stretches(traj, len(ori)):
+        over = np.concatenate([over, a + np.flatnonzero(~(ori[a:b] <= tol_rad))])
     if over.size:
         k = int(over[np.argmax(ori[over])])
         m, k_move = _move_of_sample(timed, k)
